@@ -1,0 +1,60 @@
+// NumPy .npz archives (a zip of .npy arrays) that `np.load` opens: the format for models and
+// rigs. Arrays are stored uncompressed, little-endian, C order. Reading accepts stored and
+// deflated members, float64/float32/int32/int64/uint8 arrays and unicode/bytes strings.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace bodymodel {
+
+// One array: shape plus data, either double or integer.
+struct NpyArray {
+  std::vector<int64_t> shape;
+  std::vector<double> f64;     // used when is_float
+  std::vector<int64_t> i64;    // used when !is_float (int32/int64/uint8 are widened)
+  bool is_float = true;
+  std::string text;            // for string arrays (dtype '<U' or '|S'): the one string
+
+  int64_t size() const;
+};
+
+class Npz {
+ public:
+  // Adders (C order: a matrix is stored row-major with shape [rows, cols]).
+  void put(const std::string& name, const Eigen::MatrixXd& m);
+  void put(const std::string& name, const Eigen::VectorXd& v);
+  void put(const std::string& name, const Eigen::MatrixXi& m);
+  void put(const std::string& name, const Eigen::VectorXi& v);
+  void put(const std::string& name, double scalar);
+  void put_text(const std::string& name, const std::string& text);   // numpy '<U' scalar
+
+  // Accessors; throw InputError naming the file and the key if missing or of the wrong shape.
+  bool has(const std::string& name) const;
+  Eigen::MatrixXd matrix(const std::string& name) const;   // 2-D (1-D becomes a column)
+  Eigen::VectorXd vector(const std::string& name) const;   // any shape, flattened
+  Eigen::MatrixXi int_matrix(const std::string& name) const;
+  Eigen::VectorXi int_vector(const std::string& name) const;
+  double scalar(const std::string& name) const;
+  std::string text(const std::string& name) const;
+  std::vector<std::string> keys() const;
+
+  const std::map<std::string, NpyArray>& arrays() const { return arrays_; }
+
+  // Files (atomic write; strict read with errors naming the file and member).
+  void save(const std::filesystem::path& path) const;
+  static Npz load(const std::filesystem::path& path);
+  // In-memory (for tests and fuzzing).
+  std::string serialize() const;
+  static Npz parse(const std::string& bytes, const std::string& what = "npz");
+
+ private:
+  std::map<std::string, NpyArray> arrays_;
+  std::string source_ = "npz";
+};
+
+}  // namespace bodymodel

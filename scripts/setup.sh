@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Installs what bodymodel needs from Debian packages (idempotent: apt-get runs only when
+# something is missing), then configures and builds the project in ./build (Release).
+# Usage: scripts/setup.sh [--no-build]
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+
+packages=(
+  g++ cmake ninja-build ccache pkg-config
+  libeigen3-dev libspectra-dev libopenmesh-dev libcgal-dev libgmp-dev libmpfr-dev
+  libceres-dev libnanoflann-dev libsuitesparse-dev libtbb-dev
+  libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libtinygltf-dev libstb-dev libsvm-dev zlib1g-dev
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "setup: installing ${#missing[@]} missing package(s): ${missing[*]}"
+  sudo_cmd=""; [ "$(id -u)" -ne 0 ] && sudo_cmd="sudo"
+  $sudo_cmd apt-get update -q
+  DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -q --no-install-recommends "${missing[@]}"
+fi
+
+[ "${1:-}" = "--no-build" ] && exit 0
+
+build="${BODYMODEL_BUILD:-$here/build}"
+jobs="${BODYMODEL_JOBS:-2}"
+if [ ! -f "$build/build.ninja" ]; then
+  cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
+fi
+cmake --build "$build" -j "$jobs"

@@ -1,0 +1,38 @@
+// bodymodel: one command line, one verb per job. Verbs register themselves (tools/verb.h).
+#include <cstdio>
+#include <exception>
+
+#include "core/error.h"
+#include "core/progress.h"
+#include "tools/verb.h"
+
+namespace bodymodel::cli {
+std::vector<VerbAdder>& verb_adders() {
+  static std::vector<VerbAdder> adders;
+  return adders;
+}
+}  // namespace bodymodel::cli
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "bodymodel: a statistical model of human bodies from 3D scans, and animated characters.\n"
+      "Data is read from $BODYMODEL_DATA (default ../shared/data beside the repository)."};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "bodymodel 0.1");
+  for (auto& add : bodymodel::cli::verb_adders()) add(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const bodymodel::InputError& e) {
+    std::fprintf(stderr, "bodymodel: error: %s\n", e.what());
+    return 2;
+  } catch (const bodymodel::Cancelled&) {
+    std::fprintf(stderr, "bodymodel: cancelled\n");
+    return 130;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bodymodel: error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

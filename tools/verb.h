@@ -1,0 +1,31 @@
+// The `bodymodel` command line: each verb lives in tools/verbs/<stage>_*.cc and registers
+// itself with BODYMODEL_VERB, so adding a verb never edits main.cc.
+//
+//   BODYMODEL_VERB(add_encode_verb) {           // receives CLI::App& app
+//     auto* cmd = app.add_subcommand("encode", "Encode meshes ...");
+//     auto opts = std::make_shared<Options>();
+//     cmd->add_option(...);
+//     cmd->callback([opts] { ... });            // throw bodymodel::InputError for bad input
+//   }
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace bodymodel::cli {
+
+using VerbAdder = std::function<void(CLI::App&)>;
+std::vector<VerbAdder>& verb_adders();
+
+struct VerbRegistrar {
+  explicit VerbRegistrar(VerbAdder adder) { verb_adders().push_back(std::move(adder)); }
+};
+
+}  // namespace bodymodel::cli
+
+#define BODYMODEL_VERB(fn)                                                       \
+  static void fn(CLI::App& app);                                                 \
+  static const ::bodymodel::cli::VerbRegistrar fn##_registrar{&fn};              \
+  static void fn(CLI::App& app)
