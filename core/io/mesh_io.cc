@@ -1,0 +1,482 @@
+#include "core/io/mesh_io.h"
+
+#include <charconv>
+#include <cstring>
+#include <sstream>
+#include <unordered_map>
+
+#include "core/error.h"
+#include "core/io/atomic_write.h"
+
+namespace bodymodel {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string lower_ext(const fs::path& p) {
+  std::string e = p.extension().string();
+  for (auto& c : e) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return e;
+}
+
+std::string where(const fs::path& path, size_t line) {
+  return "'" + path.string() + "' line " + std::to_string(line);
+}
+
+// Splits [b, e) on blanks.
+void split(const char* b, const char* e, std::vector<std::string_view>& out) {
+  out.clear();
+  while (b < e) {
+    while (b < e && (*b == ' ' || *b == '\t' || *b == '\r')) ++b;
+    const char* s = b;
+    while (b < e && *b != ' ' && *b != '\t' && *b != '\r') ++b;
+    if (b > s) out.emplace_back(s, b - s);
+  }
+}
+
+bool parse_double(std::string_view s, double& v) {
+  auto r = std::from_chars(s.data(), s.data() + s.size(), v);
+  return r.ec == std::errc() && r.ptr == s.data() + s.size();
+}
+bool parse_int(std::string_view s, long& v) {
+  auto r = std::from_chars(s.data(), s.data() + s.size(), v);
+  return r.ec == std::errc() && r.ptr == s.data() + s.size();
+}
+
+}  // namespace
+
+ObjContents read_obj_contents(const fs::path& path) {
+  const std::string text = read_text_file(path);
+  ObjContents obj;
+  std::vector<double> coords;
+  std::vector<size_t> polygon_line;
+  std::unordered_map<std::string, int> group_index;
+  int current_group = -1;
+  std::vector<std::string_view> tok;
+  size_t line_no = 0;
+  const char* p = text.data();
+  const char* end = p + text.size();
+  while (p < end) {
+    const char* eol = static_cast<const char*>(std::memchr(p, '\n', end - p));
+    if (!eol) eol = end;
+    ++line_no;
+    split(p, eol, tok);
+    p = eol + 1;
+    if (tok.empty() || tok[0][0] == '#') continue;
+    if (tok[0] == "v") {
+      if (tok.size() < 4)
+        throw InputError(where(path, line_no) + ": a vertex needs 3 coordinates, found " +
+                         std::to_string(tok.size() - 1) + " (file truncated?)");
+      for (int k = 1; k <= 3; ++k) {
+        double v;
+        if (!parse_double(tok[k], v))
+          throw InputError(where(path, line_no) + ": '" + std::string(tok[k]) +
+                           "' is not a number");
+        coords.push_back(v);
+      }
+    } else if (tok[0] == "f") {
+      if (tok.size() < 4)
+        throw InputError(where(path, line_no) + ": a face needs at least 3 vertices, found " +
+                         std::to_string(tok.size() - 1) + " (file truncated?)");
+      std::vector<int> poly;
+      poly.reserve(tok.size() - 1);
+      long nv = static_cast<long>(coords.size() / 3);
+      for (size_t k = 1; k < tok.size(); ++k) {
+        std::string_view t = tok[k].substr(0, tok[k].find('/'));
+        long idx;
+        if (!parse_int(t, idx) || idx == 0)
+          throw InputError(where(path, line_no) + ": '" + std::string(tok[k]) +
+                           "' is not a vertex reference");
+        long zero_based = idx > 0 ? idx - 1 : nv + idx;
+        if (zero_based < 0)
+          throw InputError(where(path, line_no) + ": relative vertex index " +
+                           std::to_string(idx) + " points before the first vertex");
+        poly.push_back(static_cast<int>(zero_based));
+      }
+      if (current_group < 0) {
+        group_index[""] = 0;
+        obj.group_names.push_back("");
+        current_group = 0;
+      }
+      obj.polygons.push_back(std::move(poly));
+      obj.polygon_group.push_back(current_group);
+      polygon_line.push_back(line_no);
+    } else if (tok[0] == "g") {
+      std::string name = tok.size() > 1 ? std::string(tok[1]) : std::string();
+      auto [it, inserted] = group_index.emplace(name, static_cast<int>(obj.group_names.size()));
+      if (inserted) obj.group_names.push_back(name);
+      current_group = it->second;
+    }
+    // vt, vn, s, o, usemtl, mtllib, l ...: not needed, ignored.
+  }
+  const long nv = static_cast<long>(coords.size() / 3);
+  if (nv == 0) throw InputError("'" + path.string() + "': no vertices (empty or not an OBJ file)");
+  obj.V = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(coords.data(), nv, 3);
+  for (size_t f = 0; f < obj.polygons.size(); ++f)
+    for (int v : obj.polygons[f])
+      if (v >= nv)
+        throw InputError(where(path, polygon_line[f]) + ": face refers to vertex " +
+                         std::to_string(v + 1) + " but the file has only " + std::to_string(nv) +
+                         " vertices (file truncated?)");
+  return obj;
+}
+
+Eigen::MatrixX3i triangulate(const std::vector<std::vector<int>>& polygons) {
+  size_t n = 0;
+  for (auto& p : polygons) n += p.size() - 2;
+  Eigen::MatrixX3i F(n, 3);
+  size_t r = 0;
+  for (auto& p : polygons)
+    for (size_t k = 1; k + 1 < p.size(); ++k) F.row(r++) << p[0], p[k], p[k + 1];
+  return F;
+}
+
+// ---- PLY ---------------------------------------------------------------------------------------
+
+namespace {
+
+enum class PlyType { I8, U8, I16, U16, I32, U32, F32, F64 };
+
+PlyType ply_type(std::string_view s, const fs::path& path) {
+  static const std::unordered_map<std::string_view, PlyType> types = {
+      {"char", PlyType::I8},    {"int8", PlyType::I8},     {"uchar", PlyType::U8},
+      {"uint8", PlyType::U8},   {"short", PlyType::I16},   {"int16", PlyType::I16},
+      {"ushort", PlyType::U16}, {"uint16", PlyType::U16},  {"int", PlyType::I32},
+      {"int32", PlyType::I32},  {"uint", PlyType::U32},    {"uint32", PlyType::U32},
+      {"float", PlyType::F32},  {"float32", PlyType::F32}, {"double", PlyType::F64},
+      {"float64", PlyType::F64}};
+  auto it = types.find(s);
+  if (it == types.end())
+    throw InputError("'" + path.string() + "': unknown PLY property type '" + std::string(s) + "'");
+  return it->second;
+}
+
+size_t type_size(PlyType t) {
+  switch (t) {
+    case PlyType::I8: case PlyType::U8: return 1;
+    case PlyType::I16: case PlyType::U16: return 2;
+    case PlyType::I32: case PlyType::U32: case PlyType::F32: return 4;
+    case PlyType::F64: return 8;
+  }
+  return 0;
+}
+
+struct PlyProperty {
+  std::string name;
+  PlyType type;
+  bool is_list = false;
+  PlyType count_type = PlyType::U8;
+};
+struct PlyElement {
+  std::string name;
+  size_t count = 0;
+  std::vector<PlyProperty> props;
+};
+
+// Reads scalar values from the body, ASCII or binary (with byte swapping for big-endian).
+class PlyBody {
+ public:
+  PlyBody(const std::string& data, size_t pos, int format, const fs::path& path)
+      : d_(data), pos_(pos), format_(format), path_(path) {}
+
+  double read(PlyType t) {
+    if (format_ == 0) return read_ascii();
+    size_t n = type_size(t);
+    if (pos_ + n > d_.size())
+      throw InputError("'" + path_.string() + "': binary PLY body ends early (file truncated?)");
+    unsigned char b[8];
+    std::memcpy(b, d_.data() + pos_, n);
+    pos_ += n;
+    if (format_ == 2) std::reverse(b, b + n);
+    switch (t) {
+      case PlyType::I8: { int8_t v; std::memcpy(&v, b, 1); return v; }
+      case PlyType::U8: { uint8_t v; std::memcpy(&v, b, 1); return v; }
+      case PlyType::I16: { int16_t v; std::memcpy(&v, b, 2); return v; }
+      case PlyType::U16: { uint16_t v; std::memcpy(&v, b, 2); return v; }
+      case PlyType::I32: { int32_t v; std::memcpy(&v, b, 4); return v; }
+      case PlyType::U32: { uint32_t v; std::memcpy(&v, b, 4); return v; }
+      case PlyType::F32: { float v; std::memcpy(&v, b, 4); return v; }
+      case PlyType::F64: { double v; std::memcpy(&v, b, 8); return v; }
+    }
+    return 0;
+  }
+
+ private:
+  double read_ascii() {
+    while (pos_ < d_.size() && std::isspace(static_cast<unsigned char>(d_[pos_]))) ++pos_;
+    size_t s = pos_;
+    while (pos_ < d_.size() && !std::isspace(static_cast<unsigned char>(d_[pos_]))) ++pos_;
+    if (s == pos_)
+      throw InputError("'" + path_.string() + "': ASCII PLY body ends early (file truncated?)");
+    double v;
+    std::string_view tok(d_.data() + s, pos_ - s);
+    if (!parse_double(tok, v))
+      throw InputError("'" + path_.string() + "': '" + std::string(tok) + "' is not a number");
+    return v;
+  }
+
+  const std::string& d_;
+  size_t pos_;
+  int format_;  // 0 ascii, 1 binary LE, 2 binary BE
+  const fs::path& path_;
+};
+
+struct PlyContents {
+  Eigen::MatrixX3d V, N;
+  std::vector<std::vector<int>> faces;
+};
+
+PlyContents read_ply(const fs::path& path) {
+  const std::string data = read_text_file(path);
+  if (data.compare(0, 3, "ply") != 0)
+    throw InputError("'" + path.string() + "': not a PLY file (no 'ply' magic)");
+  size_t header_end = data.find("end_header");
+  if (header_end == std::string::npos)
+    throw InputError("'" + path.string() + "': PLY header has no end_header");
+  size_t body = data.find('\n', header_end);
+  body = body == std::string::npos ? data.size() : body + 1;
+  std::istringstream header(data.substr(0, header_end));
+  std::string line;
+  int format = -1;
+  std::vector<PlyElement> elements;
+  size_t line_no = 0;
+  while (std::getline(header, line)) {
+    ++line_no;
+    std::istringstream ls(line);
+    std::string kw;
+    ls >> kw;
+    if (kw == "format") {
+      std::string f;
+      ls >> f;
+      format = f == "ascii" ? 0 : f == "binary_little_endian" ? 1 : f == "binary_big_endian" ? 2 : -1;
+      if (format < 0) throw InputError(where(path, line_no) + ": unknown PLY format '" + f + "'");
+    } else if (kw == "element") {
+      PlyElement e;
+      long long count = -1;
+      ls >> e.name >> count;
+      if (count < 0 || count > (1LL << 31))
+        throw InputError(where(path, line_no) + ": bad element count");
+      e.count = static_cast<size_t>(count);
+      elements.push_back(e);
+    } else if (kw == "property") {
+      if (elements.empty())
+        throw InputError(where(path, line_no) + ": property before any element");
+      PlyProperty p;
+      std::string t;
+      ls >> t;
+      if (t == "list") {
+        std::string ct, it;
+        ls >> ct >> it >> p.name;
+        p.is_list = true;
+        p.count_type = ply_type(ct, path);
+        p.type = ply_type(it, path);
+      } else {
+        p.type = ply_type(t, path);
+        ls >> p.name;
+      }
+      elements.back().props.push_back(p);
+    }
+  }
+  if (format < 0) throw InputError("'" + path.string() + "': PLY header has no format line");
+  // A cheap sanity bound so a corrupt count cannot make us allocate absurd memory.
+  for (auto& e : elements) {
+    size_t min_bytes = 0;
+    for (auto& p : e.props) min_bytes += p.is_list ? type_size(p.count_type) : type_size(p.type);
+    if (format != 0 && e.count * min_bytes > data.size() - body + 0)
+      throw InputError("'" + path.string() + "': element '" + e.name + "' claims " +
+                       std::to_string(e.count) + " entries but the file is too short (truncated?)");
+    if (format == 0 && e.count > data.size())
+      throw InputError("'" + path.string() + "': element '" + e.name + "' count exceeds file size");
+  }
+  PlyBody reader(data, body, format, path);
+  PlyContents out;
+  for (auto& e : elements) {
+    if (e.name == "vertex") {
+      int ix[6] = {-1, -1, -1, -1, -1, -1};
+      const char* names[6] = {"x", "y", "z", "nx", "ny", "nz"};
+      for (size_t k = 0; k < e.props.size(); ++k)
+        for (int j = 0; j < 6; ++j)
+          if (e.props[k].name == names[j] && !e.props[k].is_list) ix[j] = static_cast<int>(k);
+      if (ix[0] < 0 || ix[1] < 0 || ix[2] < 0)
+        throw InputError("'" + path.string() + "': PLY vertex element has no x, y, z properties");
+      bool normals = ix[3] >= 0 && ix[4] >= 0 && ix[5] >= 0;
+      out.V.resize(e.count, 3);
+      if (normals) out.N.resize(e.count, 3);
+      std::vector<double> vals(e.props.size());
+      for (size_t i = 0; i < e.count; ++i) {
+        for (size_t k = 0; k < e.props.size(); ++k) {
+          if (e.props[k].is_list) {
+            size_t n = static_cast<size_t>(reader.read(e.props[k].count_type));
+            for (size_t j = 0; j < n; ++j) reader.read(e.props[k].type);
+          } else {
+            vals[k] = reader.read(e.props[k].type);
+          }
+        }
+        for (int j = 0; j < 3; ++j) out.V(i, j) = vals[ix[j]];
+        if (normals)
+          for (int j = 0; j < 3; ++j) out.N(i, j) = vals[ix[3 + j]];
+      }
+    } else {
+      const bool is_face = e.name == "face";
+      for (size_t i = 0; i < e.count; ++i) {
+        for (auto& p : e.props) {
+          if (p.is_list) {
+            double nd = reader.read(p.count_type);
+            if (nd < 0 || nd > 1000)
+              throw InputError("'" + path.string() + "': " + e.name + " " + std::to_string(i) +
+                               " has an implausible list length " + std::to_string(nd));
+            size_t n = static_cast<size_t>(nd);
+            std::vector<int> poly(n);
+            for (size_t j = 0; j < n; ++j) {
+              double v = reader.read(p.type);
+              if (is_face && (v < 0 || v >= static_cast<double>(out.V.rows())))
+                throw InputError("'" + path.string() + "': face " + std::to_string(i) +
+                                 " refers to vertex " + std::to_string(static_cast<long long>(v)) +
+                                 " but the file has " + std::to_string(out.V.rows()) +
+                                 " vertices");
+              poly[j] = static_cast<int>(v);
+            }
+            if (is_face && (p.name == "vertex_indices" || p.name == "vertex_index")) {
+              if (n < 3)
+                throw InputError("'" + path.string() + "': face " + std::to_string(i) +
+                                 " has fewer than 3 vertices");
+              out.faces.push_back(std::move(poly));
+            }
+          } else {
+            reader.read(p.type);
+          }
+        }
+      }
+    }
+  }
+  return out;
+}
+
+void write_ply(const fs::path& path, const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& N,
+               const Eigen::MatrixX3i& F, const Eigen::MatrixX3d& C, bool ascii) {
+  const bool normals = N.rows() == V.rows() && V.rows() > 0;
+  const bool colors = C.rows() == V.rows() && V.rows() > 0;
+  write_atomically(path, [&](std::ostream& out) {
+    out << "ply\nformat " << (ascii ? "ascii" : "binary_little_endian") << " 1.0\n"
+        << "comment written by bodymodel\n"
+        << "element vertex " << V.rows() << "\n"
+        << "property float x\nproperty float y\nproperty float z\n";
+    if (normals) out << "property float nx\nproperty float ny\nproperty float nz\n";
+    if (colors) out << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+    if (F.rows() > 0) out << "element face " << F.rows() << "\nproperty list uchar int vertex_indices\n";
+    out << "end_header\n";
+    auto rgb = [&](Eigen::Index i, int k) {
+      return static_cast<uint8_t>(std::lround(std::clamp(C(i, k), 0.0, 1.0) * 255));
+    };
+    if (ascii) {
+      out.precision(9);
+      for (Eigen::Index i = 0; i < V.rows(); ++i) {
+        out << V(i, 0) << ' ' << V(i, 1) << ' ' << V(i, 2);
+        if (normals) out << ' ' << N(i, 0) << ' ' << N(i, 1) << ' ' << N(i, 2);
+        if (colors) out << ' ' << int(rgb(i, 0)) << ' ' << int(rgb(i, 1)) << ' ' << int(rgb(i, 2));
+        out << '\n';
+      }
+      for (Eigen::Index f = 0; f < F.rows(); ++f)
+        out << "3 " << F(f, 0) << ' ' << F(f, 1) << ' ' << F(f, 2) << '\n';
+    } else {
+      std::string buf;
+      buf.reserve(V.rows() * 27 + F.rows() * 13);
+      auto putf = [&](double d) {
+        float f = static_cast<float>(d);
+        buf.append(reinterpret_cast<const char*>(&f), 4);
+      };
+      for (Eigen::Index i = 0; i < V.rows(); ++i) {
+        for (int k = 0; k < 3; ++k) putf(V(i, k));
+        if (normals) for (int k = 0; k < 3; ++k) putf(N(i, k));
+        if (colors) for (int k = 0; k < 3; ++k) buf.push_back(static_cast<char>(rgb(i, k)));
+      }
+      for (Eigen::Index f = 0; f < F.rows(); ++f) {
+        buf.push_back(3);
+        for (int k = 0; k < 3; ++k) {
+          int32_t v = F(f, k);
+          buf.append(reinterpret_cast<const char*>(&v), 4);
+        }
+      }
+      out.write(buf.data(), buf.size());
+    }
+  });
+}
+
+void write_obj(const fs::path& path, const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F) {
+  write_atomically(path, [&](std::ostream& out) {
+    std::string buf;
+    buf.reserve(V.rows() * 40 + F.rows() * 24);
+    char tmp[128];
+    for (Eigen::Index i = 0; i < V.rows(); ++i) {
+      int n = std::snprintf(tmp, sizeof tmp, "v %.9g %.9g %.9g\n", V(i, 0), V(i, 1), V(i, 2));
+      buf.append(tmp, n);
+    }
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+      int n = std::snprintf(tmp, sizeof tmp, "f %d %d %d\n", F(f, 0) + 1, F(f, 1) + 1, F(f, 2) + 1);
+      buf.append(tmp, n);
+    }
+    out.write(buf.data(), buf.size());
+  });
+}
+
+}  // namespace
+
+Mesh read_mesh(const fs::path& path) {
+  const std::string ext = lower_ext(path);
+  Mesh m;
+  if (ext == ".obj") {
+    ObjContents obj = read_obj_contents(path);
+    m.V = std::move(obj.V);
+    m.F = triangulate(obj.polygons);
+  } else if (ext == ".ply") {
+    PlyContents ply = read_ply(path);
+    m.V = std::move(ply.V);
+    m.F = triangulate(ply.faces);
+  } else {
+    throw InputError("'" + path.string() + "': unknown mesh format '" + ext +
+                     "' (expected .obj or .ply)");
+  }
+  if (m.F.rows() == 0) throw InputError("'" + path.string() + "': the file has no faces");
+  if (!m.V.allFinite())
+    throw InputError("'" + path.string() + "': a vertex has a NaN or infinite coordinate");
+  return m;
+}
+
+void write_mesh(const fs::path& path, const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
+                const Eigen::MatrixX3d& colors, bool ascii) {
+  if (!V.allFinite())
+    throw NumericalError("refusing to write '" + path.string() + "': NaN or infinite vertex");
+  const std::string ext = lower_ext(path);
+  if (ext == ".obj")
+    write_obj(path, V, F);
+  else if (ext == ".ply")
+    write_ply(path, V, Eigen::MatrixX3d(), F, colors, ascii);
+  else
+    throw InputError("'" + path.string() + "': unknown mesh format '" + ext +
+                     "' (expected .obj or .ply)");
+}
+
+PointCloud read_point_cloud(const fs::path& path) {
+  const std::string ext = lower_ext(path);
+  PointCloud c;
+  if (ext == ".ply") {
+    PlyContents ply = read_ply(path);
+    c.P = std::move(ply.V);
+    c.N = std::move(ply.N);
+  } else if (ext == ".obj") {
+    c.P = read_obj_contents(path).V;
+  } else {
+    throw InputError("'" + path.string() + "': unknown point-cloud format '" + ext +
+                     "' (expected .ply)");
+  }
+  return c;
+}
+
+void write_point_cloud(const fs::path& path, const PointCloud& cloud, bool ascii) {
+  if (!cloud.P.allFinite() || (cloud.has_normals() && !cloud.N.allFinite()))
+    throw NumericalError("refusing to write '" + path.string() + "': NaN or infinite point");
+  write_ply(path, cloud.P, cloud.N, Eigen::MatrixX3i(), Eigen::MatrixX3d(), ascii);
+}
+
+}  // namespace bodymodel
