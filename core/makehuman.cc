@@ -1,0 +1,741 @@
+#include "core/makehuman.h"
+
+#include <sys/stat.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+#include <unordered_map>
+
+#include "core/data_path.h"
+#include "core/error.h"
+
+namespace bodymodel {
+namespace fs = std::filesystem;
+
+// ---- MacroSettings ---------------------------------------------------------------------------
+
+namespace {
+constexpr double kDmToMm = 100.0;
+
+struct SliderRef {
+  const char* key;
+  double MacroSettings::*member;
+};
+constexpr std::array<SliderRef, 11> kSliders{{
+    {"gender", &MacroSettings::gender},
+    {"age", &MacroSettings::age},
+    {"muscle", &MacroSettings::muscle},
+    {"weight", &MacroSettings::weight},
+    {"height", &MacroSettings::height},
+    {"proportions", &MacroSettings::proportions},
+    {"cup", &MacroSettings::cup},
+    {"firmness", &MacroSettings::firmness},
+    {"african", &MacroSettings::african},
+    {"asian", &MacroSettings::asian},
+    {"caucasian", &MacroSettings::caucasian},
+}};
+bool is_ethnic(std::string_view k) { return k == "african" || k == "asian" || k == "caucasian"; }
+}  // namespace
+
+MacroSettings MacroSettings::from_json(const nlohmann::json& j) {
+  if (!j.is_object())
+    throw InputError("macro settings: expected a JSON object, found " + j.dump());
+  MacroSettings s;
+  std::vector<std::string> ethnic_given;
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    const SliderRef* ref = nullptr;
+    for (const auto& r : kSliders)
+      if (it.key() == r.key) ref = &r;
+    if (!ref)
+      throw InputError("macro settings: unknown key '" + it.key() +
+                       "' (expected gender, age, muscle, weight, height, proportions, cup, "
+                       "firmness, african, asian, caucasian)");
+    if (!it.value().is_number())
+      throw InputError("macro settings: '" + it.key() + "' must be a number, found " +
+                       it.value().dump());
+    s.*(ref->member) = it.value().get<double>();
+    if (is_ethnic(it.key())) ethnic_given.push_back(it.key());
+  }
+  if (!ethnic_given.empty() && ethnic_given.size() < 3) {
+    // The unspecified ethnic weights share what is left, in proportion to their defaults.
+    double given = 0;
+    for (const auto& k : ethnic_given)
+      for (const auto& r : kSliders)
+        if (k == r.key) given += s.*(r.member);
+    const int rest = 3 - static_cast<int>(ethnic_given.size());
+    for (const char* k : {"african", "asian", "caucasian"}) {
+      if (std::find(ethnic_given.begin(), ethnic_given.end(), k) != ethnic_given.end()) continue;
+      for (const auto& r : kSliders)
+        if (std::string_view(k) == r.key) s.*(r.member) = std::max(0.0, 1.0 - given) / rest;
+    }
+  }
+  s.validate();
+  return s;
+}
+
+nlohmann::json MacroSettings::to_json() const {
+  nlohmann::json j = nlohmann::json::object();
+  for (const auto& r : kSliders) j[r.key] = this->*(r.member);
+  return j;
+}
+
+void MacroSettings::set_ethnic(const std::string& which, double value) {
+  double* target = nullptr;
+  std::vector<double*> others;
+  for (auto [k, m] : {std::pair<const char*, double*>{"african", &african},
+                      {"asian", &asian}, {"caucasian", &caucasian}}) {
+    if (which == k) target = m;
+    else others.push_back(m);
+  }
+  if (!target)
+    throw InputError("unknown ethnic slider '" + which + "' (expected african, asian, caucasian)");
+  if (!(value >= 0 && value <= 1))
+    throw InputError("ethnic slider '" + which + "' must be in [0, 1], found " +
+                     std::to_string(value));
+  const double old_rest = *others[0] + *others[1];
+  const double new_rest = 1.0 - value;
+  *target = value;
+  if (old_rest > 1e-12) {
+    *others[0] *= new_rest / old_rest;
+    *others[1] *= new_rest / old_rest;
+  } else {
+    *others[0] = *others[1] = new_rest / 2;
+  }
+}
+
+double MacroSettings::age_years() const {
+  return age < 0.5 ? 1.0 + 48.0 * age : 25.0 + 130.0 * (age - 0.5);
+}
+
+void MacroSettings::validate() const {
+  for (const auto& r : kSliders) {
+    const double v = this->*(r.member);
+    if (!(v >= 0.0 && v <= 1.0))
+      throw InputError(std::string("macro slider '") + r.key + "' must be in [0, 1], found " +
+                       std::to_string(v));
+  }
+}
+
+// ---- category values (README §5.2) ------------------------------------------------------------
+
+namespace {
+
+// Every category word that can occur in a macro target file name.
+enum Category : int {
+  kMale, kFemale, kBaby, kChild, kYoung, kOld,
+  kMinMuscle, kAverageMuscle, kMaxMuscle,
+  kMinWeight, kAverageWeight, kMaxWeight,
+  kMinHeight, kAverageHeight, kMaxHeight,
+  kUncommonProportions, kRegularProportions, kIdealProportions,
+  kMinCup, kAverageCup, kMaxCup,
+  kMinFirmness, kAverageFirmness, kMaxFirmness,
+  kAfrican, kAsian, kCaucasian,
+  kUniversal,  // group factor 1
+  kCategoryCount
+};
+constexpr std::array<const char*, kCategoryCount> kCategoryNames{
+    "male", "female", "baby", "child", "young", "old",
+    "minmuscle", "averagemuscle", "maxmuscle",
+    "minweight", "averageweight", "maxweight",
+    "minheight", "averageheight", "maxheight",
+    "uncommonproportions", "regularproportions", "idealproportions",
+    "mincup", "averagecup", "maxcup",
+    "minfirmness", "averagefirmness", "maxfirmness",
+    "african", "asian", "caucasian", "universal"};
+
+int category_of(std::string_view word) {
+  for (int c = 0; c < kCategoryCount; ++c)
+    if (word == kCategoryNames[c]) return c;
+  return -1;
+}
+
+// min/average/max values of a three-way slider s.
+void three_way(double s, double* out) {
+  const double mx = std::max(0.0, 2 * s - 1), mn = std::max(0.0, 1 - 2 * s);
+  out[0] = mn;
+  out[1] = 1 - std::max(mx, mn);
+  out[2] = mx;
+}
+
+std::array<double, kCategoryCount> category_values(const MacroSettings& s) {
+  std::array<double, kCategoryCount> v{};
+  v[kMale] = s.gender;
+  v[kFemale] = 1 - s.gender;
+  const double a = s.age;
+  if (a < 0.5) {
+    // MakeHuman's constants: 5.333 = 1/0.1875, 3.2 = 1/0.3125.
+    v[kBaby] = std::max(0.0, 1 - a * 5.333);
+    v[kYoung] = std::max(0.0, (a - 0.1875) * 3.2);
+    v[kChild] = std::max(0.0, std::min(1.0, 5.333 * a) - v[kYoung]);
+    v[kOld] = 0;
+  } else {
+    v[kOld] = 2 * a - 1;
+    v[kYoung] = 1 - v[kOld];
+    v[kBaby] = v[kChild] = 0;
+  }
+  three_way(s.muscle, &v[kMinMuscle]);
+  three_way(s.weight, &v[kMinWeight]);
+  three_way(s.height, &v[kMinHeight]);
+  three_way(s.proportions, &v[kUncommonProportions]);
+  three_way(s.cup, &v[kMinCup]);
+  three_way(s.firmness, &v[kMinFirmness]);
+  double ethnic_sum = s.african + s.asian + s.caucasian;
+  if (ethnic_sum <= 0) ethnic_sum = 1;  // all zero: no ethnic targets at all
+  v[kAfrican] = s.african / ethnic_sum;
+  v[kAsian] = s.asian / ethnic_sum;
+  v[kCaucasian] = s.caucasian / ethnic_sum;
+  v[kUniversal] = 1;
+  return v;
+}
+
+// ---- fast text parsing ----------------------------------------------------------------------
+
+std::string read_whole_file(const fs::path& path) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) throw InputError("cannot open '" + path.string() + "': " + std::strerror(errno));
+  std::string data;
+  char buf[1 << 16];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) data.append(buf, n);
+  const bool bad = std::ferror(f);
+  std::fclose(f);
+  if (bad) throw InputError("cannot read '" + path.string() + "'");
+  return data;
+}
+
+struct Target {
+  std::string name;               // relative to targets/, e.g. "macrodetails/height/x.target"
+  std::vector<int> categories;    // category indices whose product is the weight
+  int file = -1;                  // index into the distinct parsed files (as on disk)
+  int data = -1;                  // index actually used (after substitution)
+};
+
+struct TargetData {
+  std::vector<int> index;         // #n vertex indices
+  std::vector<float> offset;      // #n*3 offsets, dm
+};
+
+// Parses a .target file: "# comment" lines and "<index> <dx> <dy> <dz>" lines.
+TargetData parse_target(const fs::path& path, int vertex_count) {
+  const std::string text = read_whole_file(path);
+  TargetData t;
+  t.index.reserve(text.size() / 24);
+  t.offset.reserve(text.size() / 8);
+  const char* p = text.c_str();
+  const char* end = p + text.size();
+  int line = 0;
+  auto fail = [&](const std::string& what) {
+    throw InputError("target '" + path.string() + "' line " + std::to_string(line) + ": " + what);
+  };
+  while (p < end) {
+    ++line;
+    const char* eol = static_cast<const char*>(std::memchr(p, '\n', end - p));
+    if (!eol) eol = end;
+    const char* q = p;
+    while (q < eol && (*q == ' ' || *q == '\t' || *q == '\r')) ++q;
+    if (q == eol || *q == '#') {
+      p = eol + 1;
+      continue;
+    }
+    char* next;
+    errno = 0;
+    const long idx = std::strtol(q, &next, 10);
+    if (next == q || errno) fail("expected '<vertex index> <dx> <dy> <dz>', found '" +
+                                 std::string(q, eol) + "'");
+    if (idx < 0 || idx >= vertex_count)
+      fail("vertex index " + std::to_string(idx) + " exceeds the base mesh (" +
+           std::to_string(vertex_count) + " vertices, indices 0.." +
+           std::to_string(vertex_count - 1) + ")");
+    q = next;
+    float d[3];
+    for (int k = 0; k < 3; ++k) {
+      const double v = std::strtod(q, &next);
+      if (next == q || next > eol || !std::isfinite(v))
+        fail("expected 3 offsets after the vertex index, found '" + std::string(p, eol) + "'");
+      d[k] = static_cast<float>(v);
+      q = next;
+    }
+    while (q < eol && (*q == ' ' || *q == '\t' || *q == '\r')) ++q;
+    if (q != eol) fail("unexpected text after the offsets: '" + std::string(q, eol) + "'");
+    t.index.push_back(static_cast<int>(idx));
+    t.offset.insert(t.offset.end(), d, d + 3);
+    p = eol + 1;
+  }
+  return t;
+}
+
+// base.obj: vertices and the faces of group "body" (any other group's faces are skipped).
+struct BaseMesh {
+  Eigen::MatrixX3d V;                  // dm
+  std::vector<std::array<int, 4>> body_quads;
+  std::vector<std::array<int, 3>> body_tris;
+};
+
+BaseMesh parse_base_obj(const fs::path& path) {
+  const std::string text = read_whole_file(path);
+  std::vector<double> coords;
+  coords.reserve(19158 * 3);
+  BaseMesh mesh;
+  bool in_body = false;
+  const char* p = text.c_str();
+  const char* end = p + text.size();
+  int line = 0;
+  auto fail = [&](const std::string& what) {
+    throw InputError("base mesh '" + path.string() + "' line " + std::to_string(line) + ": " +
+                     what);
+  };
+  std::vector<int> face;
+  while (p < end) {
+    ++line;
+    const char* eol = static_cast<const char*>(std::memchr(p, '\n', end - p));
+    if (!eol) eol = end;
+    if (eol - p >= 2 && p[0] == 'v' && p[1] == ' ') {
+      const char* q = p + 2;
+      char* next;
+      for (int k = 0; k < 3; ++k) {
+        const double v = std::strtod(q, &next);
+        if (next == q || next > eol || !std::isfinite(v))
+          fail("expected 'v x y z', found '" + std::string(p, eol) + "'");
+        coords.push_back(v);
+        q = next;
+      }
+    } else if (eol - p >= 2 && p[0] == 'g' && p[1] == ' ') {
+      std::string name(p + 2, eol);
+      while (!name.empty() && (name.back() == ' ' || name.back() == '\r')) name.pop_back();
+      in_body = name == "body";
+    } else if (eol - p >= 2 && p[0] == 'f' && p[1] == ' ' && in_body) {
+      face.clear();
+      const char* q = p + 2;
+      while (q < eol) {
+        while (q < eol && *q == ' ') ++q;
+        if (q >= eol || *q == '\r') break;
+        char* next;
+        const long idx = std::strtol(q, &next, 10);
+        if (next == q) fail("expected a vertex index in '" + std::string(p, eol) + "'");
+        face.push_back(static_cast<int>(idx) - 1);
+        q = next;
+        while (q < eol && *q != ' ') ++q;  // skip /vt
+      }
+      if (face.size() == 4) mesh.body_quads.push_back({face[0], face[1], face[2], face[3]});
+      else if (face.size() == 3) mesh.body_tris.push_back({face[0], face[1], face[2]});
+      else fail("expected a triangle or quad, found " + std::to_string(face.size()) + " vertices");
+    }
+    p = eol + 1;
+  }
+  const int nv = static_cast<int>(coords.size() / 3);
+  if (nv != MakeHuman::kVertexCount)
+    throw InputError("base mesh '" + path.string() + "': expected " +
+                     std::to_string(MakeHuman::kVertexCount) + " vertices (hm08), found " +
+                     std::to_string(nv));
+  mesh.V.resize(nv, 3);
+  for (int i = 0; i < nv; ++i)
+    for (int k = 0; k < 3; ++k) mesh.V(i, k) = coords[3 * i + k];
+  return mesh;
+}
+
+nlohmann::ordered_json read_json(const fs::path& path) {
+  const std::string text = read_whole_file(path);
+  try {
+    return nlohmann::ordered_json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError("'" + path.string() + "' is not valid JSON: " + e.what());
+  }
+}
+
+}  // namespace
+
+// ---- the loaded model -----------------------------------------------------------------------
+
+struct MakeHuman::Impl {
+  fs::path dir;
+  Eigen::MatrixX3d base_dm;               // 19158 by 3, dm
+  Eigen::MatrixX3d base_mm;               // 19158 by 3, mm
+  std::vector<Target> targets;            // 564 macro targets
+  std::shared_ptr<const std::vector<TargetData>> data;  // distinct files, shared by copies
+  std::vector<std::string> substituted;
+  Eigen::MatrixX3i body_faces;
+  // Skeleton topology; joint positions = joint_regressor * V.
+  std::vector<std::string> bone_names;
+  std::vector<int> parents;
+  std::vector<int> head_joint, tail_joint;
+  Eigen::SparseMatrix<double, Eigen::RowMajor> joint_regressor;  // #joints by 19158
+  SkinWeights weights_all, weights_body;
+};
+
+namespace {
+
+void apply_options(MakeHuman::Impl& m, const MakeHuman::Options& options);
+
+void load_targets(MakeHuman::Impl& m, const MakeHuman::Options& options) {
+  const fs::path root = m.dir / "targets";
+  std::vector<fs::path> files;
+  for (const char* sub : {"macrodetails", "macrodetails/height", "macrodetails/proportions",
+                          "breast"}) {
+    const fs::path d = root / sub;
+    std::error_code ec;
+    if (!fs::is_directory(d, ec))
+      throw InputError("MakeHuman target folder '" + d.string() + "' is missing");
+    std::vector<fs::path> here;
+    for (const auto& e : fs::directory_iterator(d, ec))
+      if (e.is_regular_file() && e.path().extension() == ".target") here.push_back(e.path());
+    if (ec) throw InputError("cannot list '" + d.string() + "': " + ec.message());
+    std::sort(here.begin(), here.end());
+    files.insert(files.end(), here.begin(), here.end());
+  }
+  // Distinct files by (device, inode): the data set stores identical targets as hard links.
+  std::map<std::pair<dev_t, ino_t>, int> by_inode;
+  std::vector<fs::path> distinct;
+  for (const auto& f : files) {
+    Target t;
+    t.name = fs::relative(f, root).generic_string();
+    const std::string stem = f.stem().string();
+    size_t start = 0;
+    while (start <= stem.size()) {
+      size_t dash = stem.find('-', start);
+      if (dash == std::string::npos) dash = stem.size();
+      const std::string word = stem.substr(start, dash - start);
+      const int c = category_of(word);
+      if (c < 0)
+        throw InputError("target '" + f.string() + "': unknown category word '" + word +
+                         "' in the file name (README §5.2)");
+      if (c != kUniversal) t.categories.push_back(c);
+      start = dash + 1;
+    }
+    struct stat st {};
+    int id;
+    if (::stat(f.c_str(), &st) == 0) {
+      auto [it, fresh] = by_inode.emplace(std::make_pair(st.st_dev, st.st_ino),
+                                          static_cast<int>(distinct.size()));
+      if (fresh) distinct.push_back(f);
+      id = it->second;
+    } else {
+      id = static_cast<int>(distinct.size());
+      distinct.push_back(f);
+    }
+    t.file = t.data = id;
+    m.targets.push_back(std::move(t));
+  }
+  auto data = std::make_shared<std::vector<TargetData>>(distinct.size());
+  std::vector<std::string> errors(distinct.size());
+  tbb::parallel_for(size_t(0), distinct.size(), [&](size_t i) {
+    try {
+      (*data)[i] = parse_target(distinct[i], MakeHuman::kVertexCount);
+    } catch (const InputError& e) {
+      errors[i] = e.what();
+    }
+  });
+  for (const auto& e : errors)
+    if (!e.empty()) throw InputError(e);
+  m.data = std::move(data);
+  apply_options(m, options);
+}
+
+// (Re)applies the options to the loaded targets (README §10.1 substitution).
+void apply_options(MakeHuman::Impl& m, const MakeHuman::Options& options) {
+  m.substituted.clear();
+  for (auto& t : m.targets) t.data = t.file;
+  if (options.substitute_defective_height_targets) {
+    for (const char* g : {"male", "female"}) {
+      const std::string bad = std::string("macrodetails/height/") + g +
+                              "-old-maxmuscle-maxweight-minheight.target";
+      const std::string good = std::string("macrodetails/height/") + g +
+                               "-old-averagemuscle-maxweight-minheight.target";
+      Target* tb = nullptr;
+      const Target* tg = nullptr;
+      for (auto& t : m.targets) {
+        if (t.name == bad) tb = &t;
+        if (t.name == good) tg = &t;
+      }
+      if (!tb || !tg) continue;
+      if ((*m.data)[tb->file].index.size() * 4 < (*m.data)[tg->file].index.size()) {
+        tb->data = tg->data;
+        m.substituted.push_back(bad);
+      }
+    }
+  }
+}
+
+void load_skeleton(MakeHuman::Impl& m) {
+  const fs::path path = m.dir / "rig" / "default.mhskel";
+  const auto j = read_json(path);
+  auto fail = [&](const std::string& what) {
+    throw InputError("skeleton '" + path.string() + "': " + what);
+  };
+  if (!j.contains("bones") || !j["bones"].is_object() || !j.contains("joints") ||
+      !j["joints"].is_object())
+    fail("expected objects 'bones' and 'joints'");
+  // Joints.
+  std::unordered_map<std::string, int> joint_index;
+  std::vector<Eigen::Triplet<double>> trip;
+  int nj = 0;
+  for (auto it = j["joints"].begin(); it != j["joints"].end(); ++it) {
+    const auto& list = it.value();
+    if (!list.is_array() || list.empty()) fail("joint '" + it.key() + "' has no vertex list");
+    for (const auto& v : list) {
+      if (!v.is_number_integer()) fail("joint '" + it.key() + "' lists a non-integer vertex");
+      const int vi = v.get<int>();
+      if (vi < 0 || vi >= MakeHuman::kVertexCount)
+        fail("joint '" + it.key() + "' lists vertex " + std::to_string(vi) +
+             ", outside the base mesh (19158 vertices)");
+      trip.emplace_back(nj, vi, 1.0 / static_cast<double>(list.size()));
+    }
+    joint_index[it.key()] = nj++;
+  }
+  m.joint_regressor.resize(nj, MakeHuman::kVertexCount);
+  m.joint_regressor.setFromTriplets(trip.begin(), trip.end());
+  // Bones in breadth-first order from the root (children in file order).
+  struct RawBone {
+    std::string name, parent;
+    int head, tail;
+  };
+  std::vector<RawBone> raw;
+  for (auto it = j["bones"].begin(); it != j["bones"].end(); ++it) {
+    const auto& b = it.value();
+    RawBone r;
+    r.name = it.key();
+    r.parent = b.contains("parent") && b["parent"].is_string() ? b["parent"].get<std::string>()
+                                                              : "";
+    for (auto [field, out] : {std::pair<const char*, int*>{"head", &r.head}, {"tail", &r.tail}}) {
+      if (!b.contains(field) || !b[field].is_string())
+        fail("bone '" + r.name + "' has no '" + field + "' joint");
+      auto jt = joint_index.find(b[field].get<std::string>());
+      if (jt == joint_index.end())
+        fail("bone '" + r.name + "' refers to the unknown joint '" + b[field].get<std::string>() +
+             "'");
+      *out = jt->second;
+    }
+    raw.push_back(std::move(r));
+  }
+  std::unordered_map<std::string, int> order;
+  std::vector<int> queue;
+  for (int i = 0; i < static_cast<int>(raw.size()); ++i)
+    if (raw[i].parent.empty()) queue.push_back(i);
+  if (queue.size() != 1) fail("expected one root bone, found " + std::to_string(queue.size()));
+  for (size_t q = 0; q < queue.size(); ++q) {
+    const RawBone& r = raw[queue[q]];
+    order[r.name] = static_cast<int>(q);
+    m.bone_names.push_back(r.name);
+    m.parents.push_back(r.parent.empty() ? -1 : order.at(r.parent));
+    m.head_joint.push_back(r.head);
+    m.tail_joint.push_back(r.tail);
+    for (int i = 0; i < static_cast<int>(raw.size()); ++i)
+      if (raw[i].parent == r.name) queue.push_back(i);
+  }
+  if (queue.size() != raw.size())
+    fail(std::to_string(raw.size() - queue.size()) +
+         " bones are not connected to the root (unknown parent)");
+}
+
+void load_weights(MakeHuman::Impl& m) {
+  const fs::path path = m.dir / "rig" / "default_weights.mhw";
+  const auto j = read_json(path);
+  if (!j.contains("weights") || !j["weights"].is_object())
+    throw InputError("weights '" + path.string() + "': expected an object 'weights'");
+  std::unordered_map<std::string, int> bone;
+  for (int b = 0; b < static_cast<int>(m.bone_names.size()); ++b) bone[m.bone_names[b]] = b;
+  const int nv = MakeHuman::kVertexCount, nb = static_cast<int>(m.bone_names.size());
+  std::vector<Eigen::Triplet<double>> trip;
+  for (auto it = j["weights"].begin(); it != j["weights"].end(); ++it) {
+    auto bt = bone.find(it.key());
+    if (bt == bone.end())
+      throw InputError("weights '" + path.string() + "': bone '" + it.key() +
+                       "' is not in the default skeleton");
+    for (const auto& pair : it.value()) {
+      if (!pair.is_array() || pair.size() != 2 || !pair[0].is_number_integer() ||
+          !pair[1].is_number())
+        throw InputError("weights '" + path.string() + "': bone '" + it.key() +
+                         "' has an entry that is not [vertex, weight]: " + pair.dump());
+      const int v = pair[0].get<int>();
+      if (v < 0 || v >= nv)
+        throw InputError("weights '" + path.string() + "': bone '" + it.key() + "' lists vertex " +
+                         std::to_string(v) + ", outside the base mesh (19158 vertices)");
+      trip.emplace_back(v, bt->second, pair[1].get<double>());
+    }
+  }
+  SkinWeights W(nv, nb);
+  W.setFromTriplets(trip.begin(), trip.end());  // sums duplicate (vertex, bone) pairs
+  // Normalise, drop < 1e-4, renormalise; unweighted vertices go to the root.
+  std::vector<Eigen::Triplet<double>> out;
+  out.reserve(W.nonZeros());
+  for (int v = 0; v < nv; ++v) {
+    double sum = 0;
+    for (SkinWeights::InnerIterator it(W, v); it; ++it) sum += std::max(0.0, it.value());
+    std::vector<std::pair<int, double>> row;
+    if (sum > 0)
+      for (SkinWeights::InnerIterator it(W, v); it; ++it) {
+        const double w = std::max(0.0, it.value()) / sum;
+        if (w >= 1e-4) row.emplace_back(static_cast<int>(it.col()), w);
+      }
+    double kept = 0;
+    for (auto& [b, w] : row) kept += w;
+    if (row.empty()) {
+      out.emplace_back(v, 0, 1.0);
+      continue;
+    }
+    for (auto& [b, w] : row) out.emplace_back(v, b, w / kept);
+  }
+  m.weights_all.resize(nv, nb);
+  m.weights_all.setFromTriplets(out.begin(), out.end());
+  m.weights_all.makeCompressed();
+  m.weights_body = m.weights_all.topRows(MakeHuman::kBodyVertexCount);
+  m.weights_body.makeCompressed();
+}
+
+}  // namespace
+
+MakeHuman MakeHuman::load(const fs::path& makehuman_dir, const Options& options) {
+  auto m = std::make_shared<Impl>();
+  m->dir = makehuman_dir;
+  std::error_code ec;
+  if (!fs::is_directory(makehuman_dir, ec))
+    throw InputError("MakeHuman folder '" + makehuman_dir.string() +
+                     "' does not exist or is not readable");
+  BaseMesh base = parse_base_obj(makehuman_dir / "base" / "base.obj");
+  m->base_dm = std::move(base.V);
+  m->base_mm = m->base_dm * kDmToMm;
+  const int nf = static_cast<int>(2 * base.body_quads.size() + base.body_tris.size());
+  m->body_faces.resize(nf, 3);
+  int f = 0;
+  for (const auto& q : base.body_quads) {
+    m->body_faces.row(f++) << q[0], q[1], q[2];
+    m->body_faces.row(f++) << q[0], q[2], q[3];
+  }
+  for (const auto& t : base.body_tris) m->body_faces.row(f++) << t[0], t[1], t[2];
+  if (nf == 0 || m->body_faces.maxCoeff() >= kBodyVertexCount || m->body_faces.minCoeff() < 0)
+    throw InputError("base mesh '" + (makehuman_dir / "base" / "base.obj").string() +
+                     "': group 'body' must use exactly vertices 0.." +
+                     std::to_string(kBodyVertexCount - 1));
+  load_targets(*m, options);
+  load_skeleton(*m);
+  load_weights(*m);
+  MakeHuman mh;
+  mh.impl_ = std::move(m);
+  return mh;
+}
+
+MakeHuman MakeHuman::with_options(const Options& options) const {
+  auto m = std::make_shared<Impl>(*impl_);  // target data is shared, not copied
+  apply_options(*m, options);
+  MakeHuman mh;
+  mh.impl_ = std::move(m);
+  return mh;
+}
+
+MakeHuman MakeHuman::load(const fs::path& makehuman_dir) { return load(makehuman_dir, Options{}); }
+MakeHuman MakeHuman::load() { return load(data_file("makehuman"), Options{}); }
+
+std::vector<std::pair<std::string, double>> MakeHuman::target_weights(
+    const MacroSettings& settings) const {
+  settings.validate();
+  const auto values = category_values(settings);
+  std::vector<std::pair<std::string, double>> out;
+  for (const auto& t : impl_->targets) {
+    double w = 1;
+    for (int c : t.categories) w *= values[c];
+    if (w != 0) out.emplace_back(t.name, w);
+  }
+  return out;
+}
+
+Eigen::MatrixX3d MakeHuman::build_vertices(const MacroSettings& settings) const {
+  settings.validate();
+  const auto values = category_values(settings);
+  Eigen::MatrixX3d V = impl_->base_dm;
+  double* x = V.col(0).data();
+  double* y = V.col(1).data();
+  double* z = V.col(2).data();
+  for (const auto& t : impl_->targets) {
+    double w = 1;
+    for (int c : t.categories) w *= values[c];
+    if (w == 0) continue;
+    const TargetData& d = (*impl_->data)[t.data];
+    const size_t n = d.index.size();
+    const int* idx = d.index.data();
+    const float* off = d.offset.data();
+    for (size_t k = 0; k < n; ++k) {
+      const int i = idx[k];
+      x[i] += w * off[3 * k];
+      y[i] += w * off[3 * k + 1];
+      z[i] += w * off[3 * k + 2];
+    }
+  }
+  V *= kDmToMm;
+  return V;
+}
+
+const Eigen::MatrixX3d& MakeHuman::base_vertices() const { return impl_->base_mm; }
+int MakeHuman::target_count() const { return static_cast<int>(impl_->targets.size()); }
+std::vector<std::string> MakeHuman::substituted_targets() const { return impl_->substituted; }
+const Eigen::MatrixX3i& MakeHuman::body_faces() const { return impl_->body_faces; }
+const SkinWeights& MakeHuman::body_weights() const { return impl_->weights_body; }
+const SkinWeights& MakeHuman::weights() const { return impl_->weights_all; }
+const fs::path& MakeHuman::directory() const { return impl_->dir; }
+
+Skeleton MakeHuman::skeleton(const Eigen::MatrixX3d& full_vertices) const {
+  if (full_vertices.rows() != kVertexCount)
+    throw InputError("MakeHuman skeleton: expected all " + std::to_string(kVertexCount) +
+                     " hm08 vertices, found " + std::to_string(full_vertices.rows()));
+  const Eigen::MatrixX3d J = impl_->joint_regressor * full_vertices;
+  Skeleton s;
+  s.names = impl_->bone_names;
+  s.parents = impl_->parents;
+  const int nb = static_cast<int>(s.names.size());
+  s.heads.resize(nb, 3);
+  s.tails.resize(nb, 3);
+  for (int b = 0; b < nb; ++b) {
+    s.heads.row(b) = J.row(impl_->head_joint[b]);
+    s.tails.row(b) = J.row(impl_->tail_joint[b]);
+  }
+  return s;
+}
+
+MakeHuman::Body MakeHuman::body(const MacroSettings& settings) const {
+  const Eigen::MatrixX3d V = build_vertices(settings);
+  Body b;
+  b.mesh.V = V.topRows(kBodyVertexCount);
+  b.mesh.F = impl_->body_faces;
+  b.skeleton = skeleton(V);
+  b.weights = impl_->weights_body;
+  return b;
+}
+
+std::vector<std::string> MakeHuman::pose_names() const {
+  std::vector<std::string> names;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(impl_->dir / "motion" / "poses", ec))
+    if (e.path().extension() == ".bvh") names.push_back(e.path().stem().string());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+fs::path MakeHuman::pose_file(const std::string& name) const {
+  const fs::path p = impl_->dir / "motion" / "poses" / (name + ".bvh");
+  std::error_code ec;
+  if (!fs::is_regular_file(p, ec)) {
+    std::string known;
+    for (const auto& n : pose_names()) known += (known.empty() ? "" : ", ") + n;
+    throw InputError("unknown pose '" + name + "' (known: " + known + ")");
+  }
+  return p;
+}
+
+double makehuman_body_height(const Eigen::MatrixX3d& V) {
+  if (V.rows() < MakeHuman::kBodyVertexCount)
+    throw InputError("makehuman_body_height: expected at least 13380 vertices, found " +
+                     std::to_string(V.rows()));
+  const auto y = V.col(1).head(MakeHuman::kBodyVertexCount);
+  return y.maxCoeff() - y.minCoeff();
+}
+
+}  // namespace bodymodel
