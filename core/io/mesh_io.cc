@@ -423,6 +423,9 @@ void write_obj(const fs::path& path, const Eigen::MatrixX3d& V, const Eigen::Mat
 }  // namespace
 
 Mesh read_mesh(const fs::path& path) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec))
+    throw InputError("cannot read '" + path.string() + "': it is a folder, not a mesh file");
   const std::string ext = lower_ext(path);
   Mesh m;
   if (ext == ".obj") {
