@@ -1,0 +1,280 @@
+#include "skinning/bone_recovery.h"
+
+#include <chrono>
+#include <cmath>
+#include <random>
+#include <sstream>
+
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
+#include <tbb/parallel_for.h>
+
+#include "core/error.h"
+#include "core/geometry.h"
+#include "skinning/skinning_examples.h"
+
+namespace bodymodel {
+namespace {
+
+Eigen::Matrix3d nearest_rotation(const Eigen::Matrix3d& A) {
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(A, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d U = svd.matrixU();
+  const Eigen::Matrix3d V = svd.matrixV();
+  if ((U * V.transpose()).determinant() < 0) U.col(2) *= -1;
+  return U * V.transpose();
+}
+
+// Sumner's frame of a triangle: two edges and the scaled normal.
+Eigen::Matrix3d triangle_frame(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, Eigen::Index f) {
+  const Eigen::Vector3d a = V.row(F(f, 0)), b = V.row(F(f, 1)), c = V.row(F(f, 2));
+  const Eigen::Vector3d e1 = b - a, e2 = c - a;
+  Eigen::Vector3d nrm = e1.cross(e2);
+  const double len = nrm.norm();
+  nrm = len > 0 ? Eigen::Vector3d(nrm / std::sqrt(len)) : Eigen::Vector3d::Zero();
+  Eigen::Matrix3d D;
+  D << e1, e2, nrm;
+  return D;
+}
+
+// Weighted Kabsch: rigid map with Σ w ‖R a + t − b‖² minimal.
+Eigen::Affine3d weighted_kabsch(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b,
+                                const std::vector<double>& w) {
+  double sw = 0;
+  Eigen::Vector3d ca = Eigen::Vector3d::Zero(), cb = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < a.size(); ++i) sw += w[i], ca += w[i] * a[i], cb += w[i] * b[i];
+  Eigen::Affine3d T = Eigen::Affine3d::Identity();
+  if (sw <= 0) return T;
+  ca /= sw;
+  cb /= sw;
+  Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < a.size(); ++i) S += w[i] * (b[i] - cb) * (a[i] - ca).transpose();
+  T.linear() = nearest_rotation(S);
+  T.translation() = cb - T.linear() * ca;
+  return T;
+}
+
+}  // namespace
+
+std::string BoneRecoverySummary::brief() const {
+  std::ostringstream s;
+  s << "bone recovery: " << bones << " bones over " << frames << " frames, k-means "
+    << kmeans_iterations << " iterations; rigid residual RMS " << rms_rigid_residual << "; "
+    << seconds << " s";
+  return s.str();
+}
+
+BoneTransforms fit_section_transforms(const Eigen::MatrixX3d& rest, const Eigen::VectorXi& vertex_bone,
+                                      int bones, const Eigen::MatrixX3d& Q) {
+  if (Q.rows() != rest.rows())
+    throw InputError("bone transforms: the frame has " + std::to_string(Q.rows()) +
+                     " vertices, the rest mesh " + std::to_string(rest.rows()));
+  std::vector<std::vector<Eigen::Vector3d>> A(static_cast<size_t>(bones)), Bv(static_cast<size_t>(bones));
+  for (Eigen::Index i = 0; i < rest.rows(); ++i) {
+    A[static_cast<size_t>(vertex_bone(i))].push_back(rest.row(i).transpose());
+    Bv[static_cast<size_t>(vertex_bone(i))].push_back(Q.row(i).transpose());
+  }
+  BoneTransforms T(static_cast<size_t>(bones), Eigen::Affine3d::Identity());
+  for (int b = 0; b < bones; ++b) {
+    const auto& a = A[static_cast<size_t>(b)];
+    if (a.size() < 3) continue;
+    T[static_cast<size_t>(b)] = weighted_kabsch(a, Bv[static_cast<size_t>(b)], std::vector<double>(a.size(), 1.0));
+  }
+  return T;
+}
+
+RecoveredBones recover_bones(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3i& F,
+                             const std::vector<Eigen::MatrixX3d>& frames,
+                             const BoneRecoveryOptions& options, BoneRecoverySummary* summary,
+                             const ProgressCallback& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Eigen::Index n = rest.rows(), nf = F.rows();
+  const int P = static_cast<int>(frames.size()), Bn = options.bones;
+  if (Bn < 1) throw InputError("bone recovery: the bone count must be at least 1, found " + std::to_string(Bn));
+  if (Bn > nf)
+    throw InputError("bone recovery: " + std::to_string(Bn) + " bones requested but the mesh has only " +
+                     std::to_string(nf) + " triangles");
+  if (P < 1) throw InputError("bone recovery: no frames");
+  if (!rest.allFinite()) throw InputError("bone recovery: the rest mesh contains NaN");
+  check_triangle_mesh(rest, F, "bone recovery rest mesh");
+  for (int p = 0; p < P; ++p) {
+    if (frames[static_cast<size_t>(p)].rows() != n)
+      throw InputError("bone recovery: frame " + std::to_string(p) + " has " +
+                       std::to_string(frames[static_cast<size_t>(p)].rows()) + " vertices, the rest mesh has " +
+                       std::to_string(n));
+    if (!frames[static_cast<size_t>(p)].allFinite())
+      throw InputError("bone recovery: frame " + std::to_string(p) + " contains NaN");
+  }
+  // Rotation sequences: 9·P features per triangle.
+  report_progress(progress, 0.0, "triangle rotations");
+  Eigen::MatrixXd X(nf, 9 * P);
+  tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, nf, 256), [&](const auto& r) {
+    for (Eigen::Index f = r.begin(); f < r.end(); ++f) {
+      const Eigen::Matrix3d D0 = triangle_frame(rest, F, f);
+      const double det = D0.determinant();
+      const Eigen::Matrix3d D0inv = std::abs(det) > 1e-300 ? Eigen::Matrix3d(D0.inverse()) : Eigen::Matrix3d::Identity();
+      for (int p = 0; p < P; ++p) {
+        const Eigen::Matrix3d R = nearest_rotation(triangle_frame(frames[static_cast<size_t>(p)], F, f) * D0inv);
+        X.row(f).segment<9>(9 * p) = Eigen::Map<const Eigen::Matrix<double, 1, 9>>(R.data());
+      }
+    }
+  });
+  // k-means++ seeding.
+  std::mt19937 rng(options.seed);
+  Eigen::MatrixXd centers(Bn, 9 * P);
+  Eigen::VectorXd d2 = Eigen::VectorXd::Constant(nf, std::numeric_limits<double>::infinity());
+  centers.row(0) = X.row(std::uniform_int_distribution<Eigen::Index>(0, nf - 1)(rng));
+  for (int c = 1; c < Bn; ++c) {
+    for (Eigen::Index f = 0; f < nf; ++f) d2(f) = std::min(d2(f), (X.row(f) - centers.row(c - 1)).squaredNorm());
+    const double total = d2.sum();
+    Eigen::Index pick = 0;
+    if (total > 0) {
+      double u = std::uniform_real_distribution<double>(0, total)(rng), acc = 0;
+      for (pick = 0; pick < nf - 1; ++pick) {
+        acc += d2(pick);
+        if (acc >= u) break;
+      }
+    } else {
+      pick = std::uniform_int_distribution<Eigen::Index>(0, nf - 1)(rng);
+    }
+    centers.row(c) = X.row(pick);
+  }
+  Eigen::VectorXi label = Eigen::VectorXi::Constant(nf, -1);
+  int it = 0;
+  for (; it < options.kmeans_iterations; ++it) {
+    report_progress(progress, 0.1 + 0.5 * it / std::max(1, options.kmeans_iterations), "clustering rotations");
+    std::atomic<int> changed{0};
+    tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, nf, 256), [&](const auto& r) {
+      int ch = 0;
+      for (Eigen::Index f = r.begin(); f < r.end(); ++f) {
+        Eigen::Index best;
+        (centers.rowwise() - X.row(f)).rowwise().squaredNorm().minCoeff(&best);
+        if (label(f) != best) ++ch, label(f) = static_cast<int>(best);
+      }
+      changed += ch;
+    });
+    Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(Bn, 9 * P);
+    Eigen::VectorXd count = Eigen::VectorXd::Zero(Bn);
+    for (Eigen::Index f = 0; f < nf; ++f) sum.row(label(f)) += X.row(f), count(label(f)) += 1;
+    for (int c = 0; c < Bn; ++c) {
+      if (count(c) > 0) {
+        centers.row(c) = sum.row(c) / count(c);
+      } else {   // empty cluster: re-seed at the triangle farthest from its centre
+        Eigen::Index far = 0;
+        double best = -1;
+        for (Eigen::Index f = 0; f < nf; ++f) {
+          const double d = (X.row(f) - centers.row(label(f))).squaredNorm();
+          if (d > best) best = d, far = f;
+        }
+        centers.row(c) = X.row(far);
+        label(far) = c;
+      }
+    }
+    if (changed.load() == 0) break;
+  }
+  RecoveredBones out;
+  out.triangle_bone = label;
+  // Vertex label: the cluster with the largest incident area.
+  const Eigen::VectorXd area = face_areas(rest, F);
+  Eigen::MatrixXd vote = Eigen::MatrixXd::Zero(n, Bn);
+  for (Eigen::Index f = 0; f < nf; ++f)
+    for (int c = 0; c < 3; ++c) vote(F(f, c), label(f)) += area(f) + 1e-30;
+  out.vertex_bone.resize(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    Eigen::Index best;
+    vote.row(i).maxCoeff(&best);
+    out.vertex_bone(i) = static_cast<int>(best);
+  }
+  auto fit_all = [&] {
+    out.transforms.assign(static_cast<size_t>(P), {});
+    tbb::parallel_for(0, P, [&](int p) {
+      out.transforms[static_cast<size_t>(p)] =
+          fit_section_transforms(rest, out.vertex_bone, Bn, frames[static_cast<size_t>(p)]);
+    });
+  };
+  fit_all();
+  for (int round = 0; round < options.refinement_rounds; ++round) {
+    report_progress(progress, 0.6 + 0.4 * round / std::max(1, options.refinement_rounds), "refining sections");
+    tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, n, 256), [&](const auto& r) {
+      for (Eigen::Index i = r.begin(); i < r.end(); ++i) {
+        const Eigen::Vector3d v = rest.row(i).transpose();
+        double best = std::numeric_limits<double>::infinity();
+        int bb = out.vertex_bone(i);
+        for (int b = 0; b < Bn; ++b) {
+          double e = 0;
+          for (int p = 0; p < P && e < best; ++p)
+            e += (out.transforms[static_cast<size_t>(p)][static_cast<size_t>(b)] * v -
+                  frames[static_cast<size_t>(p)].row(i).transpose()).squaredNorm();
+          if (e < best) best = e, bb = b;
+        }
+        out.vertex_bone(i) = bb;
+      }
+    });
+    fit_all();
+  }
+  report_progress(progress, 1.0, "bones recovered");
+  if (summary) {
+    summary->bones = Bn;
+    summary->frames = P;
+    summary->kmeans_iterations = it;
+    double s = 0;
+    for (int p = 0; p < P; ++p)
+      for (Eigen::Index i = 0; i < n; ++i)
+        s += (out.transforms[static_cast<size_t>(p)][static_cast<size_t>(out.vertex_bone(i))] * Eigen::Vector3d(rest.row(i).transpose()) -
+              frames[static_cast<size_t>(p)].row(i).transpose()).squaredNorm();
+    summary->rms_rigid_residual = std::sqrt(s / (double(P) * n));
+    summary->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+  return out;
+}
+
+BoneTransforms fit_transforms_with_fixed_weights(const SkinningRig& rig, const Eigen::MatrixX3d& Q,
+                                                 const BoneTransforms& initial, int iterations) {
+  if (rig.method != SkinningMethod::lbs)
+    throw InputError("fixed-weight transform fit: expected an ssd rig, found " + skinning_method_name(rig.method));
+  if (Q.rows() != rig.rest.rows())
+    throw InputError("fixed-weight transform fit: the frame has " + std::to_string(Q.rows()) +
+                     " vertices, the rig " + std::to_string(rig.rest.rows()));
+  if (!Q.allFinite()) throw InputError("fixed-weight transform fit: the frame contains NaN");
+  if (static_cast<int>(initial.size()) != rig.bone_count)
+    throw InputError("fixed-weight transform fit: " + std::to_string(initial.size()) +
+                     " initial transforms for " + std::to_string(rig.bone_count) + " bones");
+  std::string problem;
+  if (!transforms_are_rigid({initial}, 1e-4, &problem))
+    throw InputError("fixed-weight transform fit: rigid initial transforms are required but " + problem);
+  const Eigen::Index n = rig.rest.rows(), K = rig.influences.cols();
+  const int B = rig.bone_count;
+  // Vertices influenced by each bone, with the weight.
+  std::vector<std::vector<std::pair<int, double>>> members(static_cast<size_t>(B));
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (Eigen::Index k = 0; k < K; ++k)
+      if (rig.influences(i, k) >= 0 && rig.coefficients(i, k) > 1e-8)
+        members[static_cast<size_t>(rig.influences(i, k))].push_back({static_cast<int>(i), rig.coefficients(i, k)});
+  BoneTransforms T = initial;
+  Eigen::MatrixX3d current = evaluate_rig(rig, T);   // Σ_k w_k M_k v
+  for (int it = 0; it < iterations; ++it) {
+    for (int b = 0; b < B; ++b) {
+      const auto& mem = members[static_cast<size_t>(b)];
+      if (mem.size() < 3) continue;
+      std::vector<Eigen::Vector3d> a, t;
+      std::vector<double> w;
+      a.reserve(mem.size()), t.reserve(mem.size()), w.reserve(mem.size());
+      for (const auto& [i, wi] : mem) {
+        const Eigen::Vector3d v = rig.rest.row(i).transpose();
+        const Eigen::Vector3d others = current.row(i).transpose() - wi * (T[static_cast<size_t>(b)] * v);
+        // ‖wi (R v + t) − (q − others)‖² = wi² ‖R v + t − (q − others)/wi‖²
+        a.push_back(v);
+        t.push_back((Q.row(i).transpose() - others) / wi);
+        w.push_back(wi * wi);
+      }
+      const Eigen::Affine3d Tn = weighted_kabsch(a, t, w);
+      for (const auto& [i, wi] : mem) {
+        const Eigen::Vector3d v = rig.rest.row(i).transpose();
+        current.row(i) += (wi * (Tn * v - T[static_cast<size_t>(b)] * v)).transpose();
+      }
+      T[static_cast<size_t>(b)] = Tn;
+    }
+  }
+  return T;
+}
+
+}  // namespace bodymodel

@@ -1,0 +1,164 @@
+#include "skinning/fit_lbs.h"
+
+#include <chrono>
+#include <cmath>
+#include <mutex>
+#include <sstream>
+
+#include <Eigen/Cholesky>
+#include <tbb/parallel_for.h>
+
+#include "core/error.h"
+
+namespace bodymodel {
+
+std::string LbsFitSummary::brief() const {
+  std::ostringstream s;
+  s << "SSD fit: " << vertices << " vertices, " << poses << " poses, " << bones << " bones, ≤"
+    << max_influences << " influences; residual RMS " << rms_residual << ", max " << max_residual
+    << "; " << seconds << " s";
+  return s.str();
+}
+
+Eigen::VectorXd nonnegative_least_squares(const Eigen::MatrixXd& H, const Eigen::VectorXd& g) {
+  const Eigen::Index n = g.size();
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(n);
+  std::vector<bool> passive(static_cast<size_t>(n), false);
+  const double scale = std::max(H.diagonal().cwiseAbs().maxCoeff(), 1e-300);
+  const double tol = 1e-12 * scale * std::max(1.0, g.cwiseAbs().maxCoeff() / scale);
+  auto solve_passive = [&](Eigen::VectorXd* s) {
+    std::vector<Eigen::Index> P;
+    for (Eigen::Index i = 0; i < n; ++i)
+      if (passive[static_cast<size_t>(i)]) P.push_back(i);
+    const auto m = static_cast<Eigen::Index>(P.size());
+    Eigen::MatrixXd Hp(m, m);
+    Eigen::VectorXd gp(m);
+    for (Eigen::Index a = 0; a < m; ++a) {
+      gp(a) = g(P[static_cast<size_t>(a)]);
+      for (Eigen::Index b = 0; b < m; ++b) Hp(a, b) = H(P[static_cast<size_t>(a)], P[static_cast<size_t>(b)]);
+      Hp(a, a) += 1e-14 * scale;
+    }
+    const Eigen::VectorXd sp = Hp.ldlt().solve(gp);
+    s->setZero(n);
+    for (Eigen::Index a = 0; a < m; ++a) (*s)(P[static_cast<size_t>(a)]) = sp(a);
+  };
+  for (int outer = 0; outer < 3 * n + 10; ++outer) {
+    const Eigen::VectorXd w = g - H * x;   // negative gradient
+    Eigen::Index j = -1;
+    double best = tol;
+    for (Eigen::Index i = 0; i < n; ++i)
+      if (!passive[static_cast<size_t>(i)] && w(i) > best) best = w(i), j = i;
+    if (j < 0) break;
+    passive[static_cast<size_t>(j)] = true;
+    Eigen::VectorXd s;
+    for (int inner = 0; inner < 3 * n + 10; ++inner) {
+      solve_passive(&s);
+      double alpha = 1.0;
+      bool feasible = true;
+      for (Eigen::Index i = 0; i < n; ++i)
+        if (passive[static_cast<size_t>(i)] && s(i) <= 0) {
+          feasible = false;
+          const double d = x(i) - s(i);
+          if (d > 0) alpha = std::min(alpha, x(i) / d);
+        }
+      if (feasible) break;
+      x += alpha * (s - x);
+      for (Eigen::Index i = 0; i < n; ++i)
+        if (passive[static_cast<size_t>(i)] && x(i) <= 1e-15) {
+          passive[static_cast<size_t>(i)] = false;
+          x(i) = 0;
+        }
+    }
+    x = s.cwiseMax(0.0);
+  }
+  return x;
+}
+
+void rig_residuals(const SkinningRig& rig, const SkinningExamples& ex, double* rms, double* max) {
+  double sum = 0, mx = 0;
+  for (int p = 0; p < ex.pose_count(); ++p) {
+    const Eigen::MatrixX3d X = evaluate_rig(rig, ex.transforms[static_cast<size_t>(p)]);
+    const Eigen::VectorXd e = (X - ex.poses[static_cast<size_t>(p)]).rowwise().norm();
+    sum += e.squaredNorm();
+    mx = std::max(mx, e.maxCoeff());
+  }
+  if (rms) *rms = std::sqrt(sum / std::max(1.0, double(ex.pose_count()) * ex.vertex_count()));
+  if (max) *max = mx;
+}
+
+SkinningRig fit_lbs(const SkinningExamples& ex, const Eigen::MatrixXi& influences_in,
+                    const LbsFitOptions& options, LbsFitSummary* summary,
+                    const ProgressCallback& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  validate_examples(ex, options.require_rigid, options.rigid_tolerance);
+  const Eigen::Index n = ex.rest.rows();
+  const int B = ex.bone_count(), P = ex.pose_count();
+  Eigen::MatrixXi I = influences_in.size() ? influences_in : choose_influences(ex, options.max_influences);
+  if (I.rows() != n)
+    throw InputError("fit_lbs: influence sets have " + std::to_string(I.rows()) +
+                     " rows, expected one per vertex (" + std::to_string(n) + ")");
+  if (I.size() && (I.maxCoeff() >= B || I.minCoeff() < -1))
+    throw InputError("fit_lbs: influence sets name bones outside 0.." + std::to_string(B - 1));
+  const Eigen::Index K = I.cols();
+  SkinningRig rig;
+  rig.method = SkinningMethod::lbs;
+  rig.bone_count = B;
+  rig.rest = ex.rest;
+  rig.influences = Eigen::MatrixXi::Constant(n, K, -1);
+  rig.coefficients = Eigen::MatrixXd::Zero(n, K);
+
+  const Eigen::Index chunk = std::max<Eigen::Index>(1024, n / 20);
+  for (Eigen::Index start = 0; start < n; start += chunk) {
+    report_progress(progress, double(start) / n, "SSD weights");
+    const Eigen::Index stop = std::min(n, start + chunk);
+    tbb::parallel_for(tbb::blocked_range<Eigen::Index>(start, stop, 64), [&](const auto& r) {
+      for (Eigen::Index i = r.begin(); i < r.end(); ++i) {
+        std::vector<int> bones;
+        for (Eigen::Index k = 0; k < K; ++k)
+          if (I(i, k) >= 0 && std::find(bones.begin(), bones.end(), I(i, k)) == bones.end())
+            bones.push_back(I(i, k));
+        const auto m = static_cast<Eigen::Index>(bones.size());
+        if (m == 0) throw InputError("fit_lbs: vertex " + std::to_string(i) + " has no influence");
+        const Eigen::Vector3d v = ex.rest.row(i).transpose();
+        Eigen::MatrixXd A(3 * P, m);
+        Eigen::VectorXd b(3 * P);
+        for (int p = 0; p < P; ++p) {
+          const double w = ex.pose_weight(p);
+          for (Eigen::Index k = 0; k < m; ++k)
+            A.block(3 * p, k, 3, 1) = w * (ex.transforms[static_cast<size_t>(p)][static_cast<size_t>(bones[static_cast<size_t>(k)])] * v);
+          b.segment<3>(3 * p) = w * ex.poses[static_cast<size_t>(p)].row(i).transpose();
+        }
+        Eigen::MatrixXd H = A.transpose() * A;
+        Eigen::VectorXd g = A.transpose() * b;
+        const double omega2 = options.sum_to_one_weight * options.sum_to_one_weight *
+                              std::max(H.trace() / m, 1e-300);
+        H.array() += omega2;
+        g.array() += omega2;
+        Eigen::VectorXd w = nonnegative_least_squares(H, g);
+        const double s = w.sum();
+        if (!(s > 0) || !w.allFinite()) {
+          w.setZero();
+          w(0) = 1;
+        } else {
+          w /= s;
+        }
+        for (Eigen::Index k = 0; k < m; ++k) {
+          rig.influences(i, k) = bones[static_cast<size_t>(k)];
+          rig.coefficients(i, k) = w(k);
+        }
+      }
+    });
+  }
+  report_progress(progress, 1.0, "SSD weights");
+  if (summary) {
+    summary->vertices = static_cast<int>(n);
+    summary->poses = P;
+    summary->bones = B;
+    summary->max_influences = static_cast<int>(K);
+    summary->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    rig_residuals(rig, ex, &summary->rms_residual, &summary->max_residual);
+  }
+  return rig;
+}
+
+}  // namespace bodymodel

@@ -1,0 +1,213 @@
+#include "skinning/fit_mwe.h"
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
+#include <tbb/parallel_for.h>
+
+#include "core/error.h"
+#include "core/geometry.h"
+#include "skinning/fit_lbs.h"
+
+namespace bodymodel {
+
+std::string MweFitSummary::brief() const {
+  std::ostringstream s;
+  s << "MWE fit: " << vertices << " vertices, " << poses << " poses (≥" << unique_poses_min
+    << " unique per vertex), ≤" << max_influences << " influences, " << mean_components
+    << " components on average; residual RMS " << rms_residual << ", max " << max_residual << "; "
+    << seconds << " s (+ base " << base_seconds << " s)";
+  return s.str();
+}
+
+SkinningRig fit_mwe(const SkinningExamples& ex, const SkinningRig* base_lbs,
+                    const MweFitOptions& options, MweFitSummary* summary,
+                    const ProgressCallback& progress) {
+  auto t0 = std::chrono::steady_clock::now();
+  validate_examples(ex, false);
+  if (!(options.ridge_scale >= 0)) throw InputError("mwe: ridge scale s must be ≥ 0");
+  if (options.components < 0) throw InputError("mwe: components must be ≥ 0");
+  SkinningRig lbs;
+  if (base_lbs) {
+    if (base_lbs->method != SkinningMethod::lbs || base_lbs->vertex_count() != ex.vertex_count() ||
+        base_lbs->bone_count != ex.bone_count())
+      throw InputError("mwe: the base rig must be an ssd rig with the examples' " +
+                       std::to_string(ex.vertex_count()) + " vertices and " +
+                       std::to_string(ex.bone_count()) + " bones");
+    lbs = *base_lbs;
+  } else {
+    LbsFitOptions lo;
+    lo.max_influences = options.max_influences;
+    lo.require_rigid = false;
+    lbs = fit_lbs(ex, {}, lo);
+  }
+  const double base_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  t0 = std::chrono::steady_clock::now();
+
+  const Eigen::Index n = ex.rest.rows(), K = lbs.influences.cols();
+  const int P = ex.pose_count(), B = ex.bone_count();
+  const double diag = std::max(bounding_box_diagonal(ex.rest), 1e-300);
+
+  // Base rig as MWE coefficients (folded in at the end) and its positions in every pose.
+  SkinningRig base = lbs_as_mwe(lbs);
+  if (options.base == MweBase::none) base.coefficients.setZero();
+  if (options.base == MweBase::rigid) {
+    base.coefficients.setZero();
+    for (Eigen::Index i = 0; i < n; ++i) {
+      Eigen::Index best = 0;
+      lbs.coefficients.row(i).maxCoeff(&best);
+      base.coefficients.row(i).segment<12>(12 * best).setOnes();
+    }
+  }
+  std::vector<Eigen::MatrixX3d> base_pos(static_cast<size_t>(P));
+  for (int p = 0; p < P; ++p)
+    base_pos[static_cast<size_t>(p)] = evaluate_rig(base, ex.transforms[static_cast<size_t>(p)]);
+
+  // Per-bone pose distances for duplicate detection: D[b](p, q) = max entry difference.
+  std::vector<Eigen::MatrixXd> D(static_cast<size_t>(B), Eigen::MatrixXd::Zero(P, P));
+  for (int b = 0; b < B; ++b)
+    for (int p = 0; p < P; ++p)
+      for (int q = p + 1; q < P; ++q) {
+        Eigen::Matrix<double, 3, 4> d = ex.transforms[static_cast<size_t>(p)][static_cast<size_t>(b)].affine() -
+                                        ex.transforms[static_cast<size_t>(q)][static_cast<size_t>(b)].affine();
+        d.col(3) /= diag;
+        D[static_cast<size_t>(b)](p, q) = D[static_cast<size_t>(b)](q, p) = d.cwiseAbs().maxCoeff();
+      }
+
+  SkinningRig rig = base;
+  rig.method = SkinningMethod::mwe;
+  std::atomic<long long> components_total{0};
+  std::atomic<int> unique_min{P};
+  const Eigen::Index chunk = std::max<Eigen::Index>(1024, n / 20);
+  for (Eigen::Index start = 0; start < n; start += chunk) {
+    report_progress(progress, double(start) / n, "MWE weights");
+    const Eigen::Index stop = std::min(n, start + chunk);
+    tbb::parallel_for(tbb::blocked_range<Eigen::Index>(start, stop, 32), [&](const auto& r) {
+      long long comp_local = 0;
+      for (Eigen::Index i = r.begin(); i < r.end(); ++i) {
+        std::vector<Eigen::Index> slots;
+        for (Eigen::Index k = 0; k < K; ++k)
+          if (lbs.influences(i, k) >= 0) slots.push_back(k);
+        const auto nb = static_cast<Eigen::Index>(slots.size());
+        const Eigen::Vector4d v(ex.rest(i, 0), ex.rest(i, 1), ex.rest(i, 2), 1.0);
+        // 1. group duplicate poses for this vertex's bones.
+        std::vector<int> group(static_cast<size_t>(P), -1);
+        std::vector<std::vector<int>> groups;
+        for (int p = 0; p < P; ++p) {
+          if (group[static_cast<size_t>(p)] >= 0) continue;
+          group[static_cast<size_t>(p)] = static_cast<int>(groups.size());
+          groups.push_back({p});
+          for (int q = p + 1; q < P; ++q) {
+            if (group[static_cast<size_t>(q)] >= 0) continue;
+            double dmax = 0;
+            for (Eigen::Index s = 0; s < nb; ++s)
+              dmax = std::max(dmax, D[static_cast<size_t>(lbs.influences(i, slots[static_cast<size_t>(s)]))](p, q));
+            if (dmax <= options.duplicate_tolerance) {
+              group[static_cast<size_t>(q)] = group[static_cast<size_t>(p)];
+              groups.back().push_back(q);
+            }
+          }
+        }
+        const auto m = static_cast<Eigen::Index>(groups.size());
+        {
+          int cur = unique_min.load();
+          while (m < cur && !unique_min.compare_exchange_weak(cur, static_cast<int>(m))) {
+          }
+        }
+        // Influence maps μ_k (§4.2).
+        Eigen::VectorXd mu = Eigen::VectorXd::Ones(nb);
+        if (options.influence_map_floor > 0)
+          for (Eigen::Index s = 0; s < nb; ++s)
+            mu(s) = std::max(options.influence_map_floor, lbs.coefficients(i, slots[static_cast<size_t>(s)]));
+        for (int j = 0; j < 3; ++j) {
+          Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m, 4 * nb);
+          Eigen::VectorXd b = Eigen::VectorXd::Zero(m);
+          for (Eigen::Index g = 0; g < m; ++g) {
+            const auto& members = groups[static_cast<size_t>(g)];
+            double omega = 0;
+            for (int p : members) {
+              omega = std::max(omega, ex.pose_weight(p));
+              for (Eigen::Index s = 0; s < nb; ++s) {
+                const auto& M = ex.transforms[static_cast<size_t>(p)][static_cast<size_t>(lbs.influences(i, slots[static_cast<size_t>(s)]))];
+                for (int c = 0; c < 4; ++c) A(g, 4 * s + c) += mu(s) * M.matrix()(j, c) * v(c);
+              }
+              b(g) += ex.poses[static_cast<size_t>(p)](i, j) - base_pos[static_cast<size_t>(p)](i, j);
+            }
+            const double inv = 1.0 / double(members.size());
+            A.row(g) *= inv * omega;
+            b(g) *= inv * omega;
+          }
+          // 3. PCA on the columns of A.
+          const Eigen::Index cols = 4 * nb;
+          Eigen::VectorXd wfull = Eigen::VectorXd::Zero(cols);
+          if (m >= 2) {
+            const Eigen::RowVectorXd mean = A.colwise().mean();
+            const Eigen::MatrixXd Ac = A.rowwise() - mean;
+            const Eigen::MatrixXd cov = Ac.transpose() * Ac / double(m - 1);
+            Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(cov);
+            const Eigen::VectorXd ev = eig.eigenvalues().reverse();          // decreasing
+            const Eigen::MatrixXd evec = eig.eigenvectors().rowwise().reverse();
+            const double total = std::max(ev.cwiseMax(0.0).sum(), 0.0);
+            const double zero = 1e-12 * std::max(ev(0), 0.0);
+            Eigen::Index p = 0;
+            if (total > 0) {
+              if (options.components > 0) {
+                p = std::min<Eigen::Index>(options.components, cols);
+              } else {
+                double acc = 0;
+                while (p < cols && acc < options.variance_kept * total) acc += std::max(ev(p++), 0.0);
+              }
+              while (p > 0 && ev(p - 1) <= zero) --p;   // zero variance → λ = ∞ → dropped
+            }
+            if (p > 0) {
+              const Eigen::MatrixXd E = evec.leftCols(p);
+              const Eigen::MatrixXd C = A * E;
+              // 4. local ridge regression, λ_h = s / σ²(c_h).
+              Eigen::MatrixXd H = C.transpose() * C;
+              const Eigen::RowVectorXd cmean = C.colwise().mean();
+              for (Eigen::Index h = 0; h < p; ++h) {
+                const double var = (C.col(h).array() - cmean(h)).square().sum() / double(m - 1);
+                H(h, h) += options.ridge_scale / std::max(var, 1e-300);
+              }
+              // 5. SVD solve with small singular values dropped.
+              Eigen::JacobiSVD<Eigen::MatrixXd> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+              const Eigen::VectorXd sv = svd.singularValues();
+              const Eigen::VectorXd rhs = svd.matrixU().transpose() * (C.transpose() * b);
+              Eigen::VectorXd y = Eigen::VectorXd::Zero(p);
+              for (Eigen::Index h = 0; h < p; ++h)
+                if (sv(h) > options.singular_value_tolerance * sv(0)) y(h) = rhs(h) / sv(h);
+              wfull = E * (svd.matrixV() * y);
+              comp_local += p;
+            }
+          }
+          for (Eigen::Index s = 0; s < nb; ++s)
+            for (int c = 0; c < 4; ++c)
+              rig.coefficients(i, 12 * slots[static_cast<size_t>(s)] + 4 * j + c) +=
+                  mu(s) * wfull(4 * s + c);
+        }
+      }
+      components_total += comp_local;
+    });
+  }
+  report_progress(progress, 1.0, "MWE weights");
+  if (!rig.coefficients.allFinite())
+    throw NumericalError("mwe: the ridge solve produced non-finite weights");
+  if (summary) {
+    summary->vertices = static_cast<int>(n);
+    summary->poses = P;
+    summary->unique_poses_min = unique_min.load();
+    summary->max_influences = static_cast<int>(K);
+    summary->mean_components = double(components_total.load()) / (3.0 * double(n));
+    summary->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    summary->base_seconds = base_seconds;
+    rig_residuals(rig, ex, &summary->rms_residual, &summary->max_residual);
+  }
+  return rig;
+}
+
+}  // namespace bodymodel
