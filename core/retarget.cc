@@ -1,0 +1,275 @@
+#include "core/retarget.h"
+
+#include <algorithm>
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "core/error.h"
+#include "core/io/atomic_write.h"
+
+namespace bodymodel {
+namespace fs = std::filesystem;
+
+namespace {
+
+bool starts_with(const std::string& s, const char* prefix) { return s.rfind(prefix, 0) == 0; }
+
+// Chains fixed to the hips (root, pelvis) and the small finger/toe chains get no rest
+// correction of their own: their source bones do not correspond to the hm08 bones in
+// direction (a Poser "buttock" points down and back, the hm08 pelvis bone sideways).
+bool corrects_rest(const std::vector<std::string>& targets) {
+  for (const auto& t : targets)
+    if (t == "root" || starts_with(t, "pelvis") || starts_with(t, "finger") ||
+        starts_with(t, "toe") || starts_with(t, "metacarpal"))
+      return false;
+  return true;
+}
+
+}  // namespace
+
+RetargetMap RetargetMap::poser_cmu() {
+  RetargetMap m;
+  auto add = [&](std::string source, std::vector<std::string> targets) {
+    const bool correct = corrects_rest(targets);
+    m.entries.push_back({std::move(source), std::move(targets), correct});
+  };
+  add("hip", {"root"});
+  add("abdomen", {"spine05", "spine04", "spine03"});
+  add("chest", {"spine02", "spine01"});
+  add("neck", {"neck01", "neck02", "neck03"});
+  add("head", {"head"});
+  for (const char* side : {"l", "r"}) {
+    const std::string s = side, S = s == "l" ? ".L" : ".R";
+    add(s + "Collar", {"clavicle" + S, "shoulder01" + S});
+    add(s + "Shldr", {"upperarm01" + S, "upperarm02" + S});
+    add(s + "ForeArm", {"lowerarm01" + S, "lowerarm02" + S});
+    add(s + "Hand", {"wrist" + S});
+    add(s + "Buttock", {"pelvis" + S});
+    add(s + "Thigh", {"upperleg01" + S, "upperleg02" + S});
+    add(s + "Shin", {"lowerleg01" + S, "lowerleg02" + S});
+    add(s + "Foot", {"foot" + S});
+  }
+  return m;
+}
+
+RetargetMap RetargetMap::from_mhskel(const fs::path& mhskel) {
+  nlohmann::ordered_json j;
+  try {
+    j = nlohmann::ordered_json::parse(read_text_file(mhskel));
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError("skeleton '" + mhskel.string() + "' is not valid JSON: " + e.what());
+  }
+  if (!j.contains("bones") || !j["bones"].is_object())
+    throw InputError("skeleton '" + mhskel.string() + "': expected an object 'bones'");
+  // Rig names that the cgspeed BVH spells differently (README §7.2).
+  const std::vector<std::pair<std::string, std::string>> aliases{
+      {"LeftHandFinger1", "LeftHandIndex1"}, {"RightHandFinger1", "RightHandIndex1"}};
+  RetargetMap m;
+  std::set<std::string> claimed;
+  for (auto it = j["bones"].begin(); it != j["bones"].end(); ++it) {
+    const auto& b = it.value();
+    Entry e;
+    e.source = it.key();
+    for (const auto& [rig, bvh] : aliases)
+      if (e.source == rig) e.source = bvh;
+    if (b.contains("reference") && b["reference"].is_array())
+      for (const auto& r : b["reference"])
+        if (r.is_string() && claimed.insert(r.get<std::string>()).second)
+          e.targets.push_back(r.get<std::string>());
+    if (e.targets.empty()) continue;
+    e.correct_rest = corrects_rest(e.targets);
+    m.entries.push_back(std::move(e));
+  }
+  return m;
+}
+
+RetargetMap RetargetMap::for_clip(const BvhMotion& clip, const fs::path& makehuman_dir) {
+  auto matched = [&](const RetargetMap& m) {
+    int n = 0;
+    for (const auto& e : m.entries) n += clip.find(e.source) >= 0;
+    return static_cast<double>(n) / std::max<size_t>(1, m.entries.size());
+  };
+  RetargetMap poser = poser_cmu();
+  const fs::path rig = makehuman_dir / "rig" / "cmu_mb.mhskel";
+  std::error_code ec;
+  RetargetMap cmu = fs::exists(rig, ec) ? from_mhskel(rig) : RetargetMap{};
+  const double fp = matched(poser), fc = matched(cmu);
+  if (std::max(fp, fc) < 0.5)
+    throw InputError("cannot retarget a BVH with root joint '" +
+                     (clip.joints.empty() ? std::string("?") : clip.joints[0].name) +
+                     "': its joint names match neither the MakeHuman default skeleton, the "
+                     "Poser/DAZ CMU names (hip, abdomen, lThigh, ...) nor rig/cmu_mb.mhskel "
+                     "(Hips, LeftUpLeg, ...)");
+  return fp >= fc ? poser : cmu;
+}
+
+Retargeter::Retargeter(const BvhMotion& clip, const Skeleton& target, const RetargetMap& map,
+                       const RetargetOptions& options)
+    : clip_(clip), target_(target), options_(options) {
+  clip_.validate();
+  target_.validate();
+  C_ = bvh_axis_conversion(options.up_axis ? *options.up_axis : guess_bvh_up_axis(clip_));
+  const int nj = static_cast<int>(clip_.joints.size());
+  const int nb = target_.bone_count();
+  driver_.assign(nb, -1);
+  std::vector<const RetargetMap::Entry*> entry_of(nj, nullptr);
+  for (const auto& e : map.entries) {
+    const int j = clip_.find(e.source);
+    if (j < 0) {
+      unmatched_.push_back(e.source);
+      continue;
+    }
+    if (entry_of[j]) continue;  // first entry wins
+    std::vector<std::string> present;
+    for (const auto& t : e.targets) {
+      const int b = target_.find(t);
+      if (b >= 0 && driver_[b] < 0) {
+        driver_[b] = j;
+        present.push_back(t);
+      }
+    }
+    if (!present.empty()) entry_of[j] = &e;
+  }
+
+  // Rest positions of the source joints (file units, hm08 axes).
+  const Eigen::MatrixX3d P = (clip_.rest_positions() * C_.transpose()).eval();
+  auto chain_direction = [&](const RetargetMap::Entry& e) -> Eigen::Vector3d {
+    int first = -1, last = -1;
+    for (const auto& t : e.targets) {
+      const int b = target_.find(t);
+      if (b < 0) continue;
+      if (first < 0) first = b;
+      last = b;
+    }
+    if (first < 0) return Eigen::Vector3d::Zero();
+    return (target_.tails.row(last) - target_.heads.row(first)).transpose();
+  };
+  // Rest correction per source joint, parents first (joints are stored depth-first).
+  correction_.assign(nj, Eigen::Matrix3d::Identity());
+  for (int j = 0; j < nj; ++j) {
+    const int parent = clip_.joints[j].parent;
+    Eigen::Matrix3d A = parent >= 0 ? correction_[parent] : Eigen::Matrix3d::Identity();
+    const RetargetMap::Entry* e = entry_of[j];
+    if (e && e->correct_rest) {
+      const Eigen::Vector3d dt = chain_direction(*e);
+      // Source direction: towards the mapped child best aligned with the target chain, or
+      // the End Site of a leaf joint; zero-length offsets carry no direction.
+      Eigen::Vector3d best = Eigen::Vector3d::Zero();
+      double best_cos = -2;
+      bool has_child = false;
+      for (int c = j + 1; c < nj; ++c) {
+        if (clip_.joints[c].parent != j) continue;
+        has_child = true;
+        if (!entry_of[c]) continue;
+        const Eigen::Vector3d ds = (P.row(c) - P.row(j)).transpose();
+        if (ds.norm() < 1e-9 || dt.norm() < 1e-9) continue;
+        const double cs = ds.normalized().dot(dt.normalized());
+        if (cs > best_cos) best_cos = cs, best = ds;
+      }
+      if (!has_child && clip_.joints[j].end_site) best = C_ * *clip_.joints[j].end_site;
+      if (best.norm() > 1e-9 && dt.norm() > 1e-9)
+        A = Eigen::Quaterniond::FromTwoVectors(dt, best).toRotationMatrix();
+    }
+    correction_[j] = A;
+  }
+
+  // Translation scale: hm08 thigh+shin (left) over the source's mapped thigh+shin.
+  double target_len = 0, source_len = 0;
+  for (const char* bone : {"upperleg01.L", "upperleg02.L", "lowerleg01.L", "lowerleg02.L"}) {
+    const int b = target_.find(bone);
+    if (b >= 0) target_len += (target_.tails.row(b) - target_.heads.row(b)).norm();
+  }
+  std::set<int> leg_joints;
+  for (const char* bone : {"upperleg02.L", "lowerleg02.L"}) {
+    const int b = target_.find(bone);
+    if (b >= 0 && driver_[b] >= 0) leg_joints.insert(driver_[b]);
+  }
+  for (int j : leg_joints)
+    for (int c = j + 1; c < nj; ++c)
+      if (clip_.joints[c].parent == j) {
+        source_len += (P.row(c) - P.row(j)).norm();
+        break;
+      }
+  scale_ = (leg_joints.size() == 2 && source_len > 0 && target_len > 0) ? target_len / source_len
+                                                                       : 1.0;
+  // Rest hip height above the lowest rest joint or End Site (hm08 axes, file units).
+  double lowest = P.col(1).minCoeff();
+  for (int j = 0; j < nj; ++j)
+    if (clip_.joints[j].end_site)
+      lowest = std::min(lowest, P(j, 1) + (C_ * *clip_.joints[j].end_site).y());
+  rest_hip_height_ = P(0, 1) - lowest;
+  if (clip_.frame_count() > 0) start_ = bvh_root_position(clip_, 0);
+}
+
+int Retargeter::driven_bone_count() const {
+  return static_cast<int>(std::count_if(driver_.begin(), driver_.end(), [](int d) { return d >= 0; }));
+}
+
+Pose Retargeter::pose(int frame) const {
+  if (frame < 0 || frame >= clip_.frame_count())
+    throw InputError("retarget: frame " + std::to_string(frame) + " does not exist (the clip has " +
+                     std::to_string(clip_.frame_count()) + " frames)");
+  const int nj = static_cast<int>(clip_.joints.size());
+  // Source world rotations in hm08 axes.
+  std::vector<Eigen::Matrix3d> G(nj);
+  for (int j = 0; j < nj; ++j) {
+    const Eigen::Matrix3d R = C_ * bvh_joint_rotation(clip_, frame, j) * C_.transpose();
+    const int p = clip_.joints[j].parent;
+    G[j] = p >= 0 ? Eigen::Matrix3d(G[p] * R) : R;
+  }
+  // Target world rotations: driven bones follow their source, others their parent.
+  const int nb = target_.bone_count();
+  std::vector<Eigen::Matrix3d> Q(nb);
+  Pose pose = Pose::rest(nb);
+  for (int b = 0; b < nb; ++b) {
+    const int p = target_.parents[b];
+    const int j = driver_[b];
+    if (j >= 0) {
+      Q[b] = G[j] * correction_[j];
+      const Eigen::Matrix3d Qp = p >= 0 ? Q[p] : Eigen::Matrix3d::Identity();
+      pose.rotations[b] = Qp.transpose() * Q[b];
+    } else {
+      Q[b] = p >= 0 ? Q[p] : Eigen::Matrix3d::Identity();
+    }
+  }
+  if (options_.apply_root_translation) {
+    bool has_position = false;
+    for (BvhChannel c : clip_.joints[0].channels) has_position |= !bvh_is_rotation(c);
+    if (has_position) {
+      Eigen::Vector3d p = C_ * bvh_root_position(clip_, frame);
+      const Eigen::Vector3d p0 = C_ * start_;
+      Eigen::Vector3d ref = C_ * clip_.joints[0].offset;
+      if (options_.start_at_origin) ref.x() = p0.x(), ref.z() = p0.z();
+      // Standing in the rest pose puts the root at its rest height above the floor (y = 0).
+      ref.y() = rest_hip_height_;
+      pose.root_translation = scale_ * (p - ref);
+    }
+  }
+  return pose;
+}
+
+std::vector<Pose> Retargeter::all_poses() const {
+  std::vector<Pose> out;
+  out.reserve(frame_count());
+  for (int f = 0; f < frame_count(); ++f) out.push_back(pose(f));
+  return out;
+}
+
+std::vector<Pose> poses_from_bvh(const BvhMotion& clip, const Skeleton& skeleton,
+                                 const fs::path& makehuman_dir, bool with_translation) {
+  int named = 0;
+  for (const auto& j : clip.joints) named += skeleton.find(j.name) >= 0;
+  std::vector<Pose> out;
+  if (named * 2 >= skeleton.bone_count()) {
+    BvhPoseOptions o;
+    o.apply_root_translation = with_translation;
+    for (int f = 0; f < clip.frame_count(); ++f) out.push_back(bvh_frame_to_pose(clip, f, skeleton, o));
+    return out;
+  }
+  RetargetOptions o;
+  o.apply_root_translation = with_translation;
+  return Retargeter(clip, skeleton, RetargetMap::for_clip(clip, makehuman_dir), o).all_poses();
+}
+
+}  // namespace bodymodel

@@ -1,0 +1,98 @@
+// Retargeting motion clips whose skeleton differs from the MakeHuman default skeleton
+// (data README §7.2): the CMU clips in motion/cmu/.
+//
+//   02_02, 03_03  Poser/DAZ-style names (hip, abdomen, chest, lShldr, lThigh, ...)  → built-in map
+//   12_03         cgspeed/MotionBuilder CMU names (Hips, LeftUpLeg, ...)            → the
+//                 `reference` lists of rig/cmu_mb.mhskel (LeftHandIndex1 = LeftHandFinger1)
+//
+// Three steps, as the README suggests:
+//  1. Name map: each source joint drives a chain of default-skeleton bones (`RetargetMap`).
+//  2. Rest-pose correction: the clips rest in a T-pose, hm08 in an A-pose. For each mapped
+//     chain, A = the smallest rotation taking the hm08 rest chain direction (head of its first
+//     bone → tail of its last) onto the source rest direction (joint → its mapped child or End
+//     Site). The world rotation of every bone of the chain is Q_b = G_j · A, where G_j is the
+//     source joint's accumulated world rotation (file axes converted to hm08). Chains fixed to
+//     the hips (root, pelvis) and fingers/toes take no correction of their own: they use their
+//     source parent's A. Bones that no chain drives keep identity relative to their parent.
+//  3. Root translation: scaled by (hm08 thigh+shin length / source thigh+shin length), with
+//     the horizontal travel measured from frame 0 and the height from the source's rest hip
+//     height above its lowest rest joint, so a standing frame keeps the hm08 feet on the rest
+//     floor.
+// The result is a `Pose` per frame for the MakeHuman skeleton, ready for forward_kinematics.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/io/bvh.h"
+#include "core/skeleton.h"
+
+namespace bodymodel {
+
+struct RetargetMap {
+  struct Entry {
+    std::string source;                // BVH joint name
+    std::vector<std::string> targets;  // default-skeleton bones it drives, first → last of a chain
+    bool correct_rest = true;          // false: no rest correction of its own (inherits parent's)
+  };
+  std::vector<Entry> entries;
+
+  // The map for the Poser/DAZ-style CMU conversions (02_02, 03_03).
+  static RetargetMap poser_cmu();
+  // The map given by an .mhskel's `reference` lists (e.g. rig/cmu_mb.mhskel for 12_03).
+  // Rig bone names the BVH spells differently (LeftHandFinger1 → LeftHandIndex1) are renamed.
+  static RetargetMap from_mhskel(const std::filesystem::path& mhskel);
+  // Picks the map whose source names best match `clip`'s joints: poser_cmu, or from_mhskel of
+  // `makehuman_dir`/rig/cmu_mb.mhskel. Throws InputError when fewer than half the clip's
+  // joints are known to either.
+  static RetargetMap for_clip(const BvhMotion& clip, const std::filesystem::path& makehuman_dir);
+};
+
+struct RetargetOptions {
+  std::optional<BvhUpAxis> up_axis;   // default: guess_bvh_up_axis (Y for the CMU clips)
+  bool apply_root_translation = true;
+  bool start_at_origin = true;        // horizontal translation relative to frame 0
+};
+
+// Drives `target` (the MakeHuman default skeleton, any body shape) with `clip`.
+class Retargeter {
+ public:
+  Retargeter(const BvhMotion& clip, const Skeleton& target, const RetargetMap& map,
+             const RetargetOptions& options = {});
+
+  int frame_count() const { return clip_.frame_count(); }
+  double frame_time() const { return clip_.frame_time; }
+  // Pose of the target skeleton for `frame` (InputError if out of range).
+  Pose pose(int frame) const;
+  std::vector<Pose> all_poses() const;
+
+  // Source-unit → target-unit scale of the root translation.
+  double translation_scale() const { return scale_; }
+  // Map entries whose source joint is not in the clip (ignored).
+  const std::vector<std::string>& unmatched_sources() const { return unmatched_; }
+  // Number of target bones driven directly by a source joint.
+  int driven_bone_count() const;
+
+ private:
+  BvhMotion clip_;
+  Skeleton target_;
+  RetargetOptions options_;
+  Eigen::Matrix3d C_;                      // file axes → hm08 axes
+  std::vector<int> driver_;                // #target bones: driving source joint or −1
+  std::vector<Eigen::Matrix3d> correction_;  // #source joints: rest correction A
+  double scale_ = 1;
+  double rest_hip_height_ = 0;             // source units, above its lowest rest joint
+  Eigen::Vector3d start_ = Eigen::Vector3d::Zero();  // root position of frame 0 (file)
+  std::vector<std::string> unmatched_;
+};
+
+// Poses for `skeleton` from any BVH: files whose joints carry the skeleton's bone names
+// (motion/poses/*.bvh) are applied directly (bvh_frame_to_pose, rotations only unless
+// `with_translation`); other skeletons (the CMU clips) are retargeted with RetargetMap::for_clip.
+std::vector<Pose> poses_from_bvh(const BvhMotion& clip, const Skeleton& skeleton,
+                                 const std::filesystem::path& makehuman_dir,
+                                 bool with_translation = false);
+
+}  // namespace bodymodel
