@@ -133,18 +133,24 @@ BodyMeasurements measure_body(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i&
   m.volume_l = vol * std::pow(o.mm_per_unit, 3) * 1e-6;
   m.weight_kg = m.volume_l * o.density_kg_per_l;
 
-  auto band = [&](double f0, double f1, bool maximum, double& at) {
+  // Cuts from the bottom of the band upwards. With `stop_at_jump`, the scan ends at the first
+  // cut whose girth exceeds the previous one by more than 12 %: the arms joining the torso
+  // loop at the armpits (A-pose), which must not count as chest.
+  auto band = [&](double f0, double f1, bool maximum, double& at, bool stop_at_jump = false) {
     double best = maximum ? -1 : std::numeric_limits<double>::infinity();
+    double previous = 0;
     for (int s = 0; s < o.slices_per_band; ++s) {
       double f = f0 + (f1 - f0) * (s + 0.5) / o.slices_per_band;
       double g = girth_at_height(V, F, lo + f * height, o.up_axis);
       if (g <= 0) continue;
+      if (stop_at_jump && previous > 0 && g > 1.12 * previous) break;
+      previous = g;
       if (maximum ? g > best : g < best) { best = g; at = f * height * to_cm; }
     }
     return std::isfinite(best) && best > 0 ? best * to_cm : 0.0;
   };
   m.neck_cm = band(0.80, 0.88, false, m.neck_at_cm);
-  m.chest_cm = band(0.68, 0.76, true, m.chest_at_cm);
+  m.chest_cm = band(0.68, 0.80, true, m.chest_at_cm, true);
   m.waist_cm = band(0.55, 0.67, false, m.waist_at_cm);
   m.hips_cm = band(0.45, 0.55, true, m.hips_at_cm);
   m.body_fat_pct = navy_body_fat_pct(sex, m.height_cm, m.neck_cm, m.waist_cm, m.hips_cm);

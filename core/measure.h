@@ -8,7 +8,8 @@
 //   girths   perimeter of the convex hull (CGAL convex_hull_2) of the torso's plane section:
 //            the section is cut at many heights within a band (fractions of the height above
 //            the lowest point) and the largest closed loop of each cut is the torso/neck loop:
-//              neck   minimum over 0.80–0.88 h      chest  maximum over 0.68–0.76 h
+//              neck   minimum over 0.80–0.88 h      chest  maximum over 0.68–0.80 h, below
+//                                                   the armpits (first jump > 12 % ends it)
 //              waist  minimum over 0.55–0.67 h      hips   maximum over 0.45–0.55 h
 //   body fat U.S. Navy circumference method (Hodgdon & Beckett 1984), in inches:
 //            men    86.010·log10(waist − neck) − 70.041·log10(height) + 36.76

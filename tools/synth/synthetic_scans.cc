@@ -1,0 +1,400 @@
+#include "tools/synth/synthetic_scans.h"
+
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <Eigen/Dense>
+#include <atomic>
+#include <cmath>
+#include <fstream>
+#include <iomanip>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/geometry.h"
+#include "core/io/atomic_write.h"
+#include "core/io/bvh.h"
+#include "core/io/mesh_io.h"
+#include "core/landmarks.h"
+#include "core/measure.h"
+#include "core/point_index.h"
+
+namespace bodymodel {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// Depth buffer of one pillar: columns = horizontal angle seen from the pillar, rows = height.
+struct PillarView {
+  Eigen::Vector2d position;   // (x, z) of the pillar
+  Eigen::Vector2d forward;    // unit (x, z) direction from the pillar to the subject's axis
+  double y0 = 0, row_mm = 1, col_rad = 1, max_angle = 1;
+  int rows = 0, cols = 0;
+  std::vector<float> depth;   // rows × cols, +inf where nothing is seen
+
+  // (column, row, depth) of a 3-D point.
+  Eigen::Vector3d project(const Eigen::Vector3d& p) const {
+    Eigen::Vector2d d(p.x() - position.x(), p.z() - position.y());
+    double along = d.dot(forward);
+    double across = forward.x() * d.y() - forward.y() * d.x();
+    double angle = std::atan2(across, along);
+    return {(angle + max_angle) / col_rad, (p.y() - y0) / row_mm, d.norm()};
+  }
+};
+
+void rasterize(PillarView& view, const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F) {
+  std::vector<Eigen::Vector3d> proj(V.rows());
+  for (Eigen::Index i = 0; i < V.rows(); ++i) proj[i] = view.project(V.row(i).transpose());
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    const Eigen::Vector3d &a = proj[F(f, 0)], &b = proj[F(f, 1)], &c = proj[F(f, 2)];
+    int c0 = std::max(0, static_cast<int>(std::floor(std::min({a.x(), b.x(), c.x()}))));
+    int c1 = std::min(view.cols - 1, static_cast<int>(std::ceil(std::max({a.x(), b.x(), c.x()}))));
+    int r0 = std::max(0, static_cast<int>(std::floor(std::min({a.y(), b.y(), c.y()}))));
+    int r1 = std::min(view.rows - 1, static_cast<int>(std::ceil(std::max({a.y(), b.y(), c.y()}))));
+    double det = (b.x() - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (b.y() - a.y());
+    if (std::abs(det) < 1e-12) continue;
+    for (int r = r0; r <= r1; ++r)
+      for (int col = c0; col <= c1; ++col) {
+        double px = col + 0.5, py = r + 0.5;
+        double l1 = ((px - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (py - a.y())) / det;
+        double l2 = ((b.x() - a.x()) * (py - a.y()) - (px - a.x()) * (b.y() - a.y())) / det;
+        double l0 = 1 - l1 - l2;
+        if (l0 < -1e-9 || l1 < -1e-9 || l2 < -1e-9) continue;
+        float z = static_cast<float>(l0 * a.z() + l1 * b.z() + l2 * c.z());
+        float& zb = view.depth[static_cast<size_t>(r) * view.cols + col];
+        if (z < zb) zb = z;
+      }
+  }
+}
+
+double sample_depth(const PillarView& v, double col, double row) {
+  // Minimum over the 2×2 neighbourhood: tolerant to the sample falling between pixels.
+  double best = std::numeric_limits<double>::infinity();
+  int c = static_cast<int>(std::floor(col - 0.5)), r = static_cast<int>(std::floor(row - 0.5));
+  for (int dr = 0; dr <= 1; ++dr)
+    for (int dc = 0; dc <= 1; ++dc) {
+      int rr = r + dr, cc = c + dc;
+      if (rr < 0 || cc < 0 || rr >= v.rows || cc >= v.cols) continue;
+      best = std::min<double>(best, v.depth[static_cast<size_t>(rr) * v.cols + cc]);
+    }
+  return best;
+}
+
+std::string fmt_double(double v, int decimals) {
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(decimals) << v;
+  return s.str();
+}
+
+Eigen::Matrix3d random_rotation(std::mt19937_64& rng, double sigma_rad) {
+  std::normal_distribution<double> n(0.0, sigma_rad);
+  Eigen::Vector3d w(n(rng), n(rng), n(rng));
+  double a = w.norm();
+  return a > 0 ? Eigen::AngleAxisd(a, w / a).toRotationMatrix() : Eigen::Matrix3d::Identity();
+}
+
+Eigen::Vector3d rotation_vector(const Eigen::Matrix3d& R) {
+  Eigen::AngleAxisd aa(R);
+  return aa.angle() * aa.axis();
+}
+
+// Poses a subject can be scanned in. Extreme poses with self-contact or body parts hidden from
+// every pillar (benchmark splits, gym01 handstand, sit01 on the floor) are left out: they make
+// the scan meaningless as a registration target, as they would in a real scanner.
+std::vector<std::string> static_pose_pool(const MakeHuman& mh) {
+  static const std::set<std::string> excluded = {"benchmark", "gym01", "sit01"};
+  std::vector<std::string> pool;
+  for (auto& n : mh.pose_names())
+    if (!excluded.count(n)) pool.push_back(n);
+  return pool;
+}
+
+const std::vector<std::string>& perturbed_bones() {
+  static const std::vector<std::string> bones = {
+      "spine04",      "spine02",      "neck01",        "head",          "clavicle.L",
+      "clavicle.R",   "upperarm01.L", "upperarm01.R",  "lowerarm01.L",  "lowerarm01.R",
+      "upperleg01.L", "upperleg01.R", "lowerleg01.L",  "lowerleg01.R",  "foot.L",
+      "foot.R"};
+  return bones;
+}
+
+MacroSettings random_subject(std::mt19937_64& rng, bool male) {
+  std::uniform_real_distribution<double> u(0, 1);
+  auto in = [&](double a, double b) { return a + (b - a) * u(rng); };
+  MacroSettings s;
+  s.gender = male ? in(0.85, 1.0) : in(0.0, 0.15);
+  s.age = in(0.45, 0.85);          // about 23 to 70 years
+  s.muscle = in(0.15, 0.85);
+  s.weight = in(0.15, 0.85);
+  s.height = in(0.15, 0.85);
+  s.proportions = in(0.25, 0.75);
+  s.cup = in(0.3, 0.7);
+  s.firmness = in(0.3, 0.7);
+  std::gamma_distribution<double> g(2.0, 1.0);
+  double a = g(rng), b = g(rng), c = g(rng), sum = a + b + c;
+  s.african = a / sum;
+  s.asian = b / sum;
+  s.caucasian = c / sum;
+  return s;
+}
+
+}  // namespace
+
+PointCloud simulate_scan(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
+                         const ScannerOptions& o, std::mt19937_64& rng) {
+  if (o.pillars < 1) throw InputError("scanner needs at least one pillar");
+  // Subject axis and extent.
+  Eigen::RowVector3d lo = V.colwise().minCoeff(), hi = V.colwise().maxCoeff();
+  Eigen::Vector2d axis(0.5 * (lo.x() + hi.x()), 0.5 * (lo.z() + hi.z()));
+  std::vector<PillarView> views(o.pillars);
+  for (int k = 0; k < o.pillars; ++k) {
+    double th = M_PI / 4 + 2 * M_PI * k / o.pillars;
+    PillarView& v = views[k];
+    v.position = axis + o.pillar_distance_mm * Eigen::Vector2d(std::cos(th), std::sin(th));
+    v.forward = (axis - v.position).normalized();
+    v.y0 = lo.y() - 10;
+    v.row_mm = o.pixel_mm;
+    v.rows = static_cast<int>(std::ceil((hi.y() - lo.y() + 20) / o.pixel_mm));
+    v.max_angle = std::atan2(0.5 * (hi - lo).norm() + 50, o.pillar_distance_mm - 600);
+    v.max_angle = std::min(v.max_angle, 1.2);
+    v.col_rad = o.pixel_mm / 1000.0;
+    v.cols = static_cast<int>(std::ceil(2 * v.max_angle / v.col_rad));
+    v.depth.assign(static_cast<size_t>(v.rows) * v.cols, std::numeric_limits<float>::infinity());
+    rasterize(v, V, F);
+  }
+  Eigen::MatrixX3d FN = face_normals(V, F);
+  const double cos_max = std::cos(o.max_incidence_deg * M_PI / 180);
+  std::vector<Eigen::Vector3d> pts;
+  std::vector<int> seen_by;
+  int requested = o.min_points + o.min_points / 2;
+  for (int attempt = 0; attempt < 4 && static_cast<int>(pts.size()) < o.min_points; ++attempt) {
+    SurfaceSamples s = sample_surface(V, F, requested, static_cast<unsigned>(rng()));
+    for (int i = 0; i < s.P.rows(); ++i) {
+      Eigen::Vector3d p = s.P.row(i).transpose();
+      Eigen::Vector3d n = FN.row(s.face(i)).transpose();
+      int best = -1;
+      double best_cos = cos_max;
+      for (int k = 0; k < o.pillars; ++k) {
+        const PillarView& v = views[k];
+        Eigen::Vector3d to(v.position.x() - p.x(), 0, v.position.y() - p.z());
+        double c = n.dot(to.normalized());
+        if (c <= best_cos) continue;
+        Eigen::Vector3d pr = v.project(p);
+        if (pr.z() <= sample_depth(v, pr.x(), pr.y()) + 3.0) {
+          best = k;
+          best_cos = c;
+        }
+      }
+      if (best >= 0) {
+        pts.push_back(p);
+        seen_by.push_back(best);
+      }
+    }
+    requested *= 2;
+  }
+  if (static_cast<int>(pts.size()) < o.min_points / 2)
+    throw NumericalError("simulated scan saw too little of the surface");
+  std::normal_distribution<double> noise(0.0, o.noise_sigma_mm);
+  PointCloud cloud;
+  cloud.P.resize(pts.size(), 3);
+  for (size_t i = 0; i < pts.size(); ++i)
+    cloud.P.row(i) = (pts[i] + Eigen::Vector3d(noise(rng), noise(rng), noise(rng))).transpose();
+  // Normals estimated from the noisy points, oriented towards the pillar that saw the point.
+  PointIndex index(cloud.P);
+  cloud.N.resize(pts.size(), 3);
+  tbb::parallel_for(size_t(0), pts.size(), [&](size_t i) {
+    Eigen::Vector3d p = cloud.P.row(i).transpose();
+    auto nb = index.knn(p, o.normal_neighbours);
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (int j : nb) mean += cloud.P.row(j).transpose();
+    mean /= nb.size();
+    Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+    for (int j : nb) {
+      Eigen::Vector3d d = cloud.P.row(j).transpose() - mean;
+      C += d * d.transpose();
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
+    Eigen::Vector3d n = es.eigenvectors().col(0);
+    const PillarView& v = views[seen_by[i]];
+    Eigen::Vector3d to(v.position.x() - p.x(), 0, v.position.y() - p.z());
+    if (n.dot(to) < 0) n = -n;
+    cloud.N.row(i) = n.transpose();
+  });
+  return cloud;
+}
+
+SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const std::string& out,
+                                                     const SyntheticDatabaseOptions& o,
+                                                     const ProgressCallback& progress) {
+  if (o.subjects < 1) throw InputError("--subjects must be at least 1");
+  if (o.poses_per_subject < 0) throw InputError("--poses-per-subject must be 0 or more");
+  auto t0 = std::chrono::steady_clock::now();
+  const fs::path dir(out);
+  ensure_directory(dir / "scans");
+  ensure_directory(dir / "truth");
+
+  SyntheticDatabaseSummary summary;
+  summary.pose_pool = static_pose_pool(mh);
+  std::vector<std::pair<std::string, BvhMotion>> pool_motions;
+  for (auto& name : summary.pose_pool) pool_motions.emplace_back(name, read_bvh(mh.pose_file(name)));
+
+  // Subjects and their scan list are drawn up front from the seed, so the database does not
+  // depend on thread scheduling.
+  std::mt19937_64 rng(o.seed);
+  struct Job {
+    int subject;
+    int index;       // 0 = standard pose
+    int pose = -1;   // index into pool_motions, -1 for the standard pose
+    uint64_t seed;
+  };
+  std::vector<Job> jobs;
+  for (int s = 0; s < o.subjects; ++s) {
+    SyntheticSubject subj;
+    char id[32];
+    std::snprintf(id, sizeof id, "s%03d", s);
+    subj.id = id;
+    bool male = (s % 2) == 1;
+    subj.sliders = random_subject(rng, male);
+    subj.sex = subj.sliders.gender >= 0.5 ? "male" : "female";
+    subj.age_years = subj.sliders.age_years();
+    subj.muscle = subj.sliders.muscle * 100;
+    summary.subjects.push_back(subj);
+    jobs.push_back({s, 0, -1, rng()});
+    std::vector<int> order(pool_motions.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::shuffle(order.begin(), order.end(), rng);
+    for (int p = 0; p < o.poses_per_subject; ++p)
+      jobs.push_back({s, p + 1, order[p % order.size()], rng()});
+  }
+  summary.scans.resize(jobs.size());
+
+  std::atomic<int> done{0};
+  std::mutex progress_mutex;
+  std::atomic<bool> cancelled{false};
+  tbb::task_arena arena(o.threads > 0 ? o.threads : tbb::task_arena::automatic);
+  arena.execute([&] {
+    tbb::parallel_for(size_t(0), jobs.size(), [&](size_t j) {
+      if (cancelled) return;
+      const Job& job = jobs[j];
+      SyntheticSubject& subj = summary.subjects[job.subject];
+      std::mt19937_64 r(job.seed);
+      MakeHuman::Body body = mh.body(subj.sliders);
+      Pose pose = Pose::rest(body.skeleton.bone_count());
+      std::string pose_name = "standard";
+      if (job.pose >= 0) {
+        pose_name = pool_motions[job.pose].first;
+        pose = bvh_frame_to_pose(pool_motions[job.pose].second, 0, body.skeleton);
+        for (auto& bone : perturbed_bones()) {
+          int b = body.skeleton.find(bone);
+          if (b >= 0)
+            pose.rotations[b] = pose.rotations[b] * random_rotation(r, o.perturbation_deg * M_PI / 180);
+        }
+      }
+      Eigen::MatrixX3d posed =
+          linear_blend_skinning(body.mesh.V, body.weights, forward_kinematics(body.skeleton, pose));
+      if (job.index == 0) {
+        // Labels are measured on the standard-pose mesh (what `bodymodel measure` sees).
+        BodyMeasurements m = measure_body(posed, body.mesh.F,
+                                          subj.sex == "male" ? Sex::male : Sex::female);
+        subj.height_cm = m.height_cm;
+        subj.weight_kg = m.weight_kg;
+        subj.body_fat_pct = m.body_fat_pct;
+        subj.waist_cm = m.waist_cm;
+        subj.hips_cm = m.hips_cm;
+        subj.chest_cm = m.chest_cm;
+        subj.neck_cm = m.neck_cm;
+      }
+      // Placement on the scanner platform: a turn about +y and a horizontal shift.
+      std::uniform_real_distribution<double> u(-1, 1);
+      RigidMotion place;
+      place.R = Eigen::AngleAxisd(u(r) * o.max_yaw_deg * M_PI / 180, Eigen::Vector3d::UnitY())
+                    .toRotationMatrix();
+      place.t = Eigen::Vector3d(u(r) * o.max_shift_mm, 0, u(r) * o.max_shift_mm);
+      Eigen::MatrixX3d truth = apply(place, posed);
+      PointCloud scan = simulate_scan(truth, body.mesh.F, o.scanner, r);
+
+      const std::string id = subj.id + "_p" + std::to_string(job.index);
+      write_point_cloud(dir / "scans" / (id + ".ply"), scan);
+      nlohmann::ordered_json lm;
+      std::normal_distribution<double> ln(0.0, o.landmark_sigma_mm);
+      for (auto& [name, v] : body_landmarks()) {
+        Eigen::Vector3d p = truth.row(v).transpose() + Eigen::Vector3d(ln(r), ln(r), ln(r));
+        lm[name] = {p.x(), p.y(), p.z()};
+      }
+      write_text_file(dir / "scans" / (id + ".landmarks.json"), lm.dump(1) + "\n");
+      write_mesh(dir / "truth" / (id + ".ply"), truth, body.mesh.F);
+      std::string pose_csv = "bone,rx,ry,rz\n";
+      Eigen::Vector3d g = rotation_vector(place.R);
+      pose_csv += "_global_rotation," + fmt_double(g.x(), 9) + "," + fmt_double(g.y(), 9) + "," +
+                  fmt_double(g.z(), 9) + "\n";
+      pose_csv += "_global_translation_mm," + fmt_double(place.t.x(), 4) + "," +
+                  fmt_double(place.t.y(), 4) + "," + fmt_double(place.t.z(), 4) + "\n";
+      for (int b = 0; b < body.skeleton.bone_count(); ++b) {
+        Eigen::Vector3d w = rotation_vector(pose.rotations[b]);
+        pose_csv += body.skeleton.names[b] + "," + fmt_double(w.x(), 9) + "," +
+                    fmt_double(w.y(), 9) + "," + fmt_double(w.z(), 9) + "\n";
+      }
+      write_text_file(dir / "truth" / (id + ".pose.csv"), pose_csv);
+
+      SyntheticScanInfo& info = summary.scans[j];
+      info.id = id;
+      info.subject_id = subj.id;
+      info.pose = pose_name;
+      info.points = static_cast<int>(scan.P.rows());
+      int finished = ++done;
+      std::lock_guard<std::mutex> lock(progress_mutex);
+      try {
+        report_progress(progress, double(finished) / jobs.size(), id);
+      } catch (const Cancelled&) {
+        cancelled = true;
+      }
+    });
+  });
+  if (cancelled) throw Cancelled{};
+
+  std::string scans_csv = "scan_id,subject_id,pose,points\n";
+  for (auto& s : summary.scans)
+    scans_csv += s.id + "," + s.subject_id + "," + s.pose + "," + std::to_string(s.points) + "\n";
+  std::string subjects_csv =
+      "subject_id,sex,age_years,height_cm,weight_kg,body_fat_pct,muscle,waist_cm,hips_cm,"
+      "chest_cm,neck_cm,slider_gender,slider_age,slider_muscle,slider_weight,slider_height,"
+      "slider_proportions,slider_african,slider_asian,slider_caucasian\n";
+  for (auto& s : summary.subjects) {
+    const auto& k = s.sliders;
+    subjects_csv += s.id + "," + s.sex + "," + fmt_double(s.age_years, 1) + "," +
+                    fmt_double(s.height_cm, 2) + "," + fmt_double(s.weight_kg, 2) + "," +
+                    fmt_double(s.body_fat_pct, 2) + "," + fmt_double(s.muscle, 1) + "," +
+                    fmt_double(s.waist_cm, 2) + "," + fmt_double(s.hips_cm, 2) + "," +
+                    fmt_double(s.chest_cm, 2) + "," + fmt_double(s.neck_cm, 2) + "," +
+                    fmt_double(k.gender, 4) + "," + fmt_double(k.age, 4) + "," +
+                    fmt_double(k.muscle, 4) + "," + fmt_double(k.weight, 4) + "," +
+                    fmt_double(k.height, 4) + "," + fmt_double(k.proportions, 4) + "," +
+                    fmt_double(k.african, 4) + "," + fmt_double(k.asian, 4) + "," +
+                    fmt_double(k.caucasian, 4) + "\n";
+  }
+  write_text_file(dir / "scans.csv", scans_csv);
+  write_text_file(dir / "subjects.csv", subjects_csv);
+  nlohmann::ordered_json meta = {
+      {"generator", "bodymodel synth-db"},
+      {"seed", o.seed},
+      {"subjects", o.subjects},
+      {"poses_per_subject", o.poses_per_subject},
+      {"units", "millimetres, +y up, bodies face +z"},
+      {"noise_sigma_mm", o.scanner.noise_sigma_mm},
+      {"landmark_sigma_mm", o.landmark_sigma_mm},
+      {"pillars", o.scanner.pillars},
+      {"perturbation_deg", o.perturbation_deg},
+      {"pose_pool", summary.pose_pool},
+      {"density_kg_per_l", MeasureOptions{}.density_kg_per_l},
+      {"note", "truth/ is for evaluation only: nothing in the pipeline may read it"}};
+  write_text_file(dir / "database.json", meta.dump(2) + "\n");
+  summary.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return summary;
+}
+
+}  // namespace bodymodel

@@ -1,0 +1,78 @@
+// Synthetic scan database: MakeHuman bodies, posed, scanned by a simulated laser scanner.
+//
+// A stand-in for the laser-scan database of Hasler et al. 2009, with ground truth kept apart.
+// Scanner model: four vertical pillars at the corners of a square around the subject (like a
+// Vitus body scanner). Each pillar sweeps horizontally-aimed rays up and down: a surface point
+// is seen by a pillar when the horizontal ray to it is unobstructed and hits the surface at
+// less than `max_incidence_deg` from its normal. Points no pillar sees are holes (armpits,
+// crotch, soles, the top of the head, ...). Seen points get Gaussian noise; normals are then
+// estimated from the noisy points (PCA of neighbours) and oriented towards the pillar.
+#pragma once
+
+#include <Eigen/Core>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "core/makehuman.h"
+#include "core/mesh.h"
+#include "core/progress.h"
+
+namespace bodymodel {
+
+struct ScannerOptions {
+  int pillars = 4;                   // evenly spaced around the subject, first at 45°
+  double pillar_distance_mm = 1200;  // horizontal distance from the subject's axis
+  double max_incidence_deg = 75;     // steeper (grazing) hits are not measured
+  double noise_sigma_mm = 1.0;       // Gaussian noise per coordinate
+  int min_points = 50000;            // at least this many seen points per scan
+  double pixel_mm = 1.5;             // z-buffer resolution (vertical mm, horizontal mm at 1 m)
+  int normal_neighbours = 16;        // k for PCA normal estimation
+};
+
+// Simulated scan of a mesh (V #V by 3 mm, F #F by 3). Points uniform by area on the seen surface.
+PointCloud simulate_scan(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
+                         const ScannerOptions& options, std::mt19937_64& rng);
+
+struct SyntheticDatabaseOptions {
+  int subjects = 20;
+  int poses_per_subject = 4;   // in addition to the standard A-pose
+  unsigned seed = 1;
+  double perturbation_deg = 4;   // σ of the random rotation added to each posed major joint
+  double landmark_sigma_mm = 5;  // noise of the landmark positions
+  double max_yaw_deg = 15;       // random turn of the subject on the scanner platform
+  double max_shift_mm = 40;      // random horizontal placement on the platform
+  ScannerOptions scanner;
+  int threads = 0;               // 0 = all cores
+};
+
+// What a subject is: slider values and measured labels (measured on the standard-pose mesh).
+struct SyntheticSubject {
+  std::string id;
+  MacroSettings sliders;
+  std::string sex;  // "female" | "male" (gender slider < 0.5 | ≥ 0.5)
+  double age_years = 0;
+  double height_cm = 0, weight_kg = 0, body_fat_pct = 0, muscle = 0;
+  double waist_cm = 0, hips_cm = 0, chest_cm = 0, neck_cm = 0;
+};
+
+struct SyntheticScanInfo {
+  std::string id, subject_id, pose;
+  int points = 0;
+  double seen_fraction = 0;  // of the surface area
+};
+
+struct SyntheticDatabaseSummary {
+  std::vector<SyntheticSubject> subjects;
+  std::vector<SyntheticScanInfo> scans;
+  std::vector<std::string> pose_pool;
+  double seconds = 0;
+};
+
+// Generates the whole database into `out_dir` (see tools/verbs/synth_db.cc for the layout).
+SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& makehuman,
+                                                     const std::string& out_dir,
+                                                     const SyntheticDatabaseOptions& options,
+                                                     const ProgressCallback& progress = {});
+
+}  // namespace bodymodel

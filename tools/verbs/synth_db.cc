@@ -1,0 +1,84 @@
+// bodymodel synth-db: a synthetic scan database with ground truth kept apart.
+#include <fmt/format.h>
+
+#include <filesystem>
+
+#include "core/data_path.h"
+#include "core/error.h"
+#include "tools/console.h"
+#include "tools/synth/synthetic_scans.h"
+#include "tools/verb.h"
+
+namespace bodymodel {
+namespace {
+struct SynthArgs {
+  SyntheticDatabaseOptions options;
+  std::string out;
+  bool force = false;
+};
+}  // namespace
+
+BODYMODEL_VERB(add_synth_db_verb) {
+  auto a = std::make_shared<SynthArgs>();
+  auto* cmd = app.add_subcommand(
+      "synth-db",
+      "Generate a synthetic scan database: MakeHuman subjects, posed, scanned by a simulated\n"
+      "4-pillar laser scanner (noise, holes, estimated normals), with ground truth apart.\n"
+      "Writes OUT/subjects.csv, OUT/scans.csv, OUT/scans/<id>.ply + <id>.landmarks.json,\n"
+      "OUT/truth/<id>.ply + <id>.pose.csv (evaluation only) and OUT/database.json.");
+  auto& o = a->options;
+  cmd->add_option("--subjects", o.subjects, "Number of subjects (alternating female/male)")
+      ->capture_default_str();
+  cmd->add_option("--poses-per-subject", o.poses_per_subject,
+                  "Scans per subject besides the standard A-pose")
+      ->capture_default_str();
+  cmd->add_option("--seed", o.seed, "Random seed (the database is a function of it)")
+      ->capture_default_str();
+  cmd->add_option("--noise", o.scanner.noise_sigma_mm, "Scanner noise sigma, mm")
+      ->capture_default_str();
+  cmd->add_option("--landmark-noise", o.landmark_sigma_mm, "Landmark noise sigma, mm")
+      ->capture_default_str();
+  cmd->add_option("--min-points", o.scanner.min_points, "Minimum points per scan")
+      ->capture_default_str();
+  cmd->add_option("--perturbation", o.perturbation_deg,
+                  "Sigma of the random joint perturbation added to each pose, degrees")
+      ->capture_default_str();
+  cmd->add_option("--jobs", o.threads, "Threads (0 = all cores)")->capture_default_str();
+  cmd->add_option("--out", a->out, "Output folder")->required();
+  cmd->add_flag("--force", a->force, "Write into an existing non-empty folder");
+  cmd->callback([a] {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (fs::exists(a->out, ec) && !fs::is_empty(a->out, ec) && !a->force)
+      throw InputError("output folder '" + a->out +
+                       "' exists and is not empty (use --force to write into it)");
+    const auto& o = a->options;
+    cli::info(fmt::format("synth-db: {} subjects x {} scans, seed {}, noise {} mm, landmarks {} mm, "
+                          "{} pillars, min {} points/scan",
+                          o.subjects, o.poses_per_subject + 1, o.seed, o.scanner.noise_sigma_mm,
+                          o.landmark_sigma_mm, o.scanner.pillars, o.scanner.min_points));
+    cli::info("loading MakeHuman data from " + data_root().string());
+    MakeHuman mh = MakeHuman::load();
+    cli::ProgressBar bar("synth-db");
+    SyntheticDatabaseSummary s = generate_synthetic_database(mh, a->out, o, bar.callback());
+    bar.finish(fmt::format("{} scans", s.scans.size()));
+    double hmin = 1e9, hmax = 0, wmin = 1e9, wmax = 0;
+    long points = 0;
+    for (auto& subj : s.subjects) {
+      hmin = std::min(hmin, subj.height_cm), hmax = std::max(hmax, subj.height_cm);
+      wmin = std::min(wmin, subj.weight_kg), wmax = std::max(wmax, subj.weight_kg);
+    }
+    for (auto& scan : s.scans) points += scan.points;
+    fmt::print("database      {}\n", a->out);
+    fmt::print("subjects      {} ({} female, {} male)\n", s.subjects.size(),
+               (s.subjects.size() + 1) / 2, s.subjects.size() / 2);
+    fmt::print("scans         {} (standard pose + {} of: {})\n", s.scans.size(),
+               o.poses_per_subject, fmt::join(s.pose_pool, ", "));
+    fmt::print("height        {:.1f} .. {:.1f} cm\n", hmin, hmax);
+    fmt::print("weight        {:.1f} .. {:.1f} kg\n", wmin, wmax);
+    fmt::print("points/scan   {:.0f} on average\n", double(points) / s.scans.size());
+    fmt::print("time          {:.1f} s\n", s.seconds);
+  });
+}
+
+}  // namespace bodymodel
