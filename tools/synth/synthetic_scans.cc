@@ -8,6 +8,7 @@
 #include <cmath>
 #include <fstream>
 #include <iomanip>
+#include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -21,6 +22,7 @@
 #include "core/landmarks.h"
 #include "core/measure.h"
 #include "core/point_index.h"
+#include "core/retarget.h"
 
 namespace bodymodel {
 
@@ -238,9 +240,40 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
   ensure_directory(dir / "truth");
 
   SyntheticDatabaseSummary summary;
-  summary.pose_pool = static_pose_pool(mh);
-  std::vector<std::pair<std::string, BvhMotion>> pool_motions;
-  for (auto& name : summary.pose_pool) pool_motions.emplace_back(name, read_bvh(mh.pose_file(name)));
+  // The pose pool: MakeHuman's static poses, plus frames of the CMU clips (retargeted to the
+  // MakeHuman skeleton of each subject), four evenly spaced frames per clip.
+  struct PoolPose {
+    std::string name;
+    const BvhMotion* motion;
+    int frame;
+    const RetargetMap* map;  // null: the file uses the skeleton's own bone names
+  };
+  std::vector<std::unique_ptr<BvhMotion>> motions;
+  std::vector<std::unique_ptr<RetargetMap>> maps;
+  std::vector<PoolPose> pool;
+  for (auto& name : static_pose_pool(mh)) {
+    motions.push_back(std::make_unique<BvhMotion>(read_bvh(mh.pose_file(name))));
+    pool.push_back({name, motions.back().get(), 0, nullptr});
+  }
+  const fs::path cmu_dir = mh.directory() / "motion" / "cmu";
+  std::error_code ec;
+  if (fs::is_directory(cmu_dir, ec)) {
+    std::vector<fs::path> clips;
+    for (auto& e : fs::directory_iterator(cmu_dir))
+      if (e.path().extension() == ".bvh") clips.push_back(e.path());
+    std::sort(clips.begin(), clips.end());
+    for (auto& clip : clips) {
+      motions.push_back(std::make_unique<BvhMotion>(read_bvh(clip)));
+      maps.push_back(std::make_unique<RetargetMap>(RetargetMap::for_clip(*motions.back(), mh.directory())));
+      const int n = motions.back()->frame_count();
+      for (int k = 0; k < 4; ++k) {
+        int frame = static_cast<int>((k + 0.5) * n / 4);
+        pool.push_back({"cmu" + clip.stem().string() + "-f" + std::to_string(frame),
+                        motions.back().get(), frame, maps.back().get()});
+      }
+    }
+  }
+  for (auto& p : pool) summary.pose_pool.push_back(p.name);
 
   // Subjects and their scan list are drawn up front from the seed, so the database does not
   // depend on thread scheduling.
@@ -264,7 +297,7 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
     subj.muscle = subj.sliders.muscle * 100;
     summary.subjects.push_back(subj);
     jobs.push_back({s, 0, -1, rng()});
-    std::vector<int> order(pool_motions.size());
+    std::vector<int> order(pool.size());
     std::iota(order.begin(), order.end(), 0);
     std::shuffle(order.begin(), order.end(), rng);
     for (int p = 0; p < o.poses_per_subject; ++p)
@@ -286,8 +319,11 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
       Pose pose = Pose::rest(body.skeleton.bone_count());
       std::string pose_name = "standard";
       if (job.pose >= 0) {
-        pose_name = pool_motions[job.pose].first;
-        pose = bvh_frame_to_pose(pool_motions[job.pose].second, 0, body.skeleton);
+        const PoolPose& pp = pool[job.pose];
+        pose_name = pp.name;
+        pose = pp.map ? Retargeter(*pp.motion, body.skeleton, *pp.map).pose(pp.frame)
+                      : bvh_frame_to_pose(*pp.motion, pp.frame, body.skeleton);
+        pose.root_translation.setZero();  // the subject stands on the platform
         for (auto& bone : perturbed_bones()) {
           int b = body.skeleton.find(bone);
           if (b >= 0)
