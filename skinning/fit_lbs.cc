@@ -93,7 +93,18 @@ SkinningRig fit_lbs(const SkinningExamples& ex, const Eigen::MatrixXi& influence
   validate_examples(ex, options.require_rigid, options.rigid_tolerance);
   const Eigen::Index n = ex.rest.rows();
   const int B = ex.bone_count(), P = ex.pose_count();
-  Eigen::MatrixXi I = influences_in.size() ? influences_in : choose_influences(ex, options.max_influences);
+  Eigen::MatrixXi I;
+  if (influences_in.size()) {
+    I = influences_in;
+  } else if (options.influence_candidates > options.max_influences &&
+             options.max_influences < B) {
+    LbsFitOptions wide = options;
+    wide.influence_candidates = 0;
+    const SkinningRig all = fit_lbs(ex, choose_influences(ex, options.influence_candidates), wide);
+    I = lbs_rig_from_weights(ex.rest, dense_weights(all), options.max_influences, 0.0).influences;
+  } else {
+    I = choose_influences(ex, options.max_influences);
+  }
   if (I.rows() != n)
     throw InputError("fit_lbs: influence sets have " + std::to_string(I.rows()) +
                      " rows, expected one per vertex (" + std::to_string(n) + ")");

@@ -16,6 +16,10 @@ namespace bodymodel {
 struct LbsFitOptions {
   // Influence slots per vertex when no influence sets are given (chosen by choose_influences).
   int max_influences = 4;
+  // Automatic influence sets: fit SSD over this many candidate bones per vertex (the best by
+  // rigid residual, see choose_influences), then keep the max_influences largest weights and
+  // refit. ≤ max_influences = use the rigid-residual ranking alone.
+  int influence_candidates = 12;
   // Weight of the appended Σw = 1 row, relative to the RMS column norm of the vertex's system.
   // Large enough that Σw = 1 holds to ~1e-6 before renormalisation.
   double sum_to_one_weight = 1e3;

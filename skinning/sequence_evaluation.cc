@@ -70,8 +70,7 @@ SequenceEvaluation evaluate_skinning_sequence(const std::vector<Eigen::MatrixX3d
   LbsFitOptions lo = options.lbs;
   lo.max_influences = options.max_influences;
   lo.require_rigid = given.empty() ? true : lo.require_rigid;
-  Eigen::MatrixXi influences = choose_influences(ex, options.max_influences);
-  SkinningRig lbs = fit_lbs(ex, influences, lo, &out.lbs_summary);
+  SkinningRig lbs = fit_lbs(ex, {}, lo, &out.lbs_summary);
   if (given.empty()) {
     for (int a = 0; a < options.alternations; ++a) {
       tbb::parallel_for(0, static_cast<int>(train.size()), [&](int p) {
@@ -79,8 +78,7 @@ SequenceEvaluation evaluate_skinning_sequence(const std::vector<Eigen::MatrixX3d
             lbs, ex.poses[static_cast<size_t>(p)], ex.transforms[static_cast<size_t>(p)],
             options.transform_iterations);
       });
-      influences = choose_influences(ex, options.max_influences);
-      lbs = fit_lbs(ex, influences, lo, &out.lbs_summary);
+      lbs = fit_lbs(ex, {}, lo, &out.lbs_summary);
     }
   }
   // Transforms of every frame: training frames keep theirs; unseen frames are fitted with the SSD
