@@ -1,0 +1,417 @@
+#include "registration/pose_fit.h"
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+
+#include <Eigen/Geometry>
+#include <chrono>
+#include <cmath>
+#include <set>
+#include <tbb/parallel_for.h>
+
+#include "core/error.h"
+#include "core/geometry.h"
+#include "core/point_index.h"
+
+namespace bodymodel {
+
+const std::vector<std::string>& default_free_bones() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> n = {"spine05", "spine04", "spine03", "spine02", "spine01",
+                                  "neck01",  "neck02",  "neck03",  "head"};
+    for (const char* side : {".L", ".R"})
+      for (const char* b : {"clavicle", "shoulder01", "upperarm01", "upperarm02", "lowerarm01",
+                            "lowerarm02", "wrist", "pelvis", "upperleg01", "upperleg02",
+                            "lowerleg01", "lowerleg02", "foot"})
+        n.push_back(std::string(b) + side);
+    return n;
+  }();
+  return names;
+}
+
+Eigen::MatrixX3d pose_template(const Eigen::MatrixX3d& V_rest, const Skeleton& skeleton,
+                               const SkinWeights& weights, double scale, const Pose& pose) {
+  const Eigen::RowVector3d o = skeleton.heads.row(0);
+  Skeleton s = skeleton;
+  s.heads = ((skeleton.heads.rowwise() - o) * scale).rowwise() + o;
+  s.tails = ((skeleton.tails.rowwise() - o) * scale).rowwise() + o;
+  const Eigen::MatrixX3d V = ((V_rest.rowwise() - o) * scale).rowwise() + o;
+  return linear_blend_skinning(V, weights, forward_kinematics(s, pose));
+}
+
+namespace {
+
+// The kinematic chain a vertex depends on: its weighted bones and all their ancestors.
+struct Chain {
+  std::vector<int> bones;        // skeleton indices, parents before children (bones[0] = root)
+  std::vector<int> parent;       // index into `bones` of the parent, -1 for the root
+  std::vector<int> slot;         // parameter block of the bone's rotation (see below), -1 fixed
+  std::vector<std::pair<int, double>> blend;  // (index into bones, weight)
+  std::vector<std::vector<char>> below;       // below[e][a]: blend bone e is a or below it
+};
+
+Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d S;
+  S << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return S;
+}
+
+// Rotation of an angle-axis vector and its left Jacobian J_l (R(φ + dφ) ≈ exp([J_l dφ]×) R(φ)).
+void rotation_and_left_jacobian(const double* aa, Eigen::Matrix3d* R, Eigen::Matrix3d* J) {
+  const Eigen::Vector3d phi(aa[0], aa[1], aa[2]);
+  const double th = phi.norm();
+  const Eigen::Matrix3d K = skew(phi);
+  if (th < 1e-8) {
+    *R = Eigen::Matrix3d::Identity() + K;
+    *J = Eigen::Matrix3d::Identity() + 0.5 * K;
+    return;
+  }
+  *R = Eigen::AngleAxisd(th, phi / th).toRotationMatrix();
+  *J = Eigen::Matrix3d::Identity() + (1 - std::cos(th)) / (th * th) * K +
+       (th - std::sin(th)) / (th * th * th) * K * K;
+}
+
+// One template sample against its scan target: residuals [λn·nᵀ(v − c); λp·(v − c)] times
+// `weight` (point-to-plane plus a weaker point-to-point term, §2.2 "up to three constraint
+// equations per point"), with analytic Jacobians.
+// Parameter blocks: [0] scale (1), [1] root angle-axis (3), [2] translation (3), [3 + k] the
+// k-th free bone of the chain (3); every angle-axis is relative to the parent bone.
+class PointResidual : public ceres::CostFunction {
+ public:
+  PointResidual(const Chain* chain, const Skeleton* skeleton, const Eigen::Vector3d& x,
+                const Eigen::Vector3d& target, const Eigen::Vector3d& normal, double weight,
+                double plane_weight, double point_weight)
+      : chain_(chain), skeleton_(skeleton), x_(x), target_(target), normal_(normal),
+        weight_(weight), plane_weight_(plane_weight), point_weight_(point_weight) {
+    set_num_residuals(4);
+    auto* sizes = mutable_parameter_block_sizes();
+    sizes->push_back(1);
+    sizes->push_back(3);
+    sizes->push_back(3);
+    for (int sl : chain->slot)
+      if (sl >= 0) sizes->push_back(3);
+  }
+
+  bool Evaluate(double const* const* p, double* r, double** jac) const override {
+    const Chain& ch = *chain_;
+    const Skeleton& sk = *skeleton_;
+    const int m = int(ch.bones.size());
+    const double s = p[0][0];
+    std::vector<Eigen::Matrix3d> Q(m), J(m);
+    std::vector<Eigen::Vector3d> h(m);
+    for (int c = 0; c < m; ++c) {
+      const int b = ch.bones[c], pc = ch.parent[c];
+      Eigen::Matrix3d R;
+      if (pc < 0) {
+        rotation_and_left_jacobian(p[1], &R, &J[c]);
+        Q[c] = R;
+        h[c] = sk.heads.row(b).transpose() + Eigen::Map<const Eigen::Vector3d>(p[2]);
+        continue;
+      }
+      h[c] = h[pc] + Q[pc] * (s * (sk.heads.row(b) - sk.heads.row(ch.bones[pc])).transpose());
+      if (ch.slot[c] >= 0) {
+        rotation_and_left_jacobian(p[ch.slot[c]], &R, &J[c]);
+        Q[c] = Q[pc] * R;
+      } else {
+        Q[c] = Q[pc];
+      }
+    }
+    Eigen::Vector3d v = Eigen::Vector3d::Zero();
+    std::vector<Eigen::Vector3d> vc(ch.blend.size());
+    for (size_t e = 0; e < ch.blend.size(); ++e) {
+      const auto& [c, w] = ch.blend[e];
+      vc[e] = Q[c] * (s * (x_ - sk.heads.row(ch.bones[c]).transpose())) + h[c];
+      v += w * vc[e];
+    }
+    const Eigen::Vector3d d = v - target_;
+    r[0] = weight_ * plane_weight_ * normal_.dot(d);
+    for (int k = 0; k < 3; ++k) r[1 + k] = weight_ * point_weight_ * d[k];
+    if (!jac) return true;
+    // Residual rows as a 4×3 map of dv.
+    Eigen::Matrix<double, 4, 3> P;
+    P.row(0) = weight_ * plane_weight_ * normal_.transpose();
+    P.bottomRows<3>() = weight_ * point_weight_ * Eigen::Matrix3d::Identity();
+    auto put = [&](int block, const Eigen::MatrixXd& dv) {
+      if (!jac[block]) return;
+      Eigen::Map<Eigen::Matrix<double, 4, Eigen::Dynamic, Eigen::RowMajor>> Jm(jac[block], 4,
+                                                                                dv.cols());
+      Jm = P * dv;
+    };
+    const Eigen::Vector3d root_h = h[0];
+    put(0, (v - root_h) / s);
+    put(2, Eigen::Matrix3d::Identity());
+    // A rotation at chain bone a moves the points of the bones below it about its posed head:
+    // dv = −Σ_e w_e [v_e − h_a]× ω_a,  ω_a = Q_parent(a) J_l(φ_a) dφ_a.
+    for (int a = 0; a < m; ++a) {
+      const int block = a == 0 ? 1 : ch.slot[a];
+      if (block < 0) continue;
+      Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+      for (size_t e = 0; e < ch.blend.size(); ++e)
+        if (ch.below[e][a]) M -= ch.blend[e].second * skew(vc[e] - h[a]);
+      const Eigen::Matrix3d Qp = a == 0 ? Eigen::Matrix3d::Identity() : Q[ch.parent[a]];
+      put(block, M * Qp * J[a]);
+    }
+    return true;
+  }
+
+ private:
+  const Chain* chain_;
+  const Skeleton* skeleton_;
+  Eigen::Vector3d x_, target_, normal_;
+  double weight_, plane_weight_, point_weight_;
+};
+
+struct PriorResidual {
+  double weight;
+  template <typename T>
+  bool operator()(const T* aa, T* r) const {
+    for (int k = 0; k < 3; ++k) r[k] = T(weight) * aa[k];
+    return true;
+  }
+};
+
+Eigen::Vector3d to_angle_axis(const Eigen::Matrix3d& R) {
+  Eigen::AngleAxisd a(R);
+  return a.angle() * a.axis();
+}
+Eigen::Matrix3d from_angle_axis(const Eigen::Vector3d& v) {
+  const double a = v.norm();
+  if (a < 1e-15) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(a, v / a).toRotationMatrix();
+}
+
+}  // namespace
+
+PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeights& W,
+                       const PointCloud& scan, const std::vector<Landmark>& landmarks,
+                       const PoseFitOptions& o, PoseFitSummary* summary,
+                       const ProgressCallback& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  skeleton.validate();
+  const int n = int(tpl.V.rows()), nb = skeleton.bone_count();
+  if (W.rows() != n || W.cols() != nb)
+    throw InputError("pose fit: skinning weights are " + std::to_string(W.rows()) + " by " +
+                     std::to_string(W.cols()) + ", expected " + std::to_string(n) + " by " +
+                     std::to_string(nb));
+  if (nb == 0 || skeleton.parents[0] != -1)
+    throw InputError("pose fit: expected bone 0 to be the skeleton's root");
+  for (int b = 1; b < nb; ++b)
+    if (skeleton.parents[b] < 0)
+      throw InputError("pose fit: the skeleton has more than one root (bone '" +
+                       skeleton.names[b] + "')");
+  if (scan.P.rows() == 0) throw InputError("pose fit: the scan has no points");
+  check_landmarks(landmarks, n, "pose fit");
+
+  // Free bones: root (slot of the root rotation) + the named set.
+  std::vector<int> free_index(nb, -1);  // bone → k (its free-bone number), -1 fixed
+  std::vector<int> free_bones = {0};
+  {
+    const auto& names = o.free_bones.empty() ? default_free_bones() : o.free_bones;
+    for (const auto& name : names) {
+      const int b = o.free_bones.empty() ? skeleton.find(name) : skeleton.index(name);
+      if (b > 0 && free_index[b] < 0) {
+        free_index[b] = int(free_bones.size()) - 1;
+        free_bones.push_back(b);
+      }
+    }
+  }
+  const int nfree = int(free_bones.size()) - 1;
+
+  // Sample vertices and their chains.
+  const int stride = std::max(1, n / std::max(1, o.sample_vertices));
+  std::vector<int> samples;
+  for (int i = 0; i < n; i += stride) samples.push_back(i);
+  for (const Landmark& l : landmarks) samples.push_back(l.vertex);  // chains for landmarks too
+  std::vector<Chain> chains(samples.size());
+  std::vector<std::vector<int>> chain_free(samples.size());  // free-bone numbers per chain slot
+  for (size_t si = 0; si < samples.size(); ++si) {
+    std::set<int> bones;
+    std::vector<std::pair<int, double>> blend;
+    for (SkinWeights::InnerIterator it(W, samples[si]); it; ++it) {
+      if (it.value() <= 0) continue;
+      blend.emplace_back(int(it.col()), it.value());
+      for (int b = int(it.col()); b >= 0; b = skeleton.parents[b]) bones.insert(b);
+    }
+    Chain& ch = chains[si];
+    ch.bones.assign(bones.begin(), bones.end());  // sorted: parents first
+    if (ch.bones.empty() || ch.bones[0] != 0) {   // unweighted vertex: follows the root
+      ch.bones.insert(ch.bones.begin(), 0);
+      if (blend.empty()) blend.emplace_back(0, 1.0);
+    }
+    std::vector<int> pos(nb, -1);
+    for (size_t c = 0; c < ch.bones.size(); ++c) pos[ch.bones[c]] = int(c);
+    for (size_t c = 0; c < ch.bones.size(); ++c) {
+      const int b = ch.bones[c];
+      ch.parent.push_back(b == 0 ? -1 : pos[skeleton.parents[b]]);
+      if (b != 0 && free_index[b] >= 0) {
+        ch.slot.push_back(3 + int(chain_free[si].size()));
+        chain_free[si].push_back(free_index[b]);
+      } else {
+        ch.slot.push_back(-1);
+      }
+    }
+    for (auto& [b, w] : blend) {
+      ch.blend.emplace_back(pos[b], w);
+      std::vector<char> below(ch.bones.size(), 0);
+      for (int c = pos[b]; c >= 0; c = ch.parent[c]) below[c] = 1;
+      ch.below.push_back(std::move(below));
+    }
+  }
+
+  // Parameters.
+  double scale = 1.0;
+  Eigen::Vector3d root_aa = Eigen::Vector3d::Zero(), trans = Eigen::Vector3d::Zero();
+  std::vector<Eigen::Vector3d> joint_aa(nfree, Eigen::Vector3d::Zero());
+  const Eigen::Vector3d root_head = skeleton.heads.row(0).transpose();
+  // Initial similarity x → s R x + τ, as root rotation R, scale s, t = τ + sR·h_root − h_root.
+  {
+    double s = 1.0;
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+    Eigen::Vector3d tau;
+    if (landmarks.size() >= 3) {
+      Eigen::Matrix3Xd A(3, landmarks.size()), B(3, landmarks.size());
+      for (size_t k = 0; k < landmarks.size(); ++k) {
+        A.col(k) = tpl.V.row(landmarks[k].vertex).transpose();
+        B.col(k) = landmarks[k].target;
+      }
+      const Eigen::Matrix4d T = Eigen::umeyama(A, B, o.fit_scale);
+      const Eigen::Matrix3d sR = T.topLeftCorner<3, 3>();
+      s = std::cbrt(sR.determinant());
+      R = sR / s;
+      tau = T.topRightCorner<3, 1>();
+    } else {
+      if (o.fit_scale)
+        s = bounding_box_diagonal(scan.P) / std::max(1e-12, bounding_box_diagonal(tpl.V));
+      tau = scan.P.colwise().mean().transpose() - s * tpl.V.colwise().mean().transpose();
+    }
+    if (!(s > 0) || !std::isfinite(s) || !R.allFinite() || !tau.allFinite())
+      throw InputError("pose fit: could not initialise the global alignment from the landmarks "
+                       "(are three or more of them collinear or coincident?)");
+    scale = s;
+    root_aa = to_angle_axis(R);
+    trans = tau + s * R * root_head - root_head;
+  }
+
+  auto current_pose = [&] {
+    Pose p = Pose::rest(nb);
+    p.rotations[0] = from_angle_axis(root_aa);
+    p.root_translation = trans;
+    for (int k = 0; k < nfree; ++k) p.rotations[free_bones[k + 1]] = from_angle_axis(joint_aa[k]);
+    return p;
+  };
+
+  PointIndex scan_index(scan.P);
+  const double cos_min = std::cos(o.max_normal_angle_deg * M_PI / 180.0);
+  PoseFitSummary sum;
+  const int nsamples = int(samples.size()) - int(landmarks.size());
+  for (int iter = 0; iter < o.max_icp_iterations; ++iter) {
+    report_progress(progress, double(iter) / o.max_icp_iterations, "pose fit");
+    const Pose pose = current_pose();
+    const Eigen::MatrixX3d V = pose_template(tpl.V, skeleton, W, scale, pose);
+    const Eigen::MatrixX3d VN = vertex_normals(V, tpl.F);
+    const double dmax = std::max(o.max_distance, o.initial_max_distance * std::pow(0.5, iter));
+    std::vector<int> match(nsamples, -1);
+    tbb::parallel_for(0, nsamples, [&](int si) {
+      const int i = samples[si];
+      double d2 = 0;
+      const int j = scan_index.nearest(V.row(i).transpose(), &d2);
+      if (j < 0 || d2 > dmax * dmax) return;
+      if (scan.has_normals()) {
+        const double c = scan.N.row(j).dot(VN.row(i));
+        if ((o.unsigned_normals ? std::abs(c) : c) < cos_min) return;
+      }
+      match[si] = j;
+    });
+
+    ceres::Problem problem;
+    std::vector<double*> blocks_all;
+    problem.AddParameterBlock(&scale, 1);
+    problem.AddParameterBlock(root_aa.data(), 3);
+    problem.AddParameterBlock(trans.data(), 3);
+    for (auto& a : joint_aa) problem.AddParameterBlock(a.data(), 3);
+    if (!o.fit_scale) problem.SetParameterBlockConstant(&scale);
+    else problem.SetParameterLowerBound(&scale, 0, 0.2);
+    int matched = 0;
+    auto add_point = [&](int si, const Eigen::Vector3d& target, const Eigen::Vector3d& normal,
+                         double weight, double plane_weight, double point_weight,
+                         ceres::LossFunction* loss) {
+      auto* cost = new PointResidual(&chains[si], &skeleton, tpl.V.row(samples[si]).transpose(),
+                                     target, normal, weight, plane_weight, point_weight);
+      std::vector<double*> blocks = {&scale, root_aa.data(), trans.data()};
+      for (int k : chain_free[si]) blocks.push_back(joint_aa[k].data());
+      problem.AddResidualBlock(cost, loss, blocks);
+    };
+    double d2sum = 0;
+    for (int si = 0; si < nsamples; ++si) {
+      if (match[si] < 0) continue;
+      ++matched;
+      const Eigen::Vector3d target = scan.P.row(match[si]).transpose();
+      d2sum += (V.row(samples[si]).transpose() - target).squaredNorm();
+      const Eigen::Vector3d normal = scan.has_normals() ? Eigen::Vector3d(scan.N.row(match[si]))
+                                                        : Eigen::Vector3d::Zero();
+      add_point(si, target, normal, 1.0, 1.0, o.point_to_point_weight,
+                new ceres::HuberLoss(o.robust_scale));
+    }
+    double l2 = 0;
+    for (size_t k = 0; k < landmarks.size(); ++k) {
+      const int si = nsamples + int(k);
+      l2 += (V.row(landmarks[k].vertex).transpose() - landmarks[k].target).squaredNorm();
+      add_point(si, landmarks[k].target, Eigen::Vector3d::Zero(),
+                o.landmark_weight * std::sqrt(double(nsamples) / 100.0), 0.0, 1.0, nullptr);
+    }
+    for (auto& a : joint_aa)
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<PriorResidual, 3, 3>(
+              new PriorResidual{std::sqrt(o.pose_prior)}),
+          nullptr, a.data());
+    sum.rms = matched ? std::sqrt(d2sum / matched) : 0.0;
+    sum.matched_samples = matched;
+    sum.landmark_rms = landmarks.empty() ? 0.0 : std::sqrt(l2 / landmarks.size());
+    if (matched + int(landmarks.size()) < 10)
+      throw InputError("pose fit: only " + std::to_string(matched) +
+                       " template samples found a scan point within " + std::to_string(dmax) +
+                       " mm and 30° — the scan does not overlap the template (wrong unit or "
+                       "far-off position? supply landmarks)");
+
+    const double old_scale = scale;
+    const Eigen::Vector3d old_root = root_aa, old_trans = trans;
+    const std::vector<Eigen::Vector3d> old_joints = joint_aa;
+    ceres::Solver::Options so;
+    so.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+    so.max_num_iterations = o.solver_iterations;
+    so.num_threads = o.threads;
+    so.logging_type = ceres::SILENT;
+    ceres::Solver::Summary cs;
+    ceres::Solve(so, &problem, &cs);
+
+    double max_deg = (from_angle_axis(root_aa) * from_angle_axis(old_root).transpose())
+                         .eval()
+                         .trace();
+    max_deg = std::acos(std::clamp((max_deg - 1) / 2, -1.0, 1.0)) * 180 / M_PI;
+    for (int k = 0; k < nfree; ++k) {
+      const Eigen::Matrix3d D =
+          from_angle_axis(joint_aa[k]) * from_angle_axis(old_joints[k]).transpose();
+      max_deg = std::max(max_deg,
+                         std::acos(std::clamp((D.trace() - 1) / 2, -1.0, 1.0)) * 180 / M_PI);
+    }
+    const double dmm = (trans - old_trans).norm() + std::abs(scale - old_scale) * 1000.0;
+    sum.icp_iterations = iter + 1;
+    if (iter > 0 && dmax <= o.max_distance && max_deg < o.convergence_deg &&
+        dmm < o.convergence_mm) {
+      sum.converged = true;
+      break;
+    }
+  }
+  PoseFitResult result;
+  result.scale = scale;
+  result.pose = current_pose();
+  result.V = pose_template(tpl.V, skeleton, W, scale, result.pose);
+  result.free_bones = free_bones;
+  if (!result.V.allFinite()) throw NumericalError("pose fit produced non-finite vertices");
+  report_progress(progress, 1.0, "pose fit");
+  sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (summary) *summary = sum;
+  return result;
+}
+
+}  // namespace bodymodel

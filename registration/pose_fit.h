@@ -1,0 +1,82 @@
+// Skeleton-based pose estimation (Hasler et al. 2009 §2.2): the template, with its skeleton and
+// linear-blend-skinning weights, is posed onto a scan by non-linear least squares (Ceres, robust
+// loss). Unknowns: a global scale (about the root joint), the global rigid motion (root
+// rotation + translation) and an angle-axis ball joint for every free bone (a reduced set:
+// spine, neck, head, clavicles, shoulders, arms, wrists, legs, feet; fingers, toes and face
+// stay at rest). ICP loop: closest-point correspondences template→scan with the paper's
+// rejection (normals > 30°, distance > 50 mm), plus landmarks for global stability; solve;
+// repeat until the pose stops changing.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "core/mesh.h"
+#include "core/progress.h"
+#include "core/skeleton.h"
+#include "registration/landmarks.h"
+
+namespace bodymodel {
+
+struct PoseFitOptions {
+  // Names of the bones whose rotation is fitted (besides the root, always free). Empty: the
+  // default reduced set (default_free_bones) of the bones that exist in the skeleton.
+  std::vector<std::string> free_bones;
+  bool fit_scale = true;
+  // §2.2 rejection thresholds. The distance threshold starts at initial_max_distance and halves
+  // every ICP iteration down to max_distance (a coarse start is too far for 50 mm).
+  double max_distance = 50.0;           // mm
+  double initial_max_distance = 200.0;  // mm
+  double max_normal_angle_deg = 30.0;
+  bool unsigned_normals = false;        // for scans with estimated (unoriented) normals
+  int sample_vertices = 1500;           // template vertices used as ICP samples (evenly strided)
+  double robust_scale = 10.0;           // Huber loss scale, mm
+  // Each sample gives a point-to-plane residual (scan normal) plus this much point-to-point.
+  double point_to_point_weight = 0.3;
+  double landmark_weight = 3.0;         // residual weight of a landmark relative to a sample
+  // Weak prior towards the rest pose on free joints: residual = sqrt(prior)·angle (rad), per
+  // joint; keeps joints with little data (e.g. twist bones) from wandering.
+  double pose_prior = 100.0;
+  int max_icp_iterations = 25;
+  int solver_iterations = 8;            // Levenberg–Marquardt iterations per ICP step
+  // Stop when no joint angle changes by more than this (degrees) and the translation by less
+  // than convergence_mm between ICP iterations.
+  double convergence_deg = 0.1;
+  double convergence_mm = 0.2;
+  int threads = 1;
+};
+
+struct PoseFitSummary {
+  int icp_iterations = 0;
+  double seconds = 0.0;
+  double rms = 0.0;             // RMS sample→scan distance of accepted pairs, last iteration (mm)
+  int matched_samples = 0;      // accepted pairs, last iteration
+  double landmark_rms = 0.0;    // mm
+  bool converged = false;
+};
+
+struct PoseFitResult {
+  double scale = 1.0;           // global scale of template and skeleton about the root head
+  Pose pose;                    // per-bone rotations (fitted for free bones, identity else)
+  Eigen::MatrixX3d V;           // #V by 3 posed (and scaled) template
+  std::vector<int> free_bones;  // indices of the fitted bones (root first)
+};
+
+// The default reduced joint set (MakeHuman default skeleton names).
+const std::vector<std::string>& default_free_bones();
+
+// Scales template and skeleton by `scale` about the root head, then poses them with LBS.
+//   V_rest #V by 3; returns #V by 3.
+Eigen::MatrixX3d pose_template(const Eigen::MatrixX3d& V_rest, const Skeleton& skeleton,
+                               const SkinWeights& weights, double scale, const Pose& pose);
+
+// Fits pose and scale of the template (V_rest/F_rest with skeleton and weights) to `scan`
+// (unit normals; see prepare_scan). With ≥ 3 landmarks a similarity transform from them
+// initialises the global motion; otherwise centroids and bounding-box sizes do.
+PoseFitResult fit_pose(const Mesh& template_rest, const Skeleton& skeleton,
+                       const SkinWeights& weights, const PointCloud& scan,
+                       const std::vector<Landmark>& landmarks, const PoseFitOptions& options = {},
+                       PoseFitSummary* summary = nullptr, const ProgressCallback& progress = {});
+
+}  // namespace bodymodel
