@@ -24,6 +24,9 @@ double ms_since(Clock::time_point t0) {
 }
 
 using Cholesky = Eigen::CholmodSupernodalLLT<SparseMatrixd, Eigen::Lower>;
+// Simplicial factors solve small multi-column right-hand sides faster than supernodal ones
+// (no BLAS calls per supernode); used for the factorisations that are only solved with.
+using SimplicialCholesky = Eigen::CholmodSimplicialLLT<SparseMatrixd, Eigen::Lower>;
 
 struct UnionFind {
   std::vector<int> parent;
@@ -58,6 +61,8 @@ int value_index(const SparseMatrixd& M, int row, int col) {
 }  // namespace
 
 void DecoderOptions::validate() const {
+  if (!(cg_tolerance > 0) || cg_max_iterations < 1)
+    throw InputError("decoder options: cg_tolerance must be positive and cg_max_iterations >= 1");
   if (!(constraint_weight > 0) || !std::isfinite(constraint_weight))
     throw InputError("decoder options: constraint_weight must be positive and finite, found " +
                      std::to_string(constraint_weight));
@@ -79,12 +84,18 @@ struct RelativeRotationDecoder::Impl {
   Eigen::VectorXd N_base_values;       // diagonal filled, off-diagonal zero
   Cholesky rotation_solver;
   bool rotation_analysed = false;
+  // ---- preconditioned CG on the rotation system ----
+  std::vector<int> reverse_slot;       // 3#F: k' with TT(g, k') = f for g = TT(f, k), or −1
+  std::vector<int> degree;             // #F: diagonal of N (2 per neighbour)
+  std::vector<std::pair<int, int>> tree;  // BFS order: (child, slot 3·parent + k) per non-root
+  SimplicialCholesky dual_laplacian;             // L_s on the unknown triangles, factorised once
+  std::vector<Eigen::Matrix3d> M;      // 3#F: R_fg + R_gfᵀ (off-diagonal block −M)
   // ---- Poisson ----
   SparseMatrixd K;                     // Gᵀ A G, #V by #V (full symmetric)
   SparseMatrixd D;                     // Gᵀ A, #V by 3#F
   std::vector<int> vertex_component;   // #V, −1 for unreferenced vertices
   std::vector<int> component_first_vertex;
-  std::unique_ptr<Cholesky> poisson_solver;
+  std::unique_ptr<SimplicialCholesky> poisson_solver;
   std::vector<char> poisson_pinned;
   Eigen::VectorXi poisson_key_vertices;  // constraint set of the current factorisation
   Eigen::VectorXd poisson_key_weights;
@@ -158,13 +169,56 @@ RelativeRotationDecoder::RelativeRotationDecoder(std::shared_ptr<const EncodingT
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b) s.value[3 * a + b] = value_index(m.N, 3 * hi + a, 3 * lo + b);
   }
-  if (options_.reuse_factorisations && m.n_unknown > 0) {
-    std::copy(m.N_base_values.data(), m.N_base_values.data() + m.N_base_values.size(),
-              m.N.valuePtr());
-    m.rotation_solver.analyzePattern(m.N);
-    if (m.rotation_solver.info() != Eigen::Success)
-      throw NumericalError("rotation system: symbolic analysis failed");
-    m.rotation_analysed = true;
+  if (options_.reuse_factorisations && m.n_unknown > 0 &&
+      options_.rotation_solver == RotationSolver::kCholeskyRefactor)
+    analyse_rotation_pattern();
+
+  // CG: reverse slots, degrees, spanning tree and the scalar dual-graph Laplacian.
+  m.reverse_slot.assign(3 * static_cast<size_t>(m.nf), -1);
+  m.degree.assign(m.nf, 0);
+  for (int f = 0; f < m.nf; ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int g = TT(f, k);
+      if (g < 0) continue;
+      m.degree[f] += 2;
+      for (int kk = 0; kk < 3; ++kk)
+        if (TT(g, kk) == f) m.reverse_slot[3 * f + k] = kk;
+    }
+  {
+    std::vector<char> seen(m.nf, 0);
+    std::vector<int> queue;
+    queue.reserve(m.nf);
+    for (int root : m.fixed_triangles) {
+      seen[root] = 1;
+      queue.push_back(root);
+    }
+    for (size_t q = 0; q < queue.size(); ++q) {
+      const int f = queue[q];
+      for (int k = 0; k < 3; ++k) {
+        const int g = TT(f, k);
+        if (g < 0 || seen[g]) continue;
+        seen[g] = 1;
+        queue.push_back(g);
+        m.tree.emplace_back(g, 3 * f + k);
+      }
+    }
+    std::vector<Eigen::Triplet<double>> t;
+    for (int f = 0; f < m.nf; ++f) {
+      const int pf = m.unknown[f];
+      if (pf < 0) continue;
+      t.emplace_back(pf, pf, std::max(1, m.degree[f]));
+      for (int k = 0; k < 3; ++k) {
+        const int g = TT(f, k);
+        if (g >= 0 && m.unknown[g] >= 0) t.emplace_back(pf, m.unknown[g], -2.0);
+      }
+    }
+    SparseMatrixd Ls(m.n_unknown, m.n_unknown);
+    Ls.setFromTriplets(t.begin(), t.end());
+    if (m.n_unknown > 0) {
+      m.dual_laplacian.compute(Ls);
+      if (m.dual_laplacian.info() != Eigen::Success)
+        throw NumericalError("rotation system: factorising the dual-graph Laplacian failed");
+    }
   }
 
   // Poisson operators on the rest shape.
@@ -193,6 +247,17 @@ RelativeRotationDecoder::RelativeRotationDecoder(std::shared_ptr<const EncodingT
   }
 }
 
+void RelativeRotationDecoder::analyse_rotation_pattern() {
+  Impl& m = *impl_;
+  SparseMatrixd pattern = m.N;
+  std::copy(m.N_base_values.data(), m.N_base_values.data() + m.N_base_values.size(),
+            pattern.valuePtr());
+  m.rotation_solver.analyzePattern(pattern);
+  if (m.rotation_solver.info() != Eigen::Success)
+    throw NumericalError("rotation system: symbolic analysis failed");
+  m.rotation_analysed = true;
+}
+
 std::vector<Eigen::Matrix3d> RelativeRotationDecoder::solve_rotations(
     const std::vector<Eigen::Matrix3d>& slot_rotations) {
   Impl& m = *impl_;
@@ -204,6 +269,19 @@ std::vector<Eigen::Matrix3d> RelativeRotationDecoder::solve_rotations(
   std::vector<Eigen::Matrix3d> R(m.nf);
   for (int f : m.fixed_triangles) R[f] = Rg;
   if (m.n_unknown == 0) return R;
+  if (options_.rotation_solver == RotationSolver::kPreconditionedCG && options_.reuse_factorisations) {
+    Eigen::MatrixXd X;
+    if (solve_rotations_cg(slot_rotations, R, X)) {
+      t0 = Clock::now();
+      parallel_range(m.nf, [&](int f) {
+        const int p = m.unknown[f];
+        if (p >= 0) R[f] = closest_rotation(X.middleRows<3>(3 * p).transpose());
+      });
+      timing_.orthonormalise_ms += ms_since(t0);
+      return R;
+    }
+    t0 = Clock::now();  // not converged: fall back to Cholesky
+  }
 
   // Values of N and the right-hand side b (3·#unknown by 3).
   double* val = m.N.valuePtr();
@@ -226,6 +304,7 @@ std::vector<Eigen::Matrix3d> RelativeRotationDecoder::solve_rotations(
   t0 = Clock::now();
   Eigen::MatrixXd X;
   if (options_.reuse_factorisations) {
+    if (!m.rotation_analysed) analyse_rotation_pattern();
     m.rotation_solver.factorize(m.N);
     if (m.rotation_solver.info() != Eigen::Success)
       throw NumericalError("rotation system: numeric factorisation failed");
@@ -313,7 +392,7 @@ Eigen::MatrixX3d RelativeRotationDecoder::solve_positions(const std::vector<Eige
     SparseMatrixd P(m.nv, m.nv);
     P.setFromTriplets(diag.begin(), diag.end());
     A += P;
-    m.poisson_solver = std::make_unique<Cholesky>();
+    m.poisson_solver = std::make_unique<SimplicialCholesky>();
     m.poisson_solver->compute(A);
     if (m.poisson_solver->info() != Eigen::Success)
       throw NumericalError("Poisson system: factorisation failed");
@@ -342,6 +421,108 @@ Eigen::MatrixX3d RelativeRotationDecoder::solve_positions(const std::vector<Eige
   timing_.poisson_ms += ms_since(t0);
   if (!X.allFinite()) throw NumericalError("Poisson system: the solve produced NaN");
   return X;
+}
+
+// Preconditioned CG on N X = b (X = stacked T_f = R_fᵀ, 3 columns solved together).
+// Returns false if it did not converge within cg_max_iterations.
+bool RelativeRotationDecoder::solve_rotations_cg(const std::vector<Eigen::Matrix3d>& slot_rotations,
+                                                 const std::vector<Eigen::Matrix3d>& R_fixed,
+                                                 Eigen::MatrixXd& X) {
+  Impl& m = *impl_;
+  const Eigen::MatrixX3i& TT = tmpl_->adjacency();
+  auto t0 = Clock::now();
+  m.M.resize(3 * static_cast<size_t>(m.nf));
+  parallel_range(m.nf, [&](int f) {
+    for (int k = 0; k < 3; ++k) {
+      const int g = TT(f, k);
+      if (g < 0) continue;
+      const int kk = m.reverse_slot[3 * f + k];
+      m.M[3 * f + k] = slot_rotations[3 * f + k] +
+                       (kk >= 0 ? Eigen::Matrix3d(slot_rotations[3 * g + kk].transpose())
+                                : Eigen::Matrix3d(slot_rotations[3 * f + k]));
+    }
+  });
+  // Right-hand side from the fixed triangles, and the gauge T̃ along the spanning tree.
+  const int n = m.n_unknown;
+  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(3 * n, 3);
+  std::vector<Eigen::Matrix3d> T(m.nf);
+  for (int f : m.fixed_triangles) T[f] = R_fixed[f].transpose();
+  for (int f = 0; f < m.nf; ++f) {
+    const int pf = m.unknown[f];
+    if (pf < 0) continue;
+    for (int k = 0; k < 3; ++k) {
+      const int g = TT(f, k);
+      if (g >= 0 && m.unknown[g] < 0) b.middleRows<3>(3 * pf) += m.M[3 * f + k] * T[g];
+    }
+  }
+  for (const auto& [child, slot] : m.tree)  // R_fg T_g = T_f  →  T_g = R_fgᵀ T_f
+    T[child] = slot_rotations[slot].transpose() * T[slot / 3];
+  timing_.assemble_ms += ms_since(t0);
+
+  t0 = Clock::now();
+  auto apply_N = [&](const Eigen::MatrixXd& Xin, Eigen::MatrixXd& out) {
+    out.resize(3 * n, 3);
+    parallel_range(m.nf, [&](int f) {
+      const int pf = m.unknown[f];
+      if (pf < 0) return;
+      Eigen::Matrix3d acc = m.degree[f] * Xin.middleRows<3>(3 * pf);
+      for (int k = 0; k < 3; ++k) {
+        const int g = TT(f, k);
+        if (g >= 0 && m.unknown[g] >= 0) acc -= m.M[3 * f + k] * Xin.middleRows<3>(3 * m.unknown[g]);
+      }
+      out.middleRows<3>(3 * pf) = acc;
+    });
+  };
+  Eigen::MatrixXd Y(n, 9);
+  auto apply_P_inverse = [&](const Eigen::MatrixXd& r, Eigen::MatrixXd& z) {
+    parallel_range(m.nf, [&](int f) {
+      const int pf = m.unknown[f];
+      if (pf < 0) return;
+      const Eigen::Matrix3d y = T[f].transpose() * r.middleRows<3>(3 * pf);
+      for (int a = 0; a < 3; ++a)
+        for (int c = 0; c < 3; ++c) Y(pf, 3 * a + c) = y(a, c);
+    });
+    const Eigen::MatrixXd Z = m.dual_laplacian.solve(Y);
+    z.resize(3 * n, 3);
+    parallel_range(m.nf, [&](int f) {
+      const int pf = m.unknown[f];
+      if (pf < 0) return;
+      Eigen::Matrix3d y;
+      for (int a = 0; a < 3; ++a)
+        for (int c = 0; c < 3; ++c) y(a, c) = Z(pf, 3 * a + c);
+      z.middleRows<3>(3 * pf) = T[f] * y;
+    });
+  };
+  const Eigen::RowVector3d b_norm = b.colwise().norm().cwiseMax(1e-300);
+  X = Eigen::MatrixXd::Zero(3 * n, 3);
+  Eigen::MatrixXd r = b, z, p, q;
+  apply_P_inverse(r, z);
+  p = z;
+  Eigen::RowVector3d rz = (r.cwiseProduct(z)).colwise().sum();
+  bool converged = false;
+  int it = 0;
+  for (; it < options_.cg_max_iterations; ++it) {
+    apply_N(p, q);
+    const Eigen::RowVector3d pq = (p.cwiseProduct(q)).colwise().sum();
+    Eigen::RowVector3d alpha;
+    for (int c = 0; c < 3; ++c) alpha(c) = pq(c) > 0 ? rz(c) / pq(c) : 0.0;
+    X += p * alpha.asDiagonal();
+    r -= q * alpha.asDiagonal();
+    if (((r.colwise().norm().array()) <= options_.cg_tolerance * b_norm.array()).all()) {
+      converged = true;
+      ++it;
+      break;
+    }
+    apply_P_inverse(r, z);
+    const Eigen::RowVector3d rz_new = (r.cwiseProduct(z)).colwise().sum();
+    Eigen::RowVector3d beta;
+    for (int c = 0; c < 3; ++c) beta(c) = rz(c) > 0 ? rz_new(c) / rz(c) : 0.0;
+    rz = rz_new;
+    p = z + p * beta.asDiagonal();
+  }
+  timing_.cg_iterations = it;
+  timing_.rotation_solve_ms += ms_since(t0);
+  return converged && X.allFinite();
 }
 
 Eigen::MatrixX3d RelativeRotationDecoder::decode(const Encoding& e) {

@@ -30,7 +30,25 @@
 
 namespace bodymodel {
 
+// How the rotation system is solved (both give the least-squares solution).
+enum class RotationSolver {
+  // Preconditioned conjugate gradients (default, fastest; see the .cc): the preconditioner is
+  // the dual-graph Laplacian L (topology only, factorised ONCE) in the gauge of rotations
+  // propagated along a spanning tree, P = D (L ⊗ I₃) Dᵀ, D = blockdiag(T̃_f). For a consistent
+  // encoding (any encoded mesh) P equals the system matrix and CG stops after one iteration;
+  // for blends, PCA samples and masked changes it converges in a few.
+  kPreconditionedCG,
+  // Sparse Cholesky (CHOLMOD supernodal) of the 3·#F system: symbolic analysis once,
+  // numeric refactorisation on every decode.
+  kCholeskyRefactor,
+};
+
 struct DecoderOptions {
+  RotationSolver rotation_solver = RotationSolver::kPreconditionedCG;
+  // Conjugate gradients: stop when every column's residual ‖b − N X‖ ≤ tolerance · ‖b‖; after
+  // max_iterations without convergence the decoder falls back to the Cholesky solve.
+  double cg_tolerance = 1e-10;
+  int cg_max_iterations = 100;
   // Reuse the symbolic analysis of the rotation system and the Poisson factorisation across
   // calls. false = the baseline that analyses and factorises everything on every call (only
   // useful for benchmarks).
@@ -64,7 +82,8 @@ struct PositionConstraints {
 // Wall-clock milliseconds of the last decode, by stage.
 struct DecodeTiming {
   double assemble_ms = 0;        // encoding → matrices, rotation system values
-  double rotation_solve_ms = 0;  // numeric factorisation + solve of the rotation system
+  double rotation_solve_ms = 0;  // rotation system: CG iterations, or numeric factorisation + solve
+  int cg_iterations = 0;         // CG iterations of the rotation solve (0 for Cholesky)
   double orthonormalise_ms = 0;  // per-triangle SVD
   double poisson_ms = 0;         // right-hand side + Poisson solve (+ factorisation if needed)
   double finish_ms = 0;          // alignment and checks
@@ -105,6 +124,10 @@ class RelativeRotationDecoder {
   struct Impl;
 
  private:
+  void analyse_rotation_pattern();
+  bool solve_rotations_cg(const std::vector<Eigen::Matrix3d>& slot_rotations,
+                          const std::vector<Eigen::Matrix3d>& R_fixed, Eigen::MatrixXd& X);
+
   std::shared_ptr<const EncodingTemplate> tmpl_;
   DecoderOptions options_;
   std::unique_ptr<Impl> impl_;
