@@ -3,6 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cstdlib>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -12,6 +15,7 @@
 
 #include "core/data_path.h"
 #include "core/error.h"
+#include "core/io/mesh_io.h"
 #include "core/makehuman.h"
 #include "tests/core/makehuman_fixture.h"
 
@@ -220,6 +224,50 @@ TEST(MakeHuman, TargetIndexOutOfRangeIsAnInputError) {
   }
   fs::remove_all(dir);
   EXPECT_THROW(MakeHuman::load(dir), InputError);  // now missing altogether
+}
+
+}  // namespace
+}  // namespace bodymodel
+
+namespace bodymodel {
+namespace {
+
+// The command line reproduces reference builds (height 0.5 mm, probe vertices 0.01 mm) and
+// fails with exit code 2 and one line on bad input.
+TEST(MakeHumanBodyVerb, WritesReferenceBodies) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("bodymodel_mhverb_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const auto rows = reference_builds();
+  for (const auto& r : rows) {
+    if (r.name != "female_asian") continue;  // one row: each run loads the model
+    SCOPED_TRACE(r.name);
+    std::string args;
+    for (auto it = r.settings.begin(); it != r.settings.end(); ++it)
+      if (!(r.name == "female_asian" && it.key() != "gender" && it.key() != "asian"))
+        args += " --" + it.key() + " " + std::to_string(it.value().get<double>());
+    const fs::path out = dir / (r.name + ".ply");
+    const std::string cmd = std::string(BODYMODEL_EXE) + " makehuman-body" + args + " --out " +
+                            out.string() + " > " + (dir / "log.txt").string() + " 2>&1";
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    const Mesh m = read_mesh(out);
+    ASSERT_EQ(m.V.rows(), MakeHuman::kBodyVertexCount);
+    EXPECT_EQ(m.F.rows(), 26756);
+    EXPECT_NEAR(m.V.col(1).maxCoeff() - m.V.col(1).minCoeff(), r.height_cm * 10, 0.5);
+    for (const auto& [i, xyz_dm] : r.probes)
+      if (i < MakeHuman::kBodyVertexCount)
+        EXPECT_LT((m.V.row(i) - xyz_dm * 100.0).cwiseAbs().maxCoeff(), 0.01) << "vertex " << i;
+  }
+  const std::string bad = std::string(BODYMODEL_EXE) + " makehuman-body --pose nosuch --out " +
+                          (dir / "x.obj").string() + " 2> " + (dir / "err.txt").string();
+  const int rc = std::system(bad.c_str());
+  EXPECT_EQ(WEXITSTATUS(rc), 2);
+  std::ifstream err(dir / "err.txt");
+  std::string line;
+  std::getline(err, line);
+  EXPECT_NE(line.find("unknown pose 'nosuch'"), std::string::npos) << line;
+  EXPECT_FALSE(fs::exists(dir / "x.obj"));
+  fs::remove_all(dir);
 }
 
 }  // namespace
