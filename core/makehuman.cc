@@ -206,6 +206,8 @@ std::string read_whole_file(const fs::path& path) {
   std::FILE* f = std::fopen(path.c_str(), "rb");
   if (!f) throw InputError("cannot open '" + path.string() + "': " + std::strerror(errno));
   std::string data;
+  struct stat st {};
+  if (::fstat(fileno(f), &st) == 0 && st.st_size > 0) data.reserve(st.st_size);
   char buf[1 << 16];
   size_t n;
   while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) data.append(buf, n);
@@ -273,11 +275,11 @@ TargetData parse_target(const fs::path& path, int vertex_count) {
       p = eol + 1;
       continue;
     }
-    char* next;
-    errno = 0;
-    const long idx = std::strtol(q, &next, 10);
-    if (next == q || errno) fail("expected '<vertex index> <dx> <dy> <dz>', found '" +
-                                 std::string(q, eol) + "'");
+    const char* next = q;
+    long idx = 0;
+    while (*next >= '0' && *next <= '9' && idx < (1L << 40)) idx = idx * 10 + (*next++ - '0');
+    if (next == q || !(*next == ' ' || *next == '\t'))
+      fail("expected '<vertex index> <dx> <dy> <dz>', found '" + std::string(q, eol) + "'");
     if (idx < 0 || idx >= vertex_count)
       fail("vertex index " + std::to_string(idx) + " exceeds the base mesh (" +
            std::to_string(vertex_count) + " vertices, indices 0.." +
@@ -286,7 +288,9 @@ TargetData parse_target(const fs::path& path, int vertex_count) {
     float d[3];
     for (int k = 0; k < 3; ++k) {
       while (q < eol && (*q == ' ' || *q == '\t')) ++q;
-      const double v = q < eol ? parse_decimal(q, &next) : 0.0;
+      char* end_of_number = nullptr;
+      const double v = q < eol ? parse_decimal(q, &end_of_number) : 0.0;
+      next = end_of_number;
       if (q >= eol || next == q || next > eol || !std::isfinite(v))
         fail("expected 3 offsets after the vertex index, found '" + std::string(p, eol) + "'");
       d[k] = static_cast<float>(v);
