@@ -72,6 +72,7 @@ TEST_P(RetargetClip, EveryFramePlausible) {
   const double native = native_max_edge_ratio(mh, body, E, rest);
   double worst_ratio = 0, worst_p999 = 0, lowest = 1e9, highest_low = -1e9;
   int arms_down = 0;
+  double max_flexion = 0;
   for (int f = 0; f < rt.frame_count(); ++f) {
     const Pose pose = rt.pose(f);
     const BoneTransforms M = forward_kinematics(s, pose);
@@ -88,11 +89,24 @@ TEST_P(RetargetClip, EveryFramePlausible) {
       const double hip = joint_y(M, s, ("upperleg02" + S).c_str());
       const double ankle = joint_y(M, s, ("lowerleg02" + S).c_str(), true);
       EXPECT_LT(ankle, hip - 0.6 * leg) << "frame " << f << side;
+      // Knees bend forward, never backwards (flexion about the body's left axis ≥ −5°).
+      const Eigen::Vector3d left = world_rotations(s, pose)[0] * Eigen::Vector3d::UnitX();
+      auto at = [&](const std::string& bone, bool tail) {
+        const int b = s.index(bone);
+        return Eigen::Vector3d(M[b] * Eigen::Vector3d(tail ? s.tails.row(b) : s.heads.row(b)));
+      };
+      const Eigen::Vector3d thigh = (at("lowerleg01" + S, false) - at("upperleg01" + S, false)).normalized();
+      const Eigen::Vector3d shin = (at("lowerleg02" + S, true) - at("lowerleg01" + S, false)).normalized();
+      const double flexion = std::asin(std::clamp(thigh.cross(shin).dot(left), -1.0, 1.0)) * 180 / M_PI;
+      EXPECT_GT(flexion, -5.0) << "frame " << f << side;
+      max_flexion = std::max(max_flexion, flexion);
       const double shoulder = joint_y(M, s, ("upperarm01" + S).c_str());
       const double wrist = joint_y(M, s, ("wrist" + S).c_str());
       arms_down += wrist < shoulder - 200.0;
     }
   }
+  EXPECT_GT(max_flexion, 45.0);  // a walk's swing phase bends the knee
+  EXPECT_LT(max_flexion, 100.0);
   EXPECT_LE(worst_p999, 3.0);
   EXPECT_LE(worst_ratio, 1.2 * native);
   // 02_02/03_03 start with a few T-pose calibration frames.
