@@ -8,8 +8,9 @@
 //   motion/poses/*.bvh                 static poses for the default skeleton (§7.1)
 // Everything this class returns is in MILLIMETRES (file decimetres × 100).
 //
-// Load once (≈ a second: ~350 distinct target files, parsed in parallel with a hand-written
-// strtod parser), then build many bodies: one body costs a few milliseconds.
+// Load once (≈ 0.3 s of CPU: 564 target files, ~350 distinct (hard links are parsed once),
+// read in parallel with a hand-written exact decimal parser), then build many bodies: one
+// body (vertices + skeleton) costs a few milliseconds.
 // Copies of a MakeHuman share the loaded data (cheap to copy, safe to use from many threads).
 #pragma once
 

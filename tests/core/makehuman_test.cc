@@ -15,6 +15,7 @@
 
 #include "core/data_path.h"
 #include "core/error.h"
+#include "core/geometry.h"
 #include "core/io/mesh_io.h"
 #include "core/makehuman.h"
 #include "tests/core/makehuman_fixture.h"
@@ -41,6 +42,7 @@ struct ReferenceBuild {
   std::string name;
   nlohmann::json settings;
   double height_cm;
+  double volume_litres;
   std::vector<std::pair<int, Eigen::RowVector3d>> probes;  // dm
 };
 
@@ -60,6 +62,7 @@ std::vector<ReferenceBuild> reference_builds() {
     r.name = cols.at(0);
     r.settings = nlohmann::json::parse(cols.at(1));
     r.height_cm = std::stod(cols.at(2));
+    r.volume_litres = std::stod(cols.at(3));
     for (size_t c = 0; c < header.size() && c < cols.size(); ++c) {
       // columns "v<index>_xyz"
       const std::string& h = header[c];
@@ -96,6 +99,9 @@ TEST(MakeHuman, ReproducesReferenceBuilds) {
     const Eigen::MatrixX3d V = (defect ? raw : mh).build_vertices(s);
     ASSERT_EQ(V.rows(), 19158);
     EXPECT_NEAR(makehuman_body_height(V), r.height_cm * 10.0, 0.5);
+    // Closed, outward-oriented body surface: its signed volume is the reference volume.
+    const Eigen::MatrixX3d body = V.topRows(MakeHuman::kBodyVertexCount);
+    EXPECT_NEAR(signed_volume(body, mh.body_faces()) * 1e-6, r.volume_litres, 0.002);
     ASSERT_EQ(r.probes.size(), 6u);
     for (const auto& [i, xyz_dm] : r.probes)
       EXPECT_LT((V.row(i) - xyz_dm * 100.0).cwiseAbs().maxCoeff(), 0.01) << "vertex " << i;
@@ -221,6 +227,16 @@ TEST(MakeHuman, TargetIndexOutOfRangeIsAnInputError) {
     EXPECT_NE(msg.find("african-female-young.target"), std::string::npos) << msg;
     EXPECT_NE(msg.find("line 4"), std::string::npos) << msg;
     EXPECT_NE(msg.find("19158"), std::string::npos) << msg;
+  }
+  {
+    std::ofstream t(dir / "targets" / "macrodetails" / "african-female-young.target");
+    t << "# made-up target for a test\n0 .001 0 0\n5 -.01 abc .003\n";
+  }
+  try {
+    MakeHuman::load(dir);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("line 3"), std::string::npos) << e.what();
   }
   fs::remove_all(dir);
   EXPECT_THROW(MakeHuman::load(dir), InputError);  // now missing altogether
