@@ -1,0 +1,150 @@
+#include "regression/linear_regressors.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "core/error.h"
+#include "regression/cross_validation.h"
+
+namespace bodymodel {
+
+// ---- simple linear --------------------------------------------------------------------------
+
+void SimpleLinearRegressor::fit(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
+                                const std::vector<int>& groups) {
+  check_regression_input(X, y, groups, 2, "simple_linear");
+  fit_ = fit_linear(X, y, options_.ridge);
+}
+
+double SimpleLinearRegressor::predict(const Eigen::VectorXd& x) const { return fit_.predict(x); }
+
+Eigen::VectorXd SimpleLinearRegressor::gradient(const Eigen::VectorXd& x) const {
+  if (x.size() != fit_.gradient.size())
+    throw InputError("simple_linear: expected " + std::to_string(fit_.gradient.size()) +
+                     " features, found " + std::to_string(x.size()));
+  return fit_.gradient;
+}
+
+std::unique_ptr<Regressor> SimpleLinearRegressor::clone() const {
+  return std::make_unique<SimpleLinearRegressor>(options_);
+}
+
+std::string SimpleLinearRegressor::describe() const {
+  return "all " + std::to_string(fit_.gradient.size()) + " components";
+}
+
+// ---- ranking and the filtered curve ---------------------------------------------------------
+
+std::vector<int> rank_components(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
+                                 ComponentRanking ranking) {
+  const Eigen::Index d = X.cols();
+  Eigen::VectorXd score(d);
+  if (ranking == ComponentRanking::gradient) {
+    score = fit_linear(X, y).gradient.cwiseAbs();
+  } else {
+    const Eigen::MatrixXd Xc = X.rowwise() - X.colwise().mean();
+    const Eigen::VectorXd yc = y.array() - y.mean();
+    for (Eigen::Index j = 0; j < d; ++j) {
+      const double sx = Xc.col(j).norm();
+      score(j) = sx > 0 ? std::abs(Xc.col(j).dot(yc)) / sx : 0.0;
+    }
+  }
+  std::vector<int> order(d);
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return score(a) > score(b); });
+  return order;
+}
+
+namespace {
+
+Eigen::MatrixXd select_columns(const Eigen::MatrixXd& X, const std::vector<int>& cols, int m) {
+  Eigen::MatrixXd out(X.rows(), m);
+  for (int k = 0; k < m; ++k) out.col(k) = X.col(cols[k]);
+  return out;
+}
+
+}  // namespace
+
+Eigen::VectorXd filtered_linear_curve(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
+                                      const std::vector<int>& fold_of, int folds, int max_components,
+                                      ComponentRanking ranking) {
+  const int d = static_cast<int>(X.cols());
+  const int M = max_components <= 0 ? d : std::min(max_components, d);
+  Eigen::VectorXd sse = Eigen::VectorXd::Zero(M);
+  Eigen::Index tested = 0;
+  for (const auto& [train, test] : fold_splits(fold_of, folds)) {
+    if (test.empty() || train.size() < 2) continue;
+    const Eigen::MatrixXd Xtr = select_rows(X, train), Xte = select_rows(X, test);
+    const Eigen::VectorXd ytr = select_rows(y, train), yte = select_rows(y, test);
+    const std::vector<int> order = rank_components(Xtr, ytr, ranking);
+    for (int m = 1; m <= M; ++m) {
+      const LinearFit f = fit_linear(select_columns(Xtr, order, m), ytr);
+      const Eigen::VectorXd pred =
+          (select_columns(Xte, order, m) * f.gradient).array() + f.offset;
+      sse(m - 1) += (pred - yte).squaredNorm();
+    }
+    tested += static_cast<Eigen::Index>(test.size());
+  }
+  if (tested == 0) throw InputError("filtered_linear_curve: no test rows in any fold");
+  return (sse / static_cast<double>(tested)).cwiseSqrt();
+}
+
+// ---- filtered linear ------------------------------------------------------------------------
+
+void FilteredLinearRegressor::fit(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
+                                  const std::vector<int>& groups) {
+  check_regression_input(X, y, groups, 3, "filtered_linear");
+  features_ = static_cast<int>(X.cols());
+  const int cap = options_.max_components <= 0 ? features_ : std::min(options_.max_components, features_);
+  int m = 0;
+  inner_curve_.resize(0);
+  if (options_.fixed_components > 0) {
+    m = std::min(options_.fixed_components, features_);
+  } else {
+    // Inner grouped cross-validation on these (training) rows only.
+    int subjects = static_cast<int>(X.rows());
+    if (!groups.empty()) {
+      std::vector<int> g = groups;
+      std::sort(g.begin(), g.end());
+      subjects = static_cast<int>(std::unique(g.begin(), g.end()) - g.begin());
+    }
+    const int inner = std::min(options_.inner_folds, subjects);
+    if (inner < 2) throw InputError("filtered_linear: needs at least 2 subjects to choose the component count");
+    const std::vector<int> fold_of =
+        grouped_folds(groups, static_cast<int>(X.rows()), inner, options_.inner_seed);
+    inner_curve_ = filtered_linear_curve(X, y, fold_of, inner, cap, options_.ranking);
+    Eigen::Index best = 0;
+    inner_curve_.minCoeff(&best);
+    m = static_cast<int>(best) + 1;
+  }
+  const std::vector<int> order = rank_components(X, y, options_.ranking);
+  kept_.assign(order.begin(), order.begin() + m);
+  fit_ = fit_linear(select_columns(X, order, m), y);
+  full_gradient_ = Eigen::VectorXd::Zero(features_);
+  for (int k = 0; k < m; ++k) full_gradient_(kept_[k]) = fit_.gradient(k);
+}
+
+double FilteredLinearRegressor::predict(const Eigen::VectorXd& x) const {
+  if (x.size() != features_)
+    throw InputError("filtered_linear: expected " + std::to_string(features_) + " features, found " +
+                     std::to_string(x.size()));
+  return fit_.offset + full_gradient_.dot(x);
+}
+
+Eigen::VectorXd FilteredLinearRegressor::gradient(const Eigen::VectorXd& x) const {
+  if (x.size() != features_)
+    throw InputError("filtered_linear: expected " + std::to_string(features_) + " features, found " +
+                     std::to_string(x.size()));
+  return full_gradient_;
+}
+
+std::unique_ptr<Regressor> FilteredLinearRegressor::clone() const {
+  return std::make_unique<FilteredLinearRegressor>(options_);
+}
+
+std::string FilteredLinearRegressor::describe() const {
+  return "kept " + std::to_string(kept_.size()) + " of " + std::to_string(features_) + " components";
+}
+
+}  // namespace bodymodel

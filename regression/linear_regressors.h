@@ -1,0 +1,92 @@
+// Linear regressors of Hasler et al. 2009 §4: eq. 10 on all components ("simple linear") and on
+// the components most correlated with the label, their number chosen by cross-validation
+// ("filtered linear", Table 1).
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "regression/linear.h"
+#include "regression/regressor.h"
+
+namespace bodymodel {
+
+// Eq. 10 on every feature (minimum-norm when under-determined).
+class SimpleLinearRegressor : public Regressor {
+ public:
+  struct Options {
+    double ridge = 0;  // 0 = the paper's plain least squares
+  };
+  SimpleLinearRegressor() = default;
+  explicit SimpleLinearRegressor(const Options& options) : options_(options) {}
+
+  std::string name() const override { return "simple_linear"; }
+  void fit(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const std::vector<int>& groups = {}) override;
+  double predict(const Eigen::VectorXd& x) const override;
+  Eigen::VectorXd gradient(const Eigen::VectorXd& x) const override;
+  std::unique_ptr<Regressor> clone() const override;
+  std::string describe() const override;
+  const LinearFit& fitted() const { return fit_; }
+
+ private:
+  Options options_;
+  LinearFit fit_;
+};
+
+// How components are ranked before the weakest are discarded (§4: "not by their variance ... but
+// by their correlation with l(), indicated by the magnitude of the initial components of s").
+enum class ComponentRanking {
+  correlation,  // |corr(x_j, y)| on the training rows; for uncorrelated features (PCA coefficients)
+                // this is |s_j|·σ_j/σ_y, the magnitude of s in standardised coordinates (default)
+  gradient,     // |s_j| of the eq. 10 fit on all components, literally (scale-dependent)
+};
+
+// Feature indices (#features) ordered from the most to the least label-related.
+//   X #samples by #features, y #samples.
+std::vector<int> rank_components(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
+                                 ComponentRanking ranking = ComponentRanking::correlation);
+
+// Cross-validated RMSE of eq. 10 on the top-m ranked components for m = 1..max_components (the
+// ranking recomputed on each training fold, so nothing of the test fold leaks).
+//   X #rows by #features, y #rows, fold_of #rows fold index in [0, folds).
+// Returns max_components entries (label unit); entry m−1 is for m kept components.
+// max_components ≤ 0 means #features.
+Eigen::VectorXd filtered_linear_curve(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
+                                      const std::vector<int>& fold_of, int folds,
+                                      int max_components = 0,
+                                      ComponentRanking ranking = ComponentRanking::correlation);
+
+class FilteredLinearRegressor : public Regressor {
+ public:
+  struct Options {
+    ComponentRanking ranking = ComponentRanking::correlation;
+    int inner_folds = 5;        // inner cross-validation on the training rows picks the count
+    unsigned inner_seed = 7;
+    int max_components = 0;     // largest count tried; ≤ 0 = all features
+    int fixed_components = 0;   // > 0: keep exactly this many (no inner cross-validation)
+  };
+  FilteredLinearRegressor() = default;
+  explicit FilteredLinearRegressor(const Options& options) : options_(options) {}
+
+  std::string name() const override { return "filtered_linear"; }
+  void fit(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const std::vector<int>& groups = {}) override;
+  double predict(const Eigen::VectorXd& x) const override;
+  Eigen::VectorXd gradient(const Eigen::VectorXd& x) const override;
+  std::unique_ptr<Regressor> clone() const override;
+  std::string describe() const override;
+
+  const std::vector<int>& kept_components() const { return kept_; }
+  // Inner cross-validation RMSE for m = 1..(size) kept components (empty with fixed_components).
+  const Eigen::VectorXd& inner_curve() const { return inner_curve_; }
+
+ private:
+  Options options_;
+  std::vector<int> kept_;
+  Eigen::VectorXd inner_curve_;
+  LinearFit fit_;          // on the kept components only
+  Eigen::VectorXd full_gradient_;  // #features (zero for discarded components)
+  int features_ = 0;
+};
+
+}  // namespace bodymodel
