@@ -1,0 +1,203 @@
+#include "model/model_file.h"
+
+#include "model/format.h"
+
+#include "core/error.h"
+
+namespace bodymodel {
+namespace {
+
+std::string json_list(const std::vector<std::string>& v) { return nlohmann::json(v).dump(); }
+
+std::vector<std::string> read_list(const Npz& z, const std::string& key, const std::string& what) {
+  try {
+    auto j = nlohmann::json::parse(z.text(key));
+    return j.get<std::vector<std::string>>();
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("{}: '{}' is not a JSON list of strings ({})", what, key, e.what()));
+  }
+}
+
+void put_sparse(Npz& z, const std::string& key, const Eigen::SparseMatrix<double, Eigen::RowMajor>& M) {
+  Eigen::MatrixXd T(M.nonZeros(), 3);
+  int k = 0;
+  for (int r = 0; r < M.outerSize(); ++r)
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(M, r); it; ++it, ++k)
+      T.row(k) << it.row(), it.col(), it.value();
+  z.put(key, T);
+  Eigen::VectorXi shape(2);
+  shape << static_cast<int>(M.rows()), static_cast<int>(M.cols());
+  z.put(key + "_shape", shape);
+}
+
+Eigen::SparseMatrix<double, Eigen::RowMajor> get_sparse(const Npz& z, const std::string& key,
+                                                        const std::string& what) {
+  Eigen::MatrixXd T = z.matrix(key);
+  Eigen::VectorXi shape = z.int_vector(key + "_shape");
+  if (shape.size() != 2 || T.cols() != 3)
+    throw InputError(fmt::format("{}: '{}' must be #nonzeros by 3 triplets with a 2-element shape", what, key));
+  std::vector<Eigen::Triplet<double>> trip;
+  for (int i = 0; i < T.rows(); ++i) {
+    int r = static_cast<int>(T(i, 0)), c = static_cast<int>(T(i, 1));
+    if (r < 0 || r >= shape(0) || c < 0 || c >= shape(1))
+      throw InputError(fmt::format("{}: '{}' triplet {} is outside the {}×{} matrix", what, key, i, shape(0), shape(1)));
+    trip.emplace_back(r, c, T(i, 2));
+  }
+  Eigen::SparseMatrix<double, Eigen::RowMajor> M(shape(0), shape(1));
+  M.setFromTriplets(trip.begin(), trip.end());
+  return M;
+}
+
+void put_sub_model(Npz& z, const std::string& p, const SubModel& m, bool shape) {
+  z.put(p + "_mean", m.pca.mean);
+  z.put(p + "_basis", m.pca.basis);
+  z.put(p + "_eigenvalues", m.pca.eigenvalues);
+  z.put(p + "_coefficients", m.pca.coefficients);
+  std::vector<std::string> names, units, sem;
+  Eigen::MatrixXd stats(m.regression.label_count(), 4);
+  for (int i = 0; i < m.regression.label_count(); ++i) {
+    const LabelInfo& l = m.regression.labels[i];
+    names.push_back(l.name);
+    units.push_back(l.unit);
+    stats.row(i) << l.mean, l.stddev, l.min, l.max;
+  }
+  const std::string lp = shape ? "" : p + "_";
+  z.put(lp + "labels", m.labels);
+  z.put_text(lp + "label_names", json_list(names));
+  z.put_text(lp + "label_units", json_list(units));
+  z.put(lp + "label_statistics", stats);
+  z.put_text(shape ? "subject_ids" : p + "_sample_ids", json_list(m.sample_ids));
+  z.put(p + "_label_offsets", m.regression.offsets);
+  z.put(p + "_label_gradients", m.regression.gradients);
+  z.put(p + "_semantic_basis", m.semantic_basis.basis);
+  z.put(p + "_semantic_variances", m.semantic_basis.variances);
+  z.put_text(p + "_semantic_labels", json_list(m.semantic_basis.semantic_labels));
+}
+
+SubModel get_sub_model(const Npz& z, const std::string& p, bool shape, int D, const std::string& what) {
+  SubModel m;
+  m.pca.mean = z.vector(p + "_mean");
+  m.pca.basis = z.matrix(p + "_basis");
+  m.pca.eigenvalues = z.vector(p + "_eigenvalues");
+  m.pca.coefficients = z.matrix(p + "_coefficients");
+  const int K = static_cast<int>(m.pca.basis.cols());
+  if (m.pca.mean.size() != D || m.pca.basis.rows() != D || m.pca.eigenvalues.size() != K ||
+      m.pca.coefficients.cols() != K)
+    throw InputError(fmt::format("{}: the {} model's arrays disagree (mean {}, basis {}×{}, eigenvalues {}, "
+                                 "coefficients with {} columns; encoding size {})",
+                                 what, p, m.pca.mean.size(), m.pca.basis.rows(), K,
+                                 m.pca.eigenvalues.size(), m.pca.coefficients.cols(), D));
+  const std::string lp = shape ? "" : p + "_";
+  m.labels = z.matrix(lp + "labels");
+  auto names = read_list(z, lp + "label_names", what);
+  auto units = read_list(z, lp + "label_units", what);
+  Eigen::MatrixXd stats = z.matrix(lp + "label_statistics");
+  m.sample_ids = read_list(z, shape ? "subject_ids" : p + "_sample_ids", what);
+  m.regression.offsets = z.vector(p + "_label_offsets");
+  m.regression.gradients = z.matrix(p + "_label_gradients");
+  const int L = static_cast<int>(names.size());
+  if (static_cast<int>(units.size()) != L || stats.rows() != L || stats.cols() != 4 ||
+      m.regression.offsets.size() != L || m.regression.gradients.rows() != K ||
+      m.regression.gradients.cols() != L || m.labels.cols() != L ||
+      m.labels.rows() != m.pca.coefficients.rows() ||
+      static_cast<int>(m.sample_ids.size()) != m.pca.coefficients.rows())
+    throw InputError(fmt::format("{}: the {} model's label arrays disagree with its {} labels", what, p, L));
+  for (int i = 0; i < L; ++i)
+    m.regression.labels.push_back({names[i], units[i], stats(i, 0), stats(i, 1), stats(i, 2), stats(i, 3)});
+  m.semantic_basis.basis = z.matrix(p + "_semantic_basis");
+  m.semantic_basis.variances = z.vector(p + "_semantic_variances");
+  m.semantic_basis.semantic_labels = read_list(z, p + "_semantic_labels", what);
+  if (m.semantic_basis.basis.rows() != K || m.semantic_basis.basis.cols() != K)
+    throw InputError(fmt::format("{}: {}_semantic_basis must be {}×{}", what, p, K, K));
+  return m;
+}
+
+}  // namespace
+
+Npz model_to_npz(const BodyModel& model) {
+  Npz z;
+  z.put_text("metadata", model.metadata.dump());
+  z.put("format_version", static_cast<double>(kModelFormatVersion));
+  z.put("template_vertices", Eigen::MatrixXd(model.tmpl->rest_vertices()));
+  z.put("template_faces", Eigen::MatrixXi(model.tmpl->faces()));
+  z.put("encoding_mean", model.mean->values);
+  put_sub_model(z, "shape", model.shape, true);
+  put_sub_model(z, "full", model.full, false);
+  if (!model.rig.empty()) {
+    z.put_text("rig_bone_names", json_list(model.rig.bone_names));
+    z.put("rig_parents", Eigen::VectorXi(Eigen::Map<const Eigen::VectorXi>(
+                             model.rig.parents.data(), model.rig.parents.size())));
+    put_sparse(z, "rig_head_regressor", model.rig.head_regressor);
+    put_sparse(z, "rig_tail_regressor", model.rig.tail_regressor);
+    put_sparse(z, "rig_weights", model.rig.weights);
+  }
+  return z;
+}
+
+BodyModel model_from_npz(const Npz& z, const std::string& what) {
+  if (!z.has("metadata") || !z.has("format_version"))
+    throw InputError(fmt::format("{}: not a bodymodel model file (no 'metadata'/'format_version' "
+                                 "entries; it has: {})",
+                                 what, [&] {
+                                   std::string s;
+                                   for (auto& k : z.keys()) s += (s.empty() ? "" : ", ") + k;
+                                   return s.empty() ? std::string("nothing") : s;
+                                 }()));
+  BodyModel model;
+  try {
+    model.metadata = nlohmann::json::parse(z.text("metadata"));
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("{}: 'metadata' is not valid JSON ({})", what, e.what()));
+  }
+  if (model.metadata.value("format", std::string()) != "bodymodel-model")
+    throw InputError(fmt::format("{}: metadata says format '{}', expected 'bodymodel-model'", what,
+                                 model.metadata.value("format", std::string("(none)"))));
+  double version = z.scalar("format_version");
+  if (version != kModelFormatVersion)
+    throw InputError(fmt::format("{}: model format version {}, this program reads version {} (rebuild "
+                                 "the model with `bodymodel build`)",
+                                 what, version, kModelFormatVersion));
+  Eigen::MatrixXd V = z.matrix("template_vertices");
+  Eigen::MatrixXi F = z.int_matrix("template_faces");
+  if (V.cols() != 3 || F.cols() != 3)
+    throw InputError(fmt::format("{}: template_vertices/template_faces must have 3 columns", what));
+  model.tmpl = std::make_shared<EncodingTemplate>(Eigen::MatrixX3d(V), Eigen::MatrixX3i(F));
+  const int D = model.tmpl->encoding_size();
+  Eigen::VectorXd mean = z.vector("encoding_mean");
+  if (mean.size() != D)
+    throw InputError(fmt::format("{}: encoding_mean has {} values, the template needs {}", what, mean.size(), D));
+  model.mean = EncodingMean::from_values(std::move(mean));
+  model.shape = get_sub_model(z, "shape", true, D, what);
+  model.full = get_sub_model(z, "full", false, D, what);
+  if (z.has("rig_bone_names")) {
+    model.rig.bone_names = read_list(z, "rig_bone_names", what);
+    Eigen::VectorXi par = z.int_vector("rig_parents");
+    model.rig.parents.assign(par.data(), par.data() + par.size());
+    model.rig.head_regressor = get_sparse(z, "rig_head_regressor", what);
+    model.rig.tail_regressor = get_sparse(z, "rig_tail_regressor", what);
+    model.rig.weights = get_sparse(z, "rig_weights", what);
+    const int B = model.rig.bone_count();
+    if (static_cast<int>(model.rig.parents.size()) != B || model.rig.head_regressor.rows() != B ||
+        model.rig.head_regressor.cols() != V.rows() || model.rig.weights.rows() != V.rows() ||
+        model.rig.weights.cols() != B)
+      throw InputError(fmt::format("{}: the rig arrays disagree with {} bones and {} vertices", what, B, V.rows()));
+  }
+  return model;
+}
+
+void save_model(const std::filesystem::path& path, const BodyModel& model) {
+  model_to_npz(model).save(path);
+}
+
+BodyModel load_model(const std::filesystem::path& path) {
+  Npz z = Npz::load(path);
+  try {
+    return model_from_npz(z, "'" + path.string() + "'");
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw InputError(fmt::format("'{}': not a readable model file ({})", path.string(), e.what()));
+  }
+}
+
+}  // namespace bodymodel

@@ -1,0 +1,265 @@
+#include "model/morph.h"
+
+#include <chrono>
+#include <cmath>
+#include "model/format.h"
+#include <random>
+#include <set>
+
+#include "core/error.h"
+#include "core/geometry.h"
+
+namespace bodymodel {
+
+std::optional<double> measured_label(const std::string& name, const BodyMeasurements& m) {
+  if (name == "height_cm") return m.height_cm;
+  if (name == "weight_kg") return m.weight_kg;
+  if (name == "waist_cm") return m.waist_cm;
+  if (name == "hips_cm") return m.hips_cm;
+  if (name == "chest_cm") return m.chest_cm;
+  if (name == "neck_cm") return m.neck_cm;
+  if (name == "volume_l") return m.volume_l;
+  if (name == "body_fat_pct" && std::isfinite(m.body_fat_pct)) return m.body_fat_pct;
+  return std::nullopt;
+}
+
+bool is_measurable_label(const std::string& name) {
+  static const std::set<std::string> names = {"height_cm", "weight_kg", "waist_cm", "hips_cm",
+                                              "chest_cm",  "neck_cm",   "volume_l", "body_fat_pct"};
+  return names.count(name) > 0;
+}
+
+std::string MorphSummary::report() const {
+  std::string s = fmt::format("{} after {} iteration(s), |z| = {:.3g}\n",
+                              converged ? "converged" : "NOT converged", iterations, change_norm);
+  for (const auto& l : labels)
+    s += fmt::format("  {:<14} start {:>9.3f}  target {:>9.3f}  achieved {:>9.3f} ({})  {}\n", l.label,
+                     l.start, l.target, l.achieved, l.measured ? "measured" : "predicted",
+                     l.satisfied ? "ok" : "MISSED");
+  return s;
+}
+
+ShapeMorpher::ShapeMorpher(std::shared_ptr<const BodyModel> model, DecoderOptions options)
+    : model_(std::move(model)), decoder_(model_->tmpl, options) {}
+
+Eigen::MatrixX3d ShapeMorpher::decode(const Eigen::VectorXd& x) {
+  return decoder_.decode(model_->encoding_of(x));
+}
+
+BodyMeasurements ShapeMorpher::measure(const Eigen::MatrixX3d& V, Sex sex) const {
+  return measure_body(V, model_->tmpl->faces(), sex);
+}
+
+namespace {
+
+double tolerance_for(const LabelInfo& info, const MorphOptions& o) {
+  if (info.unit == "cm") return o.tolerance_cm;
+  if (info.unit == "kg") return o.tolerance_kg;
+  return o.tolerance_other * std::max(info.stddev, 1e-9);
+}
+
+}  // namespace
+
+Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
+                                              const std::vector<LabelCondition>& conditions,
+                                              const MorphOptions& o, MorphSummary* summary,
+                                              Eigen::VectorXd* x_out) {
+  auto t0 = std::chrono::steady_clock::now();
+  const SubModel& sm = model_->shape;
+  const SemanticRegression& reg = sm.regression;
+  const int m = static_cast<int>(conditions.size());
+  std::vector<int> idx(m);
+  std::set<std::string> seen;
+  bool any_measured = false;
+  for (int i = 0; i < m; ++i) {
+    idx[i] = reg.index(conditions[i].label);
+    if (!seen.insert(conditions[i].label).second)
+      throw InputError(fmt::format("label '{}' is given more than once", conditions[i].label));
+    if (!conditions[i].keep && !(conditions[i].lo <= conditions[i].hi))
+      throw InputError(fmt::format("label '{}': empty range {}..{}", conditions[i].label,
+                                   conditions[i].lo, conditions[i].hi));
+    if (is_measurable_label(conditions[i].label)) any_measured = true;
+  }
+  if (o.triangle_mask.size() != 0 && o.triangle_mask.size() != model_->tmpl->triangle_count())
+    throw InputError(fmt::format("mask has {} entries, the model has {} triangles", o.triangle_mask.size(),
+                                 model_->tmpl->triangle_count()));
+  Eigen::MatrixXd S(sm.component_count(), m);
+  for (int i = 0; i < m; ++i) S.col(i) = reg.gradients.col(idx[i]);
+
+  auto values = [&](const Eigen::VectorXd& x, const Eigen::MatrixX3d& V) {
+    Eigen::VectorXd v(m);
+    Eigen::VectorXd pred = reg.predict(sm.pca.project(x));
+    std::optional<BodyMeasurements> meas;
+    if (any_measured) meas = measure(V, o.sex);
+    for (int i = 0; i < m; ++i) {
+      std::optional<double> mv;
+      if (meas) mv = measured_label(conditions[i].label, *meas);
+      v(i) = mv ? *mv : pred(idx[i]);
+    }
+    return v;
+  };
+  auto apply_change = [&](const Eigen::VectorXd& z) {
+    Eigen::VectorXd x = x0 + sm.pca.basis * z;
+    if (o.triangle_mask.size() != 0) x = masked_change(model_->encoding_of(x0), model_->encoding_of(x), o.triangle_mask).values;
+    return x;
+  };
+
+  Eigen::MatrixX3d V = decode(x0);
+  Eigen::VectorXd start = values(x0, V);
+  Eigen::VectorXd target(m), lo(m), hi(m), tol(m);
+  for (int i = 0; i < m; ++i) {
+    const LabelCondition& c = conditions[i];
+    const LabelInfo& info = reg.labels[idx[i]];
+    tol(i) = tolerance_for(info, o);
+    if (c.keep) {
+      target(i) = start(i);
+      lo(i) = start(i) - tol(i);
+      hi(i) = start(i) + tol(i);
+    } else if (c.lo == c.hi) {
+      target(i) = c.lo;
+      lo(i) = c.lo - tol(i);
+      hi(i) = c.hi + tol(i);
+    } else {
+      double margin = o.range_margin * (c.hi - c.lo);
+      target(i) = std::clamp(start(i), c.lo + margin, c.hi - margin);
+      lo(i) = c.lo;
+      hi(i) = c.hi;
+    }
+  }
+  auto all_ok = [&](const Eigen::VectorXd& v) {
+    for (int i = 0; i < m; ++i)
+      if (v(i) < lo(i) || v(i) > hi(i)) return false;
+    return true;
+  };
+  auto badness = [&](const Eigen::VectorXd& v) {
+    double b = 0;
+    for (int i = 0; i < m; ++i) {
+      double e = v(i) < lo(i) ? lo(i) - v(i) : v(i) > hi(i) ? v(i) - hi(i) : 0;
+      b = std::max(b, e / tol(i));
+    }
+    return b;
+  };
+
+  Eigen::VectorXd delta = target - start;
+  Eigen::VectorXd z = Eigen::VectorXd::Zero(sm.component_count());
+  Eigen::VectorXd x = x0, best_x = x0, v = start, best_v = start;
+  Eigen::MatrixX3d best_V = V;
+  double best_bad = badness(start);
+  int it = 0;
+  bool ok = all_ok(start);
+  while (!ok && it < o.max_iterations) {
+    ++it;
+    z = constrained_change(S, delta, o.change);
+    x = apply_change(z);
+    V = decode(x);
+    v = values(x, V);
+    double bad = badness(v);
+    if (bad < best_bad) {
+      best_bad = bad;
+      best_x = x;
+      best_v = v;
+      best_V = V;
+    }
+    ok = all_ok(v);
+    // Newton-like correction on the measured value (unit slope: the regression is the
+    // Jacobian's estimate, so the remaining error is simply requested again).
+    delta += target - v;
+  }
+  if (summary) {
+    summary->iterations = it;
+    summary->converged = ok;
+    summary->change_norm = z.norm();
+    summary->labels.clear();
+    for (int i = 0; i < m; ++i)
+      summary->labels.push_back({conditions[i].label, target(i), lo(i), hi(i), start(i), best_v(i),
+                                 is_measurable_label(conditions[i].label) &&
+                                     !(conditions[i].label == "body_fat_pct" && o.sex == Sex::unknown),
+                                 best_v(i) >= lo(i) && best_v(i) <= hi(i)});
+    summary->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+  if (x_out) *x_out = best_x;
+  return best_V;
+}
+
+Eigen::MatrixX3d ShapeMorpher::morph(const Eigen::MatrixX3d& V, const std::vector<LabelCondition>& conditions,
+                                     const MorphOptions& options, MorphSummary* summary) {
+  Encoding e = model_->encode(V, "input body");
+  Eigen::MatrixX3d out = morph_encoding(e.values, conditions, options, summary);
+  RigidMotion r = fit_rigid_motion(out, V);
+  out = apply(r, out);
+  out.col(1).array() += V.col(1).minCoeff() - out.col(1).minCoeff();
+  return out;
+}
+
+GeneratedBody generate_body(ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
+                            uint64_t seed, const GenerateOptions& o) {
+  const BodyModel& model = morpher.model();
+  const SubModel& sm = model.shape;
+  const int K = sm.component_count();
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  // Sex-specific sampling pool.
+  std::vector<int> pool;
+  int sex_label = sm.regression.find("sex");
+  Sex sex = Sex::unknown;
+  for (auto& c : conditions)
+    if (c.label == "sex" && !c.keep && c.lo == c.hi && sex_label >= 0) {
+      sex = c.lo < 0.5 ? Sex::female : Sex::male;
+      for (int i = 0; i < sm.labels.rows(); ++i)
+        if (std::isfinite(sm.labels(i, sex_label)) && std::abs(sm.labels(i, sex_label) - c.lo) < 0.5)
+          pool.push_back(i);
+    }
+  GeneratedBody best;
+  double best_missed = 1e300;
+  MorphOptions mo = o.morph;
+  if (mo.sex == Sex::unknown) mo.sex = sex;
+  for (int attempt = 1; attempt <= std::max(1, o.max_attempts); ++attempt) {
+    Eigen::VectorXd c(K);
+    if (pool.size() >= 2) {
+      Eigen::VectorXd mu = Eigen::VectorXd::Zero(K);
+      for (int i : pool) mu += sm.pca.coefficients.row(i).transpose();
+      mu /= pool.size();
+      c = mu;
+      const double s = o.spread / std::sqrt(pool.size() - 1.0);
+      for (int i : pool) c += s * n01(rng) * (sm.pca.coefficients.row(i).transpose() - mu);
+    } else {
+      for (int k = 0; k < K; ++k) c(k) = o.spread * std::sqrt(std::max(sm.pca.eigenvalues(k), 0.0)) * n01(rng);
+    }
+    Eigen::VectorXd x0 = sm.pca.reconstruct(c);
+    GeneratedBody g;
+    g.attempts = attempt;
+    g.V = morpher.morph_encoding(x0, conditions, mo, &g.summary, &g.encoding);
+    g.satisfied = true;
+    double missed = 0;
+    for (auto& l : g.summary.labels)
+      if (!l.satisfied) {
+        g.satisfied = false;
+        missed += std::min(std::abs(l.achieved - l.lo), std::abs(l.achieved - l.hi));
+      }
+    if (g.satisfied || missed < best_missed) {
+      best_missed = missed;
+      best = std::move(g);
+    }
+    if (best.satisfied) break;
+  }
+  best.measured = morpher.measure(best.V, mo.sex);
+  return best;
+}
+
+int flipped_triangle_count(const BodyModel& model, const Eigen::MatrixX3d& V) {
+  const Eigen::MatrixX3d& R = model.tmpl->rest_vertices();
+  const Eigen::MatrixX3i& F = model.tmpl->faces();
+  Eigen::MatrixX3d A = apply(fit_rigid_motion(V, R), V);
+  Eigen::MatrixX3d n1 = face_normals(A, F), n0 = face_normals(R, F);
+  int flipped = 0;
+  for (int f = 0; f < F.rows(); ++f)
+    if (n1.row(f).dot(n0.row(f)) < 0) ++flipped;
+  return flipped;
+}
+
+double rms_vertex_distance(const Eigen::MatrixX3d& a, const Eigen::MatrixX3d& b) {
+  Eigen::MatrixX3d bb = apply(fit_rigid_motion(b, a), b);
+  return std::sqrt((a - bb).rowwise().squaredNorm().mean());
+}
+
+}  // namespace bodymodel

@@ -1,0 +1,138 @@
+// Morphing a body by its labels (Hasler et al. 2009 §4, §5.1, §5.2; METHOD.md §4):
+// "make this person 10 cm taller but keep the weight", "200 different women of 65 kg".
+//
+// A label change is requested in the shape model's coefficient space: the minimum-norm change
+// z meeting all label changes at once (eq. 11, semantic.h constrained_change), applied to the
+// body's own encoding as x' = x + basis·z (optionally masked per triangle, §5.1), decoded.
+//
+// MEASUREMENT-CORRECTED ITERATIONS. The regression (eq. 10) is linear and only approximately
+// what `bodymodel measure` reports on the decoded mesh (weight is a volume, height an extent:
+// neither is linear in the encoding). So for labels that can be measured on a mesh (height,
+// weight, girths, body fat) the solver works like a secant/Newton iteration on the MEASURED
+// value: morph, decode, measure the output, add the remaining error (target − measured) to the
+// requested change, re-solve eq. 11, repeat until every label is within tolerance. Labels
+// that cannot be measured (age, muscle, sex, sliders) use the model's own prediction, which is
+// met exactly in the first step.
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/measure.h"
+#include "encoding/relative_rotation_decoder.h"
+#include "model/body_model.h"
+
+namespace bodymodel {
+
+// The measured value of a label on a mesh (height_cm, weight_kg, waist_cm, hips_cm, chest_cm,
+// neck_cm, volume_l, body_fat_pct when finite), or nullopt for labels a mesh cannot tell.
+std::optional<double> measured_label(const std::string& name, const BodyMeasurements& m);
+bool is_measurable_label(const std::string& name);
+
+// One condition on a label: exact (lo == hi), a range [lo, hi], or "keep" (the body's current
+// value, resolved by the solver).
+struct LabelCondition {
+  std::string label;
+  double lo = 0, hi = 0;
+  bool keep = false;
+  static LabelCondition exact(std::string l, double v) { return {std::move(l), v, v, false}; }
+  static LabelCondition range(std::string l, double a, double b) { return {std::move(l), a, b, false}; }
+  static LabelCondition keep_current(std::string l) { return {std::move(l), 0, 0, true}; }
+};
+
+struct MorphOptions {
+  int max_iterations = 8;          // measurement-corrected iterations (see header comment)
+  double tolerance_cm = 0.25;      // for labels in cm (height, girths)
+  double tolerance_kg = 0.25;      // for weight
+  double tolerance_other = 0.01;   // other labels, in units of the label's standard deviation
+  // Range conditions aim this fraction of the range inside each bound (so that a body that
+  // measures slightly differently still lands inside).
+  double range_margin = 0.1;
+  Eigen::VectorXd triangle_mask;   // #F in [0, 1] (§5.1, Fig. 6); empty = the whole body
+  Sex sex = Sex::unknown;          // for the body-fat measurement
+  ConstrainedChangeOptions change; // eq. 11 solver
+};
+
+struct LabelOutcome {
+  std::string label;
+  double target = 0;     // the goal (a range's aim point for ranges)
+  double lo = 0, hi = 0; // the accepted interval
+  double start = 0;      // value before morphing
+  double achieved = 0;   // value after morphing (measured when measurable)
+  bool measured = false;
+  bool satisfied = false;
+};
+
+struct MorphSummary {
+  int iterations = 0;
+  bool converged = false;
+  std::vector<LabelOutcome> labels;
+  double change_norm = 0;  // ‖z‖, coefficient units
+  double seconds = 0;
+  std::string report() const;  // one line per label
+};
+
+// Shape-space morphing, generation and decoding with one reusable decoder (not thread-safe:
+// one morpher per thread).
+class ShapeMorpher {
+ public:
+  explicit ShapeMorpher(std::shared_ptr<const BodyModel> model, DecoderOptions options = {});
+
+  const BodyModel& model() const { return *model_; }
+  RelativeRotationDecoder& decoder() { return decoder_; }
+
+  // Decodes encoding values x (relative to the model's mean), aligned to the template.
+  Eigen::MatrixX3d decode(const Eigen::VectorXd& x);
+  BodyMeasurements measure(const Eigen::MatrixX3d& V, Sex sex) const;
+
+  // Morphs the body V (#V by 3, mm; the model's topology) to meet `conditions`. The result is
+  // rigidly placed onto V (best fit, then its lowest point put at V's lowest point). Throws
+  // InputError for unknown labels (listing the valid ones) or a conflicting label given twice.
+  Eigen::MatrixX3d morph(const Eigen::MatrixX3d& V, const std::vector<LabelCondition>& conditions,
+                         const MorphOptions& options = {}, MorphSummary* summary = nullptr);
+
+  // The same starting from encoding values x0 (no placement: template-aligned output).
+  Eigen::MatrixX3d morph_encoding(const Eigen::VectorXd& x0, const std::vector<LabelCondition>& conditions,
+                                  const MorphOptions& options, MorphSummary* summary,
+                                  Eigen::VectorXd* x_out = nullptr);
+
+ private:
+  std::shared_ptr<const BodyModel> model_;
+  RelativeRotationDecoder decoder_;
+};
+
+// Random bodies from the shape-only model (§5.2).
+struct GenerateOptions {
+  // Coefficients ~ N(0, eigenvalues) scaled by this (1 = the data's spread). When a sex
+  // condition is given, coefficients are drawn from that sex's subjects instead: their mean
+  // plus a random Gaussian combination of their deviations (the within-sex distribution).
+  double spread = 1.0;
+  int max_attempts = 4;   // fresh samples when the conditions cannot be met
+  MorphOptions morph;
+};
+
+struct GeneratedBody {
+  Eigen::MatrixX3d V;              // #V by 3, mm, template-aligned
+  Eigen::VectorXd encoding;        // D values relative to the model's mean
+  BodyMeasurements measured;
+  MorphSummary summary;
+  int attempts = 0;
+  bool satisfied = false;
+};
+
+// One body; `seed` makes it reproducible. Conditions may use "sex" with 0 = female, 1 = male.
+GeneratedBody generate_body(ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
+                            uint64_t seed, const GenerateOptions& options = {});
+
+// Plausibility of a decoded body: triangles whose normal points against the template's
+// (after a rigid fit of V onto the template), and the relative encoding residual
+// ‖encode(V) − x‖ / ‖x − x̄‖ (how far the decoder had to deviate from the requested encoding).
+int flipped_triangle_count(const BodyModel& model, const Eigen::MatrixX3d& V);
+
+// Root-mean-square vertex distance between two bodies after a rigid fit of b onto a (mm).
+double rms_vertex_distance(const Eigen::MatrixX3d& a, const Eigen::MatrixX3d& b);
+
+}  // namespace bodymodel

@@ -1,0 +1,48 @@
+#include <gtest/gtest.h>
+
+#include "model/morph.h"
+#include "model_test_util.h"
+
+namespace bodymodel {
+namespace {
+
+using testing::make_test_subjects;
+using testing::shape_test_model;
+
+TEST(Morph, SetHeightLandsWithinToleranceAcrossTheDataRange) {
+  auto model = shape_test_model();
+  ShapeMorpher morpher(model);
+  auto probes = make_test_subjects(2, 99);  // not in the model
+  const LabelInfo& h = model->shape.regression.labels[model->shape.regression.index("height_cm")];
+  for (const auto& p : probes) {
+    for (double X : {h.min, 0.5 * (h.min + h.max), h.max}) {
+      MorphSummary sum;
+      Eigen::MatrixX3d out = morpher.morph(p.V, {LabelCondition::exact("height_cm", X)}, {}, &sum);
+      BodyMeasurements m = measure_body(out, model->tmpl->faces());
+      EXPECT_NEAR(m.height_cm, X, 1.5) << sum.report();
+      // A handful of sliver triangles (fingertips, toes) may face differently from the
+      // template's after the rigid fit; more than 0.02% would mean a broken decode.
+      EXPECT_LE(flipped_triangle_count(*model, out), 5);
+    }
+  }
+}
+
+TEST(Morph, SetWeightKeepHeight) {
+  auto model = shape_test_model();
+  ShapeMorpher morpher(model);
+  auto probes = make_test_subjects(2, 98);
+  for (const auto& p : probes) {
+    for (double dw : {-12.0, 15.0}) {
+      double Y = p.m.weight_kg + dw;
+      MorphSummary sum;
+      Eigen::MatrixX3d out = morpher.morph(
+          p.V, {LabelCondition::exact("weight_kg", Y), LabelCondition::keep_current("height_cm")}, {}, &sum);
+      BodyMeasurements m = measure_body(out, model->tmpl->faces());
+      EXPECT_NEAR(m.weight_kg, Y, 2.0) << sum.report();
+      EXPECT_NEAR(m.height_cm, p.m.height_cm, 1.0) << sum.report();
+    }
+  }
+}
+
+}  // namespace
+}  // namespace bodymodel
