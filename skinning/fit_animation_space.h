@@ -16,8 +16,8 @@ namespace bodymodel {
 
 struct AnimationSpaceFitOptions {
   // Ridge λ (relative, see above). Jacka et al. Fig. 3(b): a flat minimum around 0.015 on the
-  // horse for their parametrisation; our default is chosen from our own grid (README).
-  double ridge = 1e-3;
+  // horse for their parametrisation; ours: a flat minimum around 1e-4 on the horse (README).
+  double ridge = 1e-4;
   // Shrink towards the SSD solution (true) or towards zero (plain ridge).
   bool prior_from_lbs = true;
   // Influences when no base rig is given: SSD fitted with this many slots.

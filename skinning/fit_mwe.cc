@@ -52,6 +52,7 @@ SkinningRig fit_mwe(const SkinningExamples& ex, const SkinningRig* base_lbs,
   const Eigen::Index n = ex.rest.rows(), K = lbs.influences.cols();
   const int P = ex.pose_count(), B = ex.bone_count();
   const double diag = std::max(bounding_box_diagonal(ex.rest), 1e-300);
+  const double s_used = options.ridge_scale * (options.ridge_scale_relative ? std::pow(diag, 4) : 1.0);
 
   // Base rig as MWE coefficients (folded in at the end) and its positions in every pose.
   SkinningRig base = lbs_as_mwe(lbs);
@@ -172,7 +173,7 @@ SkinningRig fit_mwe(const SkinningExamples& ex, const SkinningRig* base_lbs,
               const Eigen::RowVectorXd cmean = C.colwise().mean();
               for (Eigen::Index h = 0; h < p; ++h) {
                 const double var = (C.col(h).array() - cmean(h)).square().sum() / double(m - 1);
-                H(h, h) += options.ridge_scale / std::max(var, 1e-300);
+                H(h, h) += s_used / std::max(var, 1e-300);
               }
               // 5. SVD solve with small singular values dropped.
               Eigen::JacobiSVD<Eigen::MatrixXd> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);

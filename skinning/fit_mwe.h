@@ -26,11 +26,16 @@ enum class MweBase { none, rigid, lbs };
 struct MweFitOptions {
   // Principal components kept per vertex and dimension (p of §4.3); 0 = keep as many as needed
   // to explain `variance_kept` of the variance. Components with zero variance are always dropped
-  // (λ_h = ∞). Default from our horse sensitivity grid (README).
+  // (λ_h = ∞). Defaults from our horse sensitivity grid (README): keeping every component with
+  // non-zero variance and letting the local ridge damp the weak ones generalised best.
   int components = 0;
-  double variance_kept = 0.999;
-  // s of eq. 9, λ_h = s / σ²(c_h). Units: (data unit)⁴, because σ² has (data unit)² and CᵀC too.
-  double ridge_scale = 1e-4;
+  double variance_kept = 1.0;
+  // s of eq. 9, λ_h = s / σ²(c_h). σ² and CᵀC carry (data unit)², so s carries (data unit)⁴;
+  // with ridge_scale_relative the s used is ridge_scale · d⁴ (d = rest bounding-box diagonal),
+  // which makes the default independent of the data's unit. Horse grid optimum: s ≈ 1e-8 in
+  // Sumner's units (d = 1.5168), i.e. 2e-9 relative.
+  double ridge_scale = 2e-9;
+  bool ridge_scale_relative = true;
   // SVD solve: singular values below this fraction of the largest are dropped (§4.4).
   double singular_value_tolerance = 1e-8;
   // Poses whose bone matrices (for the vertex's bones) differ by at most this much in every entry

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <set>
 
 #include <tbb/parallel_for.h>
@@ -22,12 +23,11 @@ std::vector<int> evenly_spaced_frames(int frame_count, int count) {
   return out;
 }
 
-SequenceEvaluation evaluate_skinning_sequence(const std::vector<Eigen::MatrixX3d>& frames,
-                                              const Eigen::MatrixX3i& F, const std::vector<int>& train_in,
-                                              const SequenceEvaluationOptions& options,
-                                              const std::vector<BoneTransforms>& given,
-                                              const ProgressCallback& progress) {
-  const auto t0 = std::chrono::steady_clock::now();
+PreparedSequence prepare_skinning_sequence(const std::vector<Eigen::MatrixX3d>& frames,
+                                           const Eigen::MatrixX3i& F, const std::vector<int>& train_in,
+                                           const SequenceEvaluationOptions& options,
+                                           const std::vector<BoneTransforms>& given,
+                                           const ProgressCallback& progress) {
   const int nf = static_cast<int>(frames.size());
   if (nf < 1) throw InputError("skinning evaluation: no frames");
   std::set<int> train_set(train_in.begin(), train_in.end());
@@ -49,91 +49,131 @@ SequenceEvaluation evaluate_skinning_sequence(const std::vector<Eigen::MatrixX3d
                      std::to_string(nf) + " frames");
   const std::vector<int> train(train_set.begin(), train_set.end());
   const Eigen::MatrixX3d& rest = frames[static_cast<size_t>(options.rest_frame)];
-  SequenceEvaluation out;
-  out.train_frames = train;
-  out.diagonal = bounding_box_diagonal(frames[0]);
-
-  SkinningExamples ex;
+  PreparedSequence out;
+  SkinningExamples& ex = out.examples;
   ex.rest = rest;
   for (int t : train) ex.poses.push_back(frames[static_cast<size_t>(t)]);
-  RecoveredBones rec;
   if (given.empty()) {
     ProgressCallback sub = progress ? ProgressCallback([&](double f, std::string_view w) {
-      return progress(0.3 * f, w);
+      return progress(0.5 * f, w);
     }) : ProgressCallback();
-    rec = recover_bones(rest, F, ex.poses, options.recovery, &out.recovery, sub);
-    ex.transforms = rec.transforms;
+    out.recovered = recover_bones(rest, F, ex.poses, options.recovery, &out.recovery, sub);
+    ex.transforms = out.recovered.transforms;
   } else {
     for (int t : train) ex.transforms.push_back(given[static_cast<size_t>(t)]);
   }
-  report_progress(progress, 0.3, "SSD weights");
+  report_progress(progress, 0.5, "SSD weights");
   LbsFitOptions lo = options.lbs;
   lo.max_influences = options.max_influences;
   lo.require_rigid = given.empty() ? true : lo.require_rigid;
-  SkinningRig lbs = fit_lbs(ex, {}, lo, &out.lbs_summary);
+  out.lbs = fit_lbs(ex, {}, lo, &out.lbs_summary);
   if (given.empty()) {
     for (int a = 0; a < options.alternations; ++a) {
       tbb::parallel_for(0, static_cast<int>(train.size()), [&](int p) {
         ex.transforms[static_cast<size_t>(p)] = fit_transforms_with_fixed_weights(
-            lbs, ex.poses[static_cast<size_t>(p)], ex.transforms[static_cast<size_t>(p)],
+            out.lbs, ex.poses[static_cast<size_t>(p)], ex.transforms[static_cast<size_t>(p)],
             options.transform_iterations);
       });
-      lbs = fit_lbs(ex, {}, lo, &out.lbs_summary);
+      out.lbs = fit_lbs(ex, {}, lo, &out.lbs_summary);
     }
   }
   // Transforms of every frame: training frames keep theirs; unseen frames are fitted with the SSD
   // weights held fixed (or taken from `given`).
-  std::vector<BoneTransforms> T(static_cast<size_t>(nf));
-  for (size_t p = 0; p < train.size(); ++p) T[static_cast<size_t>(train[p])] = ex.transforms[p];
-  report_progress(progress, 0.45, "unseen-frame transforms");
+  out.transforms.assign(static_cast<size_t>(nf), {});
+  out.is_train.assign(static_cast<size_t>(nf), false);
+  for (size_t p = 0; p < train.size(); ++p) {
+    out.transforms[static_cast<size_t>(train[p])] = ex.transforms[p];
+    out.is_train[static_cast<size_t>(train[p])] = true;
+  }
+  report_progress(progress, 0.8, "unseen-frame transforms");
   tbb::parallel_for(0, nf, [&](int f) {
-    if (train_set.count(f)) return;
+    if (out.is_train[static_cast<size_t>(f)]) return;
     if (!given.empty()) {
-      T[static_cast<size_t>(f)] = given[static_cast<size_t>(f)];
+      out.transforms[static_cast<size_t>(f)] = given[static_cast<size_t>(f)];
       return;
     }
-    const BoneTransforms init = fit_section_transforms(rest, rec.vertex_bone, ex.bone_count(),
+    const BoneTransforms init = fit_section_transforms(rest, out.recovered.vertex_bone, ex.bone_count(),
                                                        frames[static_cast<size_t>(f)]);
-    T[static_cast<size_t>(f)] = fit_transforms_with_fixed_weights(lbs, frames[static_cast<size_t>(f)], init,
-                                                                  options.transform_iterations);
+    out.transforms[static_cast<size_t>(f)] = fit_transforms_with_fixed_weights(
+        out.lbs, frames[static_cast<size_t>(f)], init, options.transform_iterations);
   });
-  // Rigs.
-  std::vector<SkinningRig> rigs;
-  for (SkinningMethod m : options.methods) {
-    report_progress(progress, 0.55, "fitting " + skinning_method_name(m));
-    switch (m) {
-      case SkinningMethod::lbs: rigs.push_back(lbs); break;
+  report_progress(progress, 1.0, "prepared");
+  return out;
+}
+
+RigFrameStats evaluate_rig_on_frames(const SkinningRig& rig, const PreparedSequence& prep,
+                                     const std::vector<Eigen::MatrixX3d>& frames, const Eigen::MatrixX3i& F,
+                                     const std::vector<const ReferenceSurface*>& surfaces) {
+  const int nf = static_cast<int>(frames.size());
+  if (prep.transforms.size() != frames.size())
+    throw InputError("evaluate_rig_on_frames: prepared for " + std::to_string(prep.transforms.size()) +
+                     " frames, given " + std::to_string(nf));
+  RigFrameStats out;
+  out.frame_mean_geometric.assign(static_cast<size_t>(nf), 0.0);
+  out.mean_unseen_geometric = Eigen::VectorXd::Zero(frames[0].rows());
+  for (int f = 0; f < nf; ++f) {
+    std::unique_ptr<ReferenceSurface> own;
+    const ReferenceSurface* s = surfaces.empty() ? nullptr : surfaces[static_cast<size_t>(f)];
+    if (!s) {
+      own = std::make_unique<ReferenceSurface>(frames[static_cast<size_t>(f)], F);
+      s = own.get();
+    }
+    const Eigen::MatrixX3d X = evaluate_rig(rig, prep.transforms[static_cast<size_t>(f)]);
+    const MeshDeviation d = mesh_deviation(X, frames[static_cast<size_t>(f)], F, s);
+    out.frame_mean_geometric[static_cast<size_t>(f)] = d.geometric.mean();
+    if (prep.is_train[static_cast<size_t>(f)]) {
+      out.train.add(d);
+    } else {
+      out.unseen.add(d);
+      out.mean_unseen_geometric += d.geometric;
+    }
+  }
+  if (out.unseen.frames) out.mean_unseen_geometric /= double(out.unseen.frames);
+  return out;
+}
+
+SequenceEvaluation evaluate_skinning_sequence(const std::vector<Eigen::MatrixX3d>& frames,
+                                              const Eigen::MatrixX3i& F, const std::vector<int>& train,
+                                              const SequenceEvaluationOptions& options,
+                                              const std::vector<BoneTransforms>& given,
+                                              const ProgressCallback& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ProgressCallback sub = progress ? ProgressCallback([&](double f, std::string_view w) {
+    return progress(0.5 * f, w);
+  }) : ProgressCallback();
+  const PreparedSequence prep = prepare_skinning_sequence(frames, F, train, options, given, sub);
+  SequenceEvaluation out;
+  out.train_frames.clear();
+  for (size_t f = 0; f < frames.size(); ++f)
+    if (prep.is_train[f]) out.train_frames.push_back(static_cast<int>(f));
+  out.diagonal = bounding_box_diagonal(frames[0]);
+  out.recovery = prep.recovery;
+  out.lbs_summary = prep.lbs_summary;
+  std::vector<std::unique_ptr<ReferenceSurface>> trees;
+  std::vector<const ReferenceSurface*> surfaces;
+  for (const auto& fr : frames) {
+    trees.push_back(std::make_unique<ReferenceSurface>(fr, F));
+    surfaces.push_back(trees.back().get());
+  }
+  for (size_t m = 0; m < options.methods.size(); ++m) {
+    const SkinningMethod method = options.methods[m];
+    report_progress(progress, 0.5 + 0.5 * m / options.methods.size(), "fitting and evaluating " +
+                    skinning_method_name(method));
+    SkinningRig rig;
+    switch (method) {
+      case SkinningMethod::lbs: rig = prep.lbs; break;
       case SkinningMethod::animation_space:
-        rigs.push_back(fit_animation_space(ex, &lbs, options.animation_space, &out.as_summary));
+        rig = fit_animation_space(prep.examples, &prep.lbs, options.animation_space, &out.as_summary);
         break;
       case SkinningMethod::mwe:
-        rigs.push_back(fit_mwe(ex, &lbs, options.mwe, &out.mwe_summary));
+        rig = fit_mwe(prep.examples, &prep.lbs, options.mwe, &out.mwe_summary);
         break;
     }
-  }
-  // Evaluation.
-  const size_t nm = rigs.size();
-  std::vector<DeviationStats> train_stats(nm), unseen_stats(nm);
-  out.mean_unseen_geometric.assign(nm, Eigen::VectorXd::Zero(rest.rows()));
-  out.frame_mean_geometric.assign(nm, std::vector<double>(static_cast<size_t>(nf), 0.0));
-  int unseen_count = 0;
-  for (int f = 0; f < nf; ++f) {
-    report_progress(progress, 0.65 + 0.35 * f / nf, "evaluating frames");
-    const ReferenceSurface surface(frames[static_cast<size_t>(f)], F);
-    const bool is_train = train_set.count(f) > 0;
-    if (!is_train) ++unseen_count;
-    for (size_t m = 0; m < nm; ++m) {
-      const Eigen::MatrixX3d X = evaluate_rig(rigs[m], T[static_cast<size_t>(f)]);
-      const MeshDeviation d = mesh_deviation(X, frames[static_cast<size_t>(f)], F, &surface);
-      (is_train ? train_stats[m] : unseen_stats[m]).add(d);
-      out.frame_mean_geometric[m][static_cast<size_t>(f)] = d.geometric.mean();
-      if (!is_train) out.mean_unseen_geometric[m] += d.geometric;
-    }
-  }
-  for (size_t m = 0; m < nm; ++m) {
-    if (unseen_count) out.mean_unseen_geometric[m] /= unseen_count;
-    out.rows.push_back({options.methods[m], "train", train_stats[m]});
-    if (unseen_count) out.rows.push_back({options.methods[m], "unseen", unseen_stats[m]});
+    const RigFrameStats st = evaluate_rig_on_frames(rig, prep, frames, F, surfaces);
+    out.rows.push_back({method, "train", st.train});
+    if (st.unseen.frames) out.rows.push_back({method, "unseen", st.unseen});
+    out.mean_unseen_geometric.push_back(st.mean_unseen_geometric);
+    out.frame_mean_geometric.push_back(st.frame_mean_geometric);
   }
   report_progress(progress, 1.0, "done");
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

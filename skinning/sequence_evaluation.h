@@ -59,6 +59,34 @@ SequenceEvaluation evaluate_skinning_sequence(const std::vector<Eigen::MatrixX3d
                                               const std::vector<BoneTransforms>& transforms = {},
                                               const ProgressCallback& progress = {});
 
+// The fitted base of the protocol, reusable across rigs (parameter sweeps): training examples
+// with their bone transforms, the SSD rig, and the bone transforms of every frame.
+struct PreparedSequence {
+  SkinningExamples examples;                // training frames only
+  SkinningRig lbs;
+  std::vector<BoneTransforms> transforms;   // every frame
+  std::vector<bool> is_train;               // every frame
+  RecoveredBones recovered;                 // empty when transforms were given
+  BoneRecoverySummary recovery;
+  LbsFitSummary lbs_summary;
+};
+PreparedSequence prepare_skinning_sequence(const std::vector<Eigen::MatrixX3d>& frames,
+                                           const Eigen::MatrixX3i& F, const std::vector<int>& train,
+                                           const SequenceEvaluationOptions& options,
+                                           const std::vector<BoneTransforms>& transforms = {},
+                                           const ProgressCallback& progress = {});
+
+// Train and unseen statistics of one rig over every frame. `surfaces` (one per frame) may be
+// given to reuse the closest-point trees; otherwise they are built here.
+struct RigFrameStats {
+  DeviationStats train, unseen;
+  std::vector<double> frame_mean_geometric;   // per frame
+  Eigen::VectorXd mean_unseen_geometric;      // #V
+};
+RigFrameStats evaluate_rig_on_frames(const SkinningRig& rig, const PreparedSequence& prepared,
+                                     const std::vector<Eigen::MatrixX3d>& frames, const Eigen::MatrixX3i& F,
+                                     const std::vector<const ReferenceSurface*>& surfaces = {});
+
 // Evenly spaced training frames (Jacka §3.1): round(i·(n−1)/(k−1)) for i < k, or every `every`-th.
 std::vector<int> evenly_spaced_frames(int frame_count, int count);
 

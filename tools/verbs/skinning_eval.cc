@@ -211,7 +211,7 @@ BODYMODEL_VERB(add_skin_eval_verb) {
   cmd->add_option("--max-influences", a->max_influences, "Influence bones per vertex");
   cmd->add_option("--alternations", a->alternations, "SSD weight / bone transform alternation rounds");
   cmd->add_option("--as-ridge", a->as_ridge, "Animation Space ridge λ (relative)");
-  cmd->add_option("--mwe-s", a->mwe_s, "MWE ridge scale s (λ_h = s/σ²(c_h))");
+  cmd->add_option("--mwe-s", a->mwe_s, "MWE ridge scale s, relative to the diagonal (λ_h = s·d⁴/σ²(c_h))");
   cmd->add_option("--mwe-components", a->mwe_components, "MWE principal components kept (0 = by variance)");
   cmd->add_option("--mwe-variance", a->mwe_variance, "MWE variance fraction kept when components = 0");
   cmd->add_option("--mwe-base", a->mwe_base, "MWE underlying system: ssd, rigid or none");
