@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <random>
 #include <cstdlib>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -157,6 +158,49 @@ TEST(MakeHuman, SkeletonFollowsTheShape) {
   const Skeleton s2 = mh.skeleton(mh.build_vertices(tall));
   EXPECT_GT((s2.tails.row(b) - s2.heads.row(b)).norm(),
             1.2 * (rest.tails.row(b) - rest.heads.row(b)).norm());
+}
+
+// The body-only skeleton regressor matches the helper-based skeleton on unseen bodies and
+// moves rigidly with the mesh.
+TEST(MakeHuman, SkeletonFromBodyVertices) {
+  const MakeHuman& mh = shared_makehuman();
+  std::mt19937 rng(99);
+  std::uniform_real_distribution<double> u(0.05, 0.95);
+  double worst = 0, sum = 0;
+  int n = 0;
+  for (int k = 0; k < 12; ++k) {
+    MacroSettings s;
+    s.gender = u(rng), s.age = 0.25 + 0.75 * u(rng), s.muscle = u(rng), s.weight = u(rng);
+    s.height = u(rng), s.proportions = u(rng);
+    const Eigen::MatrixX3d V = mh.build_vertices(s);
+    const Skeleton exact = mh.skeleton(V);
+    const Skeleton approx = mh.skeleton_from_body(V.topRows(MakeHuman::kBodyVertexCount));
+    approx.validate();
+    for (int b = 0; b < exact.bone_count(); ++b) {
+      const double e = (exact.heads.row(b) - approx.heads.row(b)).norm();
+      worst = std::max(worst, e);
+      sum += e;
+      ++n;
+    }
+  }
+  EXPECT_LT(sum / n, 3.0);  // mm
+  EXPECT_LT(worst, 45.0);
+  // Noise gain: 1 mm of independent vertex noise gives at most ‖w‖₂ mm of joint noise.
+  const auto& W = mh.body_joint_regressor();
+  double gain = 0;
+  for (int j = 0; j < W.rows(); ++j) gain = std::max(gain, W.row(j).norm());
+  EXPECT_LT(gain, 2.5);
+  RecordProperty("max_noise_gain", std::to_string(gain));
+  RecordProperty("mean_head_error_mm", std::to_string(sum / n));
+  RecordProperty("max_head_error_mm", std::to_string(worst));
+  // Rigid motion of the mesh moves the skeleton rigidly.
+  const Eigen::MatrixX3d B = mh.build_vertices(MacroSettings{}).topRows(MakeHuman::kBodyVertexCount);
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.8, Eigen::Vector3d(1, 2, 0).normalized()).toRotationMatrix();
+  const Eigen::RowVector3d t(100, -50, 20);
+  const Skeleton s0 = mh.skeleton_from_body(B);
+  const Skeleton s1 = mh.skeleton_from_body((B * R.transpose()).rowwise() + t);
+  EXPECT_LT(((s0.heads * R.transpose()).rowwise() + t - s1.heads).cwiseAbs().maxCoeff(), 1e-6);
+  EXPECT_THROW(mh.skeleton_from_body(B.topRows(100)), InputError);
 }
 
 TEST(MakeHuman, WeightsAreNormalised) {
