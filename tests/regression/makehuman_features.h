@@ -44,8 +44,11 @@ inline MacroSettings random_makehuman_subject(std::mt19937_64& rng, bool male) {
   return s;
 }
 
-// `bodies` random subjects (half male), deterministic for a seed.
-inline MakeHumanFeatures make_makehuman_features(const MakeHuman& mh, int bodies, unsigned seed = 1) {
+// `bodies` random subjects (half male), deterministic for a seed. vertex_noise_mm > 0 adds
+// independent Gaussian noise of that σ to every vertex coordinate before the PCA (a stand-in for
+// scanning and registration noise; labels are measured on the clean bodies).
+inline MakeHumanFeatures make_makehuman_features(const MakeHuman& mh, int bodies, unsigned seed = 1,
+                                                 double vertex_noise_mm = 0) {
   std::mt19937_64 rng(seed);
   std::vector<MacroSettings> settings;
   for (int i = 0; i < bodies; ++i) settings.push_back(random_makehuman_subject(rng, i % 2 == 0));
@@ -58,8 +61,11 @@ inline MakeHumanFeatures make_makehuman_features(const MakeHuman& mh, int bodies
     const bool male = settings[i].gender >= 0.5;
     const BodyMeasurements m = measure_body(body.mesh.V, body.mesh.F, male ? Sex::male : Sex::female);
     out.labels.row(i) << m.height_cm, m.weight_kg, m.body_fat_pct, settings[i].muscle * 100, m.waist_cm;
+    std::mt19937_64 noise_rng(seed * 7919u + static_cast<unsigned>(i));
+    std::normal_distribution<double> noise(0, vertex_noise_mm > 0 ? vertex_noise_mm : 1);
     for (int v = 0; v < nv; ++v)
-      for (int k = 0; k < 3; ++k) data(i, 3 * v + k) = body.mesh.V(v, k);
+      for (int k = 0; k < 3; ++k)
+        data(i, 3 * v + k) = body.mesh.V(v, k) + (vertex_noise_mm > 0 ? noise(noise_rng) : 0.0);
   });
   const Eigen::MatrixXd centred = data.rowwise() - data.colwise().mean();
   const Eigen::MatrixXd gram = centred * centred.transpose();

@@ -1,0 +1,243 @@
+// bodymodel eval-regressors model.npz --folds 10 --labels height_cm,weight_kg,... --out report/
+// Hasler et al. 2009 §5.1: cross-validated comparison of linear and non-linear label regressors
+// on the model's PCA coefficients (Table 1) and the spread of morph directions (Table 2).
+#include <fmt/format.h>
+
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/io/atomic_write.h"
+#include "core/io/npz.h"
+#include "regression/line_plot.h"
+#include "regression/regression_study.h"
+#include "tools/console.h"
+#include "tools/verb.h"
+
+namespace bodymodel {
+namespace {
+
+struct EvalRegressorsArgs {
+  std::string model;
+  int folds = 10;
+  std::string labels = "height_cm,weight_kg,body_fat_pct,muscle,waist_cm";
+  std::string regressors = "simple_linear,filtered_linear,svr,gaussian_process";
+  std::string out = "report";
+  std::string set = "shape";
+  unsigned seed = 1;
+  int jobs = 0;
+  bool no_directions = false;
+};
+
+std::vector<std::string> split_commas(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ','))
+    if (!item.empty()) out.push_back(item);
+  return out;
+}
+
+// A list stored as JSON text (the model file, model/model_file.h) or comma-separated text.
+std::vector<std::string> read_list(const Npz& z, const std::string& key, const std::string& file) {
+  const std::string text = z.text(key);
+  if (!text.empty() && text.front() == '[') {
+    try {
+      return nlohmann::json::parse(text).get<std::vector<std::string>>();
+    } catch (const std::exception& e) {
+      throw InputError("'" + file + "': key '" + key + "' is not a JSON list of strings: " + e.what());
+    }
+  }
+  return split_commas(text);
+}
+
+std::string default_unit(const std::string& label) {
+  static const std::map<std::string, std::string> units = {
+      {"height_cm", "cm"}, {"weight_kg", "kg"}, {"body_fat_pct", "%"}, {"muscle", "%"},
+      {"waist_cm", "cm"},  {"hips_cm", "cm"},   {"chest_cm", "cm"},    {"neck_cm", "cm"},
+      {"age_years", "years"}};
+  auto it = units.find(label);
+  if (it != units.end()) return it->second;
+  const auto u = label.rfind('_');
+  return u == std::string::npos ? "" : label.substr(u + 1);
+}
+
+std::string csv_field(const std::string& s) {
+  if (s.find_first_of(",\"\n") == std::string::npos) return s;
+  std::string q = "\"";
+  for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return q + "\"";
+}
+
+}  // namespace
+
+BODYMODEL_VERB(add_eval_regressors_verb) {
+  auto a = std::make_shared<EvalRegressorsArgs>();
+  auto* cmd = app.add_subcommand(
+      "eval-regressors",
+      "Cross-validate label regressors on a model's PCA coefficients (Hasler et al. 2009 Table 1)\n"
+      "and measure how much their morph directions vary across subjects (Table 2).\n"
+      "Reads from the .npz: <set>_coefficients (shape: shape_coefficients), labels, label_names,\n"
+      "optional label_units and subject_ids (JSON lists or comma-separated text). With --set full\n"
+      "the full model's arrays are used, scans are grouped by subject (full_subject_ids, or the scan\n"
+      "id up to its last '_p'), and joint-angle labels 'pose:<bone>:r?' are reported in degrees.\n"
+      "Writes <out>/regressors.csv, <out>/directions.csv, <out>/filtered_components.png.");
+  cmd->add_option("model", a->model, "Model file (.npz), e.g. from `bodymodel build-model`")->required();
+  cmd->add_option("--folds", a->folds, "Cross-validation folds (subjects grouped)")->capture_default_str();
+  cmd->add_option("--labels", a->labels, "Comma-separated label names; 'pose:*' = every joint angle")
+      ->capture_default_str();
+  cmd->add_option("--regressors", a->regressors, "Comma-separated: simple_linear, filtered_linear, svr, gaussian_process")
+      ->capture_default_str();
+  cmd->add_option("--out", a->out, "Report folder")->capture_default_str();
+  cmd->add_option("--set", a->set, "shape (one row a subject) or full (every scan)")
+      ->check(CLI::IsMember({"shape", "full"}))
+      ->capture_default_str();
+  cmd->add_option("--seed", a->seed, "Seed of the fold assignment")->capture_default_str();
+  cmd->add_option("--jobs", a->jobs, "Worker threads (0 = all cores)")->capture_default_str();
+  cmd->add_flag("--no-directions", a->no_directions, "Skip the morph-direction angles (Table 2)");
+  cmd->callback([a] {
+    const Npz z = Npz::load(a->model);
+    const bool full = a->set == "full";
+    const std::string p = full ? "full_" : "";
+    const std::string coef_key = full ? "full_coefficients" : "shape_coefficients";
+    for (const std::string& key : {coef_key, p + "labels", p + "label_names"})
+      if (!z.has(key))
+        throw InputError("'" + a->model + "': missing array '" + key + "' (expected a model file with " +
+                         coef_key + ", " + p + "labels and " + p + "label_names)");
+    const Eigen::MatrixXd X = z.matrix(coef_key);
+    Eigen::MatrixXd Y = z.matrix(p + "labels");
+    const std::vector<std::string> names = read_list(z, p + "label_names", a->model);
+    std::vector<std::string> units(names.size());
+    if (z.has(p + "label_units")) units = read_list(z, p + "label_units", a->model);
+    if (Y.rows() != X.rows() || static_cast<size_t>(Y.cols()) != names.size() || units.size() != names.size())
+      throw InputError(fmt::format("'{}': {} is {}×{}, {}labels {}×{}, {} label names, {} units (expected "
+                                   "one label row per coefficient row and one name and unit per column)",
+                                   a->model, coef_key, X.rows(), X.cols(), p, Y.rows(), Y.cols(),
+                                   names.size(), units.size()));
+    // Subjects: one a row for the shape model; grouped scans for the full model.
+    std::vector<int> groups;
+    const std::string id_key = full ? (z.has("full_subject_ids") ? "full_subject_ids" : "full_sample_ids") : "subject_ids";
+    if (z.has(id_key)) {
+      std::vector<std::string> ids = read_list(z, id_key, a->model);
+      if (static_cast<Eigen::Index>(ids.size()) != X.rows())
+        throw InputError(fmt::format("'{}': {} has {} entries for {} rows", a->model, id_key, ids.size(), X.rows()));
+      std::map<std::string, int> index;
+      for (auto& id : ids) {
+        if (full && id_key == "full_sample_ids") {
+          const auto cut = id.rfind("_p");
+          if (cut != std::string::npos) id = id.substr(0, cut);
+        }
+        groups.push_back(index.emplace(id, static_cast<int>(index.size())).first->second);
+      }
+    }
+    // Requested labels.
+    std::vector<std::string> wanted;
+    for (const auto& l : split_commas(a->labels)) {
+      if (l == "pose:*") {
+        for (const auto& n : names)
+          if (n.rfind("pose:", 0) == 0) wanted.push_back(n);
+      } else {
+        wanted.push_back(l);
+      }
+    }
+    if (wanted.empty()) throw InputError("--labels: no label selected");
+    Eigen::MatrixXd Ysel(Y.rows(), wanted.size());
+    std::vector<std::string> sel_units;
+    for (size_t k = 0; k < wanted.size(); ++k) {
+      const auto it = std::find(names.begin(), names.end(), wanted[k]);
+      if (it == names.end()) {
+        std::string known;
+        for (const auto& n : names) known += (known.empty() ? "" : ", ") + n;
+        throw InputError("--labels: '" + wanted[k] + "' is not in '" + a->model + "' (it has " + known + ")");
+      }
+      const size_t c = static_cast<size_t>(it - names.begin());
+      Ysel.col(k) = Y.col(c);
+      std::string unit = units[c].empty() ? default_unit(wanted[k]) : units[c];
+      if (wanted[k].rfind("pose:", 0) == 0 && (unit == "rad" || unit == "radians" || unit.empty())) {
+        Ysel.col(k) *= 180.0 / M_PI;  // joint angles reported in degrees
+        unit = "deg";
+      }
+      sel_units.push_back(unit);
+    }
+
+    RegressionStudyOptions o;
+    o.regressors = split_commas(a->regressors);
+    for (const auto& r : o.regressors) make_regressor(r);  // validates the names
+    o.cross_validation.folds = a->folds;
+    o.cross_validation.seed = a->seed;
+    o.jobs = a->jobs;
+    o.directions = !a->no_directions;
+    cli::info(fmt::format("{}: {} rows ({} subjects), {} components, {} labels, {} regressors, {}-fold",
+                          a->model, X.rows(), groups.empty() ? X.rows() : static_cast<Eigen::Index>(*std::max_element(groups.begin(), groups.end()) + 1),
+                          X.cols(), wanted.size(), o.regressors.size(), a->folds));
+    cli::ProgressBar bar("eval-regressors");
+    const RegressionStudy study = run_regression_study(X, Ysel, wanted, groups, o, bar.callback());
+    bar.finish();
+
+    // Table 1 style, with units.
+    std::string table = fmt::format("{:<18}", "RMSE");
+    for (size_t k = 0; k < wanted.size(); ++k) table += fmt::format(" {:>16}", wanted[k] + " (" + sel_units[k] + ")");
+    table += "\n";
+    for (const auto& r : o.regressors) {
+      table += fmt::format("{:<18}", r);
+      for (const auto& l : wanted) table += fmt::format(" {:>16.3f}", study.result(r, l).rmse);
+      table += "\n";
+    }
+    fmt::print("{}", table);
+    for (size_t k = 0; k < wanted.size(); ++k) {
+      const auto& s = study.result(o.regressors[0], wanted[k]);
+      if (s.skipped_missing > 0)
+        cli::warn(fmt::format("label '{}': {} rows without a value were skipped ({} used)", wanted[k],
+                              s.skipped_missing, s.samples));
+    }
+
+    const std::filesystem::path out(a->out);
+    ensure_directory(out);
+    std::string csv = "regressor,label,unit,rmse,mae,folds,samples,skipped_missing\n";
+    for (const auto& r : o.regressors)
+      for (size_t k = 0; k < wanted.size(); ++k) {
+        const auto& s = study.result(r, wanted[k]);
+        csv += fmt::format("{},{},{},{:.6g},{:.6g},{},{},{}\n", r, csv_field(wanted[k]), csv_field(sel_units[k]),
+                           s.rmse, s.mae, s.folds, s.samples, s.skipped_missing);
+      }
+    write_text_file(out / "regressors.csv", csv);
+    if (o.directions) {
+      std::string d = "regressor,label,mean_deg,std_deg,max_deg,subjects\n";
+      for (const auto& r : study.directions)
+        d += fmt::format("{},{},{:.6g},{:.6g},{:.6g},{}\n", r.regressor, csv_field(r.label), r.spread.mean_deg,
+                         r.spread.std_deg, r.spread.max_deg, r.spread.subjects);
+      write_text_file(out / "directions.csv", d);
+      fmt::print("\nMorph-direction angle to the mean direction, degrees (mean ± std over subjects)\n");
+      std::string t = fmt::format("{:<18}", "");
+      for (const auto& l : wanted) t += fmt::format(" {:>16}", l);
+      t += "\n";
+      for (const auto& r : o.regressors) {
+        t += fmt::format("{:<18}", r);
+        for (const auto& dr : study.directions)
+          if (dr.regressor == r) t += fmt::format(" {:>16}", fmt::format("{:.2f} ± {:.2f}", dr.spread.mean_deg, dr.spread.std_deg));
+        t += "\n";
+      }
+      fmt::print("{}", t);
+    }
+    std::vector<LinePanel> panels;
+    std::string curve_csv = "label,unit,kept_components,rmse\n";
+    for (size_t k = 0; k < wanted.size(); ++k) {
+      const Eigen::VectorXd& c = study.filtered_curves[k];
+      LinePanel pnl;
+      pnl.title = wanted[k] + " rmse (" + sel_units[k] + ") filtered linear";
+      pnl.x = Eigen::VectorXd::LinSpaced(c.size(), 1, static_cast<double>(c.size()));
+      pnl.y = c;
+      panels.push_back(pnl);
+      for (Eigen::Index m = 0; m < c.size(); ++m)
+        curve_csv += fmt::format("{},{},{},{:.6g}\n", csv_field(wanted[k]), csv_field(sel_units[k]), m + 1, c(m));
+    }
+    write_line_plot_png(out / "filtered_components.png", panels);
+    write_text_file(out / "filtered_components.csv", curve_csv);
+    cli::info(fmt::format("wrote {}/regressors.csv, directions.csv, filtered_components.png/.csv", a->out));
+  });
+}
+
+}  // namespace bodymodel
