@@ -306,6 +306,17 @@ void format_joint(const BvhMotion& m, int j, int depth, std::string& out) {
 
 std::string format_bvh(const BvhMotion& motion) {
   motion.validate();
+  // Joints must be stored depth-first (as the reader produces them): the writer emits the
+  // hierarchy depth-first and the frame columns in storage order.
+  for (size_t j = 1; j < motion.joints.size(); ++j) {
+    const int p = motion.joints[j].parent;
+    // depth-first: the parent of j is j-1 or an ancestor of j-1
+    int a = static_cast<int>(j) - 1;
+    while (a >= 0 && a != p) a = motion.joints[a].parent;
+    if (a != p)
+      throw InputError("BVH output: joints are not stored in depth-first order ('" +
+                       motion.joints[j].name + "')");
+  }
   std::string out = "HIERARCHY\n";
   for (int j = 0; j < static_cast<int>(motion.joints.size()); ++j)
     if (motion.joints[j].parent < 0) format_joint(motion, j, 0, out);
@@ -324,18 +335,12 @@ std::string format_bvh(const BvhMotion& motion) {
 }
 
 void write_bvh(const std::filesystem::path& path, const BvhMotion& motion) {
-  // Joints must be stored depth-first (as the reader produces them): the writer emits the
-  // hierarchy depth-first and the frame columns in storage order.
-  for (size_t j = 1; j < motion.joints.size(); ++j) {
-    const int p = motion.joints[j].parent;
-    // depth-first: the parent of j is j-1 or an ancestor of j-1
-    int a = static_cast<int>(j) - 1;
-    while (a >= 0 && a != p) a = motion.joints[a].parent;
-    if (a != p)
-      throw InputError("write_bvh '" + path.string() + "': joints are not in depth-first order ('" +
-                       motion.joints[j].name + "')");
+  std::string text;
+  try {
+    text = format_bvh(motion);
+  } catch (const InputError& e) {
+    throw InputError("cannot write BVH '" + path.string() + "': " + e.what());
   }
-  const std::string text = format_bvh(motion);
   write_text_file(path, text);
 }
 
