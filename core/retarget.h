@@ -52,7 +52,9 @@ struct RetargetMap {
 
 struct RetargetOptions {
   std::optional<BvhUpAxis> up_axis;   // default: guess_bvh_up_axis (Y for the CMU clips)
-  bool apply_root_translation = true;
+  // Off by default, like BvhPoseOptions: the body stays at its rest position (a walk's root
+  // travels metres, which would carry a scanned body out of a scanner). On: see step 3 above.
+  bool apply_root_translation = false;
   bool start_at_origin = true;        // horizontal translation relative to frame 0
 };
 

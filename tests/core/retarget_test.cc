@@ -61,8 +61,15 @@ TEST_P(RetargetClip, EveryFramePlausible) {
   const MakeHuman& mh = shared_makehuman();
   const MakeHuman::Body body = mh.body(MacroSettings{});
   const BvhMotion clip = read_bvh(data_file(std::string("makehuman/motion/cmu/") + GetParam() + ".bvh"));
-  const Retargeter rt(clip, body.skeleton, RetargetMap::for_clip(clip, mh.directory()));
+  RetargetOptions with_translation;
+  with_translation.apply_root_translation = true;
+  const Retargeter rt(clip, body.skeleton, RetargetMap::for_clip(clip, mh.directory()),
+                      with_translation);
   EXPECT_GE(rt.driven_bone_count(), 24);
+  // Default: rotations only, the root stays put.
+  const Retargeter still(clip, body.skeleton, RetargetMap::for_clip(clip, mh.directory()));
+  EXPECT_EQ(still.pose(rt.frame_count() - 1).root_translation.norm(), 0.0);
+  EXPECT_GT(rt.pose(rt.frame_count() - 1).root_translation.norm(), 500.0);  // a walk travels
   EXPECT_GT(rt.translation_scale(), 0);
   const Eigen::MatrixX2i E = unique_edges(body.mesh.F);
   const Eigen::VectorXd rest = edge_lengths(body.mesh.V, E);
