@@ -5,6 +5,8 @@
 // stand-in for scan/registration noise, which is what makes filtering matter in the paper).
 // Prints the Table-1-style RMSE matrix beside Hasler et al.'s figures, and the Table-2 angles.
 // Run: build/bench/regression_bench --benchmark_min_time=1x   (BODYMODEL_BENCH_JOBS=2 by default)
+#define FMT_HEADER_ONLY  // the bench targets do not link libfmt
+#include <fmt/format.h>
 #include <benchmark/benchmark.h>
 #include <fmt/format.h>
 

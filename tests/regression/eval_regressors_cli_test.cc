@@ -1,0 +1,132 @@
+// The eval-regressors verb end to end on a small synthetic .npz: report files and their columns,
+// a label the linear models recover exactly, and the bad-input messages (exit code 2).
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "core/io/npz.h"
+
+namespace bodymodel {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CliRun {
+  int code;
+  std::string output;  // stdout + stderr
+};
+
+CliRun run(const std::string& args) {
+  const std::string cmd = std::string(BODYMODEL_EXE) + " " + args + " 2>&1";
+  CliRun r{0, ""};
+  FILE* p = popen(cmd.c_str(), "r");
+  std::array<char, 4096> buf{};
+  while (size_t n = fread(buf.data(), 1, buf.size(), p)) r.output.append(buf.data(), n);
+  const int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string read_file(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+class EvalRegressorsCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!fs::exists(BODYMODEL_EXE)) GTEST_SKIP() << "bodymodel not built: " << BODYMODEL_EXE;
+    dir_ = fs::temp_directory_path() / ("bodymodel_eval_regressors_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    std::error_code ec;
+    if (!dir_.empty()) fs::remove_all(dir_, ec);
+  }
+  // 40 subjects, 6 features; labels: exactly linear, linear + noise, NaN-holed, constant.
+  fs::path write_model(bool with_nan) {
+    std::mt19937 rng(5);
+    std::normal_distribution<double> n(0, 1);
+    Eigen::MatrixXd X(40, 6), Y(40, 4);
+    for (int i = 0; i < 40; ++i)
+      for (int j = 0; j < 6; ++j) X(i, j) = n(rng);
+    for (int i = 0; i < 40; ++i) {
+      Y(i, 0) = 170 + 8 * X(i, 0) - 3 * X(i, 2);
+      Y(i, 1) = 70 + 10 * X(i, 1) + n(rng);
+      Y(i, 2) = (with_nan && i % 10 == 3) ? std::numeric_limits<double>::quiet_NaN() : 80 + 5 * X(i, 3);
+      Y(i, 3) = 1.0;
+    }
+    Npz z;
+    z.put("shape_coefficients", X);
+    z.put("labels", Y);
+    z.put_text("label_names", R"(["height_cm","weight_kg","waist_cm","always_one"])");
+    z.put_text("label_units", R"(["cm","kg","cm",""])");
+    std::string ids;
+    for (int i = 0; i < 40; ++i) ids += (i ? ",s" : "s") + std::to_string(i);
+    z.put_text("subject_ids", ids);
+    const fs::path p = dir_ / (with_nan ? "model_nan.npz" : "model.npz");
+    z.save(p);
+    return p;
+  }
+  fs::path dir_;
+};
+
+TEST_F(EvalRegressorsCli, WritesTheReportFiles) {
+  const fs::path model = write_model(true);
+  const fs::path out = dir_ / "report";
+  const CliRun r = run("eval-regressors " + model.string() +
+                    " --folds 5 --labels height_cm,weight_kg,waist_cm"
+                    " --regressors simple_linear,filtered_linear,gaussian_process --jobs 2 --out " +
+                    out.string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("4 rows without a value were skipped"), std::string::npos) << r.output;
+  const std::string csv = read_file(out / "regressors.csv");
+  std::istringstream lines(csv);
+  std::string header, line;
+  std::getline(lines, header);
+  EXPECT_EQ(header.rfind("regressor,label,unit,rmse,mae,folds", 0), 0u) << header;
+  int rows = 0;
+  while (std::getline(lines, line)) {
+    ++rows;
+    if (line.rfind("simple_linear,height_cm,cm,", 0) == 0) {
+      const double rmse = std::stod(line.substr(std::string("simple_linear,height_cm,cm,").size()));
+      EXPECT_LT(rmse, 1e-6) << line;  // an exactly linear label
+    }
+    if (line.rfind("gaussian_process,weight_kg,kg,", 0) == 0) {
+      const double rmse = std::stod(line.substr(std::string("gaussian_process,weight_kg,kg,").size()));
+      EXPECT_LT(rmse, 1.5) << line;  // noise σ 1 kg
+    }
+  }
+  EXPECT_EQ(rows, 9);
+  EXPECT_NE(read_file(out / "directions.csv").find("regressor,label,mean_deg,std_deg"), std::string::npos);
+  const std::string png = read_file(out / "filtered_components.png");
+  ASSERT_GT(png.size(), 1000u);
+  EXPECT_EQ(png.substr(1, 3), "PNG");
+}
+
+TEST_F(EvalRegressorsCli, BadInputGivesOneClearLine) {
+  const fs::path model = write_model(false);
+  CliRun r = run("eval-regressors " + model.string() + " --labels always_one --out " + (dir_ / "r1").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("'always_one' is constant"), std::string::npos) << r.output;
+  r = run("eval-regressors " + model.string() + " --folds 50 --labels height_cm --out " + (dir_ / "r2").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("40 subjects but 50 folds"), std::string::npos) << r.output;
+  r = run("eval-regressors " + model.string() + " --labels shoe_size --out " + (dir_ / "r3").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("'shoe_size' is not in"), std::string::npos) << r.output;
+  r = run("eval-regressors " + (dir_ / "missing.npz").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_FALSE(fs::exists(dir_ / "r1" / "regressors.csv"));
+}
+
+}  // namespace
+}  // namespace bodymodel
