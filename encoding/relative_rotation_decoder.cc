@@ -23,10 +23,11 @@ double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-using Cholesky = Eigen::CholmodSupernodalLLT<SparseMatrixd, Eigen::Lower>;
-// Simplicial factors solve small multi-column right-hand sides faster than supernodal ones
-// (no BLAS calls per supernode); used for the factorisations that are only solved with.
-using SimplicialCholesky = Eigen::CholmodSimplicialLLT<SparseMatrixd, Eigen::Lower>;
+// CHOLMOD's simplicial LLᵀ: on this machine (ATLAS BLAS, 2 cores) it factorises the 3·#F
+// rotation system faster than the supernodal variant (≈ 190 vs 350 ms CPU for the body) and
+// solves small multi-column right-hand sides faster too.
+using Cholesky = Eigen::CholmodSimplicialLLT<SparseMatrixd, Eigen::Lower>;
+using SimplicialCholesky = Cholesky;
 
 struct UnionFind {
   std::vector<int> parent;
@@ -508,8 +509,15 @@ bool RelativeRotationDecoder::solve_rotations_cg(const std::vector<Eigen::Matrix
     for (int c = 0; c < 3; ++c) alpha(c) = pq(c) > 0 ? rz(c) / pq(c) : 0.0;
     X += p * alpha.asDiagonal();
     r -= q * alpha.asDiagonal();
-    if (((r.colwise().norm().array()) <= options_.cg_tolerance * b_norm.array()).all()) {
+    const double relative = (r.colwise().norm().array() / b_norm.array()).maxCoeff();
+    if (relative <= options_.cg_tolerance) {
       converged = true;
+      ++it;
+      break;
+    }
+    // An inconsistent encoding (a blend, a model sample) converges slowly with this
+    // preconditioner: hand over to the Cholesky solve early instead of iterating on.
+    if (it + 1 >= 3 && relative > 1e-4) {
       ++it;
       break;
     }

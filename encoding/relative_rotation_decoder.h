@@ -7,8 +7,10 @@
 //     same for the three columns of X, so X (3·#unknown by 3) is one solve with three right-hand
 //     sides. N's diagonal blocks are constant (count·I) and its off-diagonal blocks are −R_fg −
 //     R_gfᵀ: the VALUES change with every encoding, the SPARSITY PATTERN never does. The solver
-//     therefore analyses the pattern once (CHOLMOD supernodal symbolic factorisation with a
-//     fill-reducing ordering) and only refactorises numerically per decode. Each X_f is then
+//     therefore never re-analyses it: the default solver is conjugate gradients preconditioned
+//     with the dual-graph Laplacian factorised once (exact in one iteration for encoded meshes,
+//     see RotationSolver); the Cholesky path analyses the pattern once (symbolic factorisation,
+//     AMD ordering) and only refactorises numerically per decode. Each X_f is then
 //     orthonormalised by SVD (closest rotation).
 //  2. Positions. With U_f = R_f S_f the target gradient of triangle f, minimise
 //     Σ_f area_f ‖∇X|_f − U_f‖² (gradient-domain Poisson): K X = Gᵀ A B with K = Gᵀ A G the
@@ -35,10 +37,13 @@ enum class RotationSolver {
   // Preconditioned conjugate gradients (default, fastest; see the .cc): the preconditioner is
   // the dual-graph Laplacian L (topology only, factorised ONCE) in the gauge of rotations
   // propagated along a spanning tree, P = D (L ⊗ I₃) Dᵀ, D = blockdiag(T̃_f). For a consistent
-  // encoding (any encoded mesh) P equals the system matrix and CG stops after one iteration;
-  // for blends, PCA samples and masked changes it converges in a few.
+  // encoding (any encoded mesh) P equals the system matrix and CG stops after one iteration.
+  // Inconsistent encodings (blends, model samples, masked changes) accumulate holonomy that
+  // this preconditioner does not capture: when CG has not reduced the residual below 1e-4
+  // after 3 iterations (or reached cg_tolerance within cg_max_iterations) the decoder falls
+  // back to kCholeskyRefactor (symbolic analysis done at the first fallback, then reused).
   kPreconditionedCG,
-  // Sparse Cholesky (CHOLMOD supernodal) of the 3·#F system: symbolic analysis once,
+  // Sparse Cholesky (CHOLMOD, AMD ordering) of the 3·#F system: symbolic analysis once,
   // numeric refactorisation on every decode.
   kCholeskyRefactor,
 };
@@ -48,7 +53,7 @@ struct DecoderOptions {
   // Conjugate gradients: stop when every column's residual ‖b − N X‖ ≤ tolerance · ‖b‖; after
   // max_iterations without convergence the decoder falls back to the Cholesky solve.
   double cg_tolerance = 1e-10;
-  int cg_max_iterations = 100;
+  int cg_max_iterations = 20;
   // Reuse the symbolic analysis of the rotation system and the Poisson factorisation across
   // calls. false = the baseline that analyses and factorises everything on every call (only
   // useful for benchmarks).
