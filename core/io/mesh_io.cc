@@ -20,8 +20,8 @@ std::string lower_ext(const fs::path& p) {
   return e;
 }
 
-std::string where(const fs::path& path, size_t line) {
-  return "'" + path.string() + "' line " + std::to_string(line);
+std::string where(const std::string& source, size_t line) {
+  return "'" + source + "' line " + std::to_string(line);
 }
 
 // Splits [b, e) on blanks.
@@ -47,7 +47,10 @@ bool parse_int(std::string_view s, long& v) {
 }  // namespace
 
 ObjContents read_obj_contents(const fs::path& path) {
-  const std::string text = read_text_file(path);
+  return parse_obj(read_text_file(path), path.string());
+}
+
+ObjContents parse_obj(std::string_view text, const std::string& path) {
   ObjContents obj;
   std::vector<double> coords;
   std::vector<size_t> polygon_line;
@@ -111,7 +114,7 @@ ObjContents read_obj_contents(const fs::path& path) {
     // vt, vn, s, o, usemtl, mtllib, l ...: not needed, ignored.
   }
   const long nv = static_cast<long>(coords.size() / 3);
-  if (nv == 0) throw InputError("'" + path.string() + "': no vertices (empty or not an OBJ file)");
+  if (nv == 0) throw InputError("'" + path + "': no vertices (empty or not an OBJ file)");
   obj.V = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(coords.data(), nv, 3);
   for (size_t f = 0; f < obj.polygons.size(); ++f)
     for (int v : obj.polygons[f])
@@ -138,7 +141,7 @@ namespace {
 
 enum class PlyType { I8, U8, I16, U16, I32, U32, F32, F64 };
 
-PlyType ply_type(std::string_view s, const fs::path& path) {
+PlyType ply_type(std::string_view s, const std::string& path) {
   static const std::unordered_map<std::string_view, PlyType> types = {
       {"char", PlyType::I8},    {"int8", PlyType::I8},     {"uchar", PlyType::U8},
       {"uint8", PlyType::U8},   {"short", PlyType::I16},   {"int16", PlyType::I16},
@@ -148,7 +151,7 @@ PlyType ply_type(std::string_view s, const fs::path& path) {
       {"float64", PlyType::F64}};
   auto it = types.find(s);
   if (it == types.end())
-    throw InputError("'" + path.string() + "': unknown PLY property type '" + std::string(s) + "'");
+    throw InputError("'" + path + "': unknown PLY property type '" + std::string(s) + "'");
   return it->second;
 }
 
@@ -177,14 +180,14 @@ struct PlyElement {
 // Reads scalar values from the body, ASCII or binary (with byte swapping for big-endian).
 class PlyBody {
  public:
-  PlyBody(const std::string& data, size_t pos, int format, const fs::path& path)
+  PlyBody(const std::string& data, size_t pos, int format, const std::string& path)
       : d_(data), pos_(pos), format_(format), path_(path) {}
 
   double read(PlyType t) {
     if (format_ == 0) return read_ascii();
     size_t n = type_size(t);
     if (pos_ + n > d_.size())
-      throw InputError("'" + path_.string() + "': binary PLY body ends early (file truncated?)");
+      throw InputError("'" + path_ + "': binary PLY body ends early (file truncated?)");
     unsigned char b[8];
     std::memcpy(b, d_.data() + pos_, n);
     pos_ += n;
@@ -208,18 +211,18 @@ class PlyBody {
     size_t s = pos_;
     while (pos_ < d_.size() && !std::isspace(static_cast<unsigned char>(d_[pos_]))) ++pos_;
     if (s == pos_)
-      throw InputError("'" + path_.string() + "': ASCII PLY body ends early (file truncated?)");
+      throw InputError("'" + path_ + "': ASCII PLY body ends early (file truncated?)");
     double v;
     std::string_view tok(d_.data() + s, pos_ - s);
     if (!parse_double(tok, v))
-      throw InputError("'" + path_.string() + "': '" + std::string(tok) + "' is not a number");
+      throw InputError("'" + path_ + "': '" + std::string(tok) + "' is not a number");
     return v;
   }
 
   const std::string& d_;
   size_t pos_;
   int format_;  // 0 ascii, 1 binary LE, 2 binary BE
-  const fs::path& path_;
+  const std::string& path_;
 };
 
 struct PlyContents {
@@ -227,13 +230,12 @@ struct PlyContents {
   std::vector<std::vector<int>> faces;
 };
 
-PlyContents read_ply(const fs::path& path) {
-  const std::string data = read_text_file(path);
+PlyContents parse_ply(const std::string& data, const std::string& path) {
   if (data.compare(0, 3, "ply") != 0)
-    throw InputError("'" + path.string() + "': not a PLY file (no 'ply' magic)");
+    throw InputError("'" + path + "': not a PLY file (no 'ply' magic)");
   size_t header_end = data.find("end_header");
   if (header_end == std::string::npos)
-    throw InputError("'" + path.string() + "': PLY header has no end_header");
+    throw InputError("'" + path + "': PLY header has no end_header");
   size_t body = data.find('\n', header_end);
   body = body == std::string::npos ? data.size() : body + 1;
   std::istringstream header(data.substr(0, header_end));
@@ -278,16 +280,16 @@ PlyContents read_ply(const fs::path& path) {
       elements.back().props.push_back(p);
     }
   }
-  if (format < 0) throw InputError("'" + path.string() + "': PLY header has no format line");
+  if (format < 0) throw InputError("'" + path + "': PLY header has no format line");
   // A cheap sanity bound so a corrupt count cannot make us allocate absurd memory.
   for (auto& e : elements) {
     size_t min_bytes = 0;
     for (auto& p : e.props) min_bytes += p.is_list ? type_size(p.count_type) : type_size(p.type);
     if (format != 0 && e.count * min_bytes > data.size() - body + 0)
-      throw InputError("'" + path.string() + "': element '" + e.name + "' claims " +
+      throw InputError("'" + path + "': element '" + e.name + "' claims " +
                        std::to_string(e.count) + " entries but the file is too short (truncated?)");
     if (format == 0 && e.count > data.size())
-      throw InputError("'" + path.string() + "': element '" + e.name + "' count exceeds file size");
+      throw InputError("'" + path + "': element '" + e.name + "' count exceeds file size");
   }
   PlyBody reader(data, body, format, path);
   PlyContents out;
@@ -299,7 +301,7 @@ PlyContents read_ply(const fs::path& path) {
         for (int j = 0; j < 6; ++j)
           if (e.props[k].name == names[j] && !e.props[k].is_list) ix[j] = static_cast<int>(k);
       if (ix[0] < 0 || ix[1] < 0 || ix[2] < 0)
-        throw InputError("'" + path.string() + "': PLY vertex element has no x, y, z properties");
+        throw InputError("'" + path + "': PLY vertex element has no x, y, z properties");
       bool normals = ix[3] >= 0 && ix[4] >= 0 && ix[5] >= 0;
       out.V.resize(e.count, 3);
       if (normals) out.N.resize(e.count, 3);
@@ -324,14 +326,14 @@ PlyContents read_ply(const fs::path& path) {
           if (p.is_list) {
             double nd = reader.read(p.count_type);
             if (nd < 0 || nd > 1000)
-              throw InputError("'" + path.string() + "': " + e.name + " " + std::to_string(i) +
+              throw InputError("'" + path + "': " + e.name + " " + std::to_string(i) +
                                " has an implausible list length " + std::to_string(nd));
             size_t n = static_cast<size_t>(nd);
             std::vector<int> poly(n);
             for (size_t j = 0; j < n; ++j) {
               double v = reader.read(p.type);
               if (is_face && (v < 0 || v >= static_cast<double>(out.V.rows())))
-                throw InputError("'" + path.string() + "': face " + std::to_string(i) +
+                throw InputError("'" + path + "': face " + std::to_string(i) +
                                  " refers to vertex " + std::to_string(static_cast<long long>(v)) +
                                  " but the file has " + std::to_string(out.V.rows()) +
                                  " vertices");
@@ -339,7 +341,7 @@ PlyContents read_ply(const fs::path& path) {
             }
             if (is_face && (p.name == "vertex_indices" || p.name == "vertex_index")) {
               if (n < 3)
-                throw InputError("'" + path.string() + "': face " + std::to_string(i) +
+                throw InputError("'" + path + "': face " + std::to_string(i) +
                                  " has fewer than 3 vertices");
               out.faces.push_back(std::move(poly));
             }
@@ -422,28 +424,44 @@ void write_obj(const fs::path& path, const Eigen::MatrixX3d& V, const Eigen::Mat
 
 }  // namespace
 
+Mesh parse_mesh(const std::string& bytes, const std::string& format, const std::string& source) {
+  Mesh m;
+  if (format == "obj") {
+    ObjContents obj = parse_obj(bytes, source);
+    m.V = std::move(obj.V);
+    m.F = triangulate(obj.polygons);
+  } else if (format == "ply") {
+    PlyContents ply = parse_ply(bytes, source);
+    m.V = std::move(ply.V);
+    m.F = triangulate(ply.faces);
+  } else {
+    throw InputError("'" + source + "': unknown mesh format '" + format + "' (expected obj or ply)");
+  }
+  if (m.F.rows() == 0) throw InputError("'" + source + "': the file has no faces");
+  if (!m.V.allFinite())
+    throw InputError("'" + source + "': a vertex has a NaN or infinite coordinate");
+  return m;
+}
+
+PointCloud parse_ply_point_cloud(const std::string& bytes, const std::string& source) {
+  PlyContents ply = parse_ply(bytes, source);
+  PointCloud c;
+  c.P = std::move(ply.V);
+  c.N = std::move(ply.N);
+  if (!c.P.allFinite() || (c.has_normals() && !c.N.allFinite()))
+    throw InputError("'" + source + "': a point has a NaN or infinite coordinate or normal");
+  return c;
+}
+
 Mesh read_mesh(const fs::path& path) {
   std::error_code ec;
   if (fs::is_directory(path, ec))
     throw InputError("cannot read '" + path.string() + "': it is a folder, not a mesh file");
   const std::string ext = lower_ext(path);
-  Mesh m;
-  if (ext == ".obj") {
-    ObjContents obj = read_obj_contents(path);
-    m.V = std::move(obj.V);
-    m.F = triangulate(obj.polygons);
-  } else if (ext == ".ply") {
-    PlyContents ply = read_ply(path);
-    m.V = std::move(ply.V);
-    m.F = triangulate(ply.faces);
-  } else {
+  if (ext != ".obj" && ext != ".ply")
     throw InputError("'" + path.string() + "': unknown mesh format '" + ext +
                      "' (expected .obj or .ply)");
-  }
-  if (m.F.rows() == 0) throw InputError("'" + path.string() + "': the file has no faces");
-  if (!m.V.allFinite())
-    throw InputError("'" + path.string() + "': a vertex has a NaN or infinite coordinate");
-  return m;
+  return parse_mesh(read_text_file(path), ext.substr(1), path.string());
 }
 
 void write_mesh(const fs::path& path, const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
@@ -462,18 +480,16 @@ void write_mesh(const fs::path& path, const Eigen::MatrixX3d& V, const Eigen::Ma
 
 PointCloud read_point_cloud(const fs::path& path) {
   const std::string ext = lower_ext(path);
-  PointCloud c;
-  if (ext == ".ply") {
-    PlyContents ply = read_ply(path);
-    c.P = std::move(ply.V);
-    c.N = std::move(ply.N);
-  } else if (ext == ".obj") {
+  if (ext == ".ply") return parse_ply_point_cloud(read_text_file(path), path.string());
+  if (ext == ".obj") {
+    PointCloud c;
     c.P = read_obj_contents(path).V;
-  } else {
-    throw InputError("'" + path.string() + "': unknown point-cloud format '" + ext +
-                     "' (expected .ply)");
+    if (!c.P.allFinite())
+      throw InputError("'" + path.string() + "': a point has a NaN or infinite coordinate");
+    return c;
   }
-  return c;
+  throw InputError("'" + path.string() + "': unknown point-cloud format '" + ext +
+                   "' (expected .ply)");
 }
 
 void write_point_cloud(const fs::path& path, const PointCloud& cloud, bool ascii) {

@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "core/mesh.h"
@@ -24,6 +25,8 @@ struct ObjContents {
 };
 
 ObjContents read_obj_contents(const std::filesystem::path& path);
+// The same from memory; `source` names the input in error messages.
+ObjContents parse_obj(std::string_view text, const std::string& source);
 
 // Triangulates polygons as fans (a quad a b c d gives a b c and a c d).
 Eigen::MatrixX3i triangulate(const std::vector<std::vector<int>>& polygons);
@@ -41,6 +44,10 @@ inline void write_mesh(const std::filesystem::path& path, const Mesh& m) {
 
 // PLY point cloud with optional normals (nx ny nz). Faces in the file are ignored.
 PointCloud read_point_cloud(const std::filesystem::path& path);
+
+// From memory (tests, fuzzing): `format` is "obj" or "ply"; `source` names it in errors.
+Mesh parse_mesh(const std::string& bytes, const std::string& format, const std::string& source);
+PointCloud parse_ply_point_cloud(const std::string& bytes, const std::string& source);
 void write_point_cloud(const std::filesystem::path& path, const PointCloud& cloud,
                        bool ascii = false);
 
