@@ -23,7 +23,8 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help / --version exit 0; a malformed command line is bad input like any other (2).
+    return app.exit(e) == 0 ? 0 : 2;
   } catch (const bodymodel::InputError& e) {
     std::fprintf(stderr, "bodymodel: error: %s\n", e.what());
     return 2;
