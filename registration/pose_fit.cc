@@ -17,11 +17,13 @@ namespace bodymodel {
 
 const std::vector<std::string>& default_free_bones() {
   static const std::vector<std::string> names = [] {
-    std::vector<std::string> n = {"spine05", "spine04", "spine03", "spine02", "spine01",
+    // spine05 and pelvis.L/R are left out: they carry almost no vertices of their own and
+    // duplicate the root's rotation.
+    std::vector<std::string> n = {"spine04", "spine03", "spine02", "spine01",
                                   "neck01",  "neck02",  "neck03",  "head"};
     for (const char* side : {".L", ".R"})
       for (const char* b : {"clavicle", "shoulder01", "upperarm01", "upperarm02", "lowerarm01",
-                            "lowerarm02", "wrist", "pelvis", "upperleg01", "upperleg02",
+                            "lowerarm02", "wrist", "upperleg01", "upperleg02",
                             "lowerleg01", "lowerleg02", "foot"})
         n.push_back(std::string(b) + side);
     return n;
@@ -183,7 +185,7 @@ Eigen::Matrix3d from_angle_axis(const Eigen::Vector3d& v) {
 }  // namespace
 
 PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeights& W,
-                       const PointCloud& scan, const std::vector<Landmark>& landmarks,
+                       const PointCloud& scan, const std::vector<Landmark>& all_landmarks,
                        const PoseFitOptions& o, PoseFitSummary* summary,
                        const ProgressCallback& progress) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -200,7 +202,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
       throw InputError("pose fit: the skeleton has more than one root (bone '" +
                        skeleton.names[b] + "')");
   if (scan.P.rows() == 0) throw InputError("pose fit: the scan has no points");
-  check_landmarks(landmarks, n, "pose fit");
+  check_landmarks(all_landmarks, n, "pose fit");
 
   // Free bones: root (slot of the root rotation) + the named set.
   std::vector<int> free_index(nb, -1);  // bone → k (its free-bone number), -1 fixed
@@ -216,6 +218,18 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     }
   }
   const int nfree = int(free_bones.size()) - 1;
+
+  // Landmarks on parts the fit keeps rigid (fingers, toes, face: less than half of the
+  // vertex's weight on the root or a free bone) cannot follow the scan's pose of those parts
+  // and would drag the free joints (a fingertip of a fist pulls the forearm); the non-rigid
+  // fit uses them instead.
+  std::vector<Landmark> landmarks;
+  for (const Landmark& l : all_landmarks) {
+    double movable = 0;
+    for (SkinWeights::InnerIterator it(W, l.vertex); it; ++it)
+      if (it.col() == 0 || free_index[it.col()] >= 0) movable += it.value();
+    if (movable >= 0.5) landmarks.push_back(l);
+  }
 
   // Sample vertices and their chains.
   const int stride = std::max(1, n / std::max(1, o.sample_vertices));
@@ -303,6 +317,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
   PointIndex scan_index(scan.P);
   const double cos_min = std::cos(o.max_normal_angle_deg * M_PI / 180.0);
   PoseFitSummary sum;
+  sum.landmarks_used = int(landmarks.size());
   const int nsamples = int(samples.size()) - int(landmarks.size());
   for (int iter = 0; iter < o.max_icp_iterations; ++iter) {
     report_progress(progress, double(iter) / o.max_icp_iterations, "pose fit");

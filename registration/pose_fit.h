@@ -2,7 +2,8 @@
 // linear-blend-skinning weights, is posed onto a scan by non-linear least squares (Ceres, robust
 // loss). Unknowns: a global scale (about the root joint), the global rigid motion (root
 // rotation + translation) and an angle-axis ball joint for every free bone (a reduced set:
-// spine, neck, head, clavicles, shoulders, arms, wrists, legs, feet; fingers, toes and face
+// spine, neck, head, clavicles, shoulders, arms, wrists, legs, feet; fingers, toes, face,
+// spine05 and the pelvis bones
 // stay at rest). ICP loop: closest-point correspondences template→scan with the paper's
 // rejection (normals > 30°, distance > 50 mm), plus landmarks for global stability; solve;
 // repeat until the pose stops changing.
@@ -35,9 +36,12 @@ struct PoseFitOptions {
   // Each sample gives a point-to-plane residual (scan normal) plus this much point-to-point.
   double point_to_point_weight = 0.3;
   double landmark_weight = 3.0;         // residual weight of a landmark relative to a sample
-  // Weak prior towards the rest pose on free joints: residual = sqrt(prior)·angle (rad), per
-  // joint; keeps joints with little data (e.g. twist bones) from wandering.
-  double pose_prior = 100.0;
+  // Prior towards the rest pose on free joints: residual = sqrt(prior)·angle (rad) per joint
+  // (cost in mm²-equivalents, against ~sample_vertices data residuals). MakeHuman's skeleton is
+  // redundant (two bones per limb segment, clavicle + shoulder, five spine bones): without it
+  // consecutive bones counter-rotate by tens of degrees at no data cost. Strong enough to pick
+  // the smallest split, weak against real data (a 10 mm landmark miss outweighs 50° of prior).
+  double pose_prior = 1e4;
   int max_icp_iterations = 25;
   int solver_iterations = 8;            // Levenberg–Marquardt iterations per ICP step
   // Stop when no joint angle changes by more than this (degrees) and the translation by less
@@ -54,6 +58,7 @@ struct PoseFitSummary {
   int matched_samples = 0;      // accepted pairs, last iteration
   double landmark_rms = 0.0;    // mm
   bool converged = false;
+  int landmarks_used = 0;       // landmarks on the root or free bones (the others are ignored)
 };
 
 struct PoseFitResult {
@@ -72,7 +77,8 @@ Eigen::MatrixX3d pose_template(const Eigen::MatrixX3d& V_rest, const Skeleton& s
                                const SkinWeights& weights, double scale, const Pose& pose);
 
 // Fits pose and scale of the template (V_rest/F_rest with skeleton and weights) to `scan`
-// (unit normals; see prepare_scan). With ≥ 3 landmarks a similarity transform from them
+// (unit normals; see prepare_scan). Landmarks whose vertex is mostly bound to bones kept at
+// rest (fingers, toes, face) are ignored here. With ≥ 3 landmarks a similarity transform from them
 // initialises the global motion; otherwise centroids and bounding-box sizes do.
 PoseFitResult fit_pose(const Mesh& template_rest, const Skeleton& skeleton,
                        const SkinWeights& weights, const PointCloud& scan,

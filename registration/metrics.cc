@@ -1,0 +1,99 @@
+#include "registration/metrics.h"
+
+#include <algorithm>
+#include <tbb/parallel_for.h>
+
+#include "core/error.h"
+#include "core/geometry.h"
+#include "core/point_index.h"
+
+namespace bodymodel {
+
+double point_triangle_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                               const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  // Ericson, Real-Time Collision Detection §5.1.5 (closest point on a triangle).
+  const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return (p - a).norm();
+  const Eigen::Vector3d bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return (p - b).norm();
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return (p - (a + d1 / (d1 - d3) * ab)).norm();
+  const Eigen::Vector3d cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return (p - c).norm();
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return (p - (a + d2 / (d2 - d6) * ac)).norm();
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
+    return (p - (b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b))).norm();
+  const double denom = 1.0 / (va + vb + vc);
+  return (p - (a + ab * (vb * denom) + ac * (vc * denom))).norm();
+}
+
+Eigen::VectorXd point_to_mesh_distance(const Eigen::MatrixX3d& P, const Eigen::MatrixX3d& V,
+                                       const Eigen::MatrixX3i& F, int candidates) {
+  std::vector<std::vector<int>> vf(V.rows());
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) vf[F(f, k)].push_back(int(f));
+  PointIndex index(V);
+  Eigen::VectorXd d(P.rows());
+  tbb::parallel_for(Eigen::Index(0), P.rows(), [&](Eigen::Index i) {
+    const Eigen::Vector3d p = P.row(i).transpose();
+    double best = std::numeric_limits<double>::infinity();
+    for (int v : index.knn(p, candidates))
+      for (int f : vf[v])
+        best = std::min(best, point_triangle_distance(p, V.row(F(f, 0)).transpose(),
+                                                      V.row(F(f, 1)).transpose(),
+                                                      V.row(F(f, 2)).transpose()));
+    d(i) = best;
+  });
+  return d;
+}
+
+RegistrationErrors registration_errors(const Eigen::MatrixX3d& reg, const Eigen::MatrixX3d& truth,
+                                       const Eigen::MatrixX3i& F,
+                                       const Eigen::MatrixX3d& scan_points,
+                                       double hole_distance) {
+  if (reg.rows() != truth.rows())
+    throw InputError("registration errors: the registered mesh has " + std::to_string(reg.rows()) +
+                     " vertices, the truth " + std::to_string(truth.rows()));
+  RegistrationErrors e;
+  e.vertex_errors = (reg - truth).rowwise().norm();
+  e.correspondence_mean = e.vertex_errors.mean();
+  e.correspondence_max = e.vertex_errors.maxCoeff();
+  const Eigen::VectorXd surf = point_to_mesh_distance(reg, truth, F);
+  e.surface_mean = surf.mean();
+  e.surface_max = surf.maxCoeff();
+  PointIndex scan_index(scan_points);
+  double hole_sum = 0;
+  for (Eigen::Index i = 0; i < truth.rows(); ++i) {
+    double d2 = 0;
+    scan_index.nearest(truth.row(i).transpose(), &d2);
+    if (d2 > hole_distance * hole_distance) {
+      ++e.hole_vertices;
+      hole_sum += surf(i);
+      e.hole_max = std::max(e.hole_max, surf(i));
+    }
+  }
+  e.hole_mean = e.hole_vertices ? hole_sum / e.hole_vertices : 0.0;
+  const Eigen::MatrixX3d Nr = face_normals(reg, F), Nt = face_normals(truth, F);
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    if (Nr.row(f).dot(Nt.row(f)) < 0) ++e.flipped_triangles;
+  return e;
+}
+
+const std::vector<std::string>& major_joints() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> n = {"root", "spine01", "neck03", "head"};
+    for (const char* side : {".L", ".R"})
+      for (const char* b : {"clavicle", "upperarm02", "lowerarm02", "upperleg02", "lowerleg02",
+                            "foot"})
+        n.push_back(std::string(b) + side);
+    return n;
+  }();
+  return names;
+}
+
+}  // namespace bodymodel

@@ -1,0 +1,48 @@
+// Registration metrics (EVALUATION.md, registration): correspondence, surface-fit, hole and
+// joint errors against ground truth.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "core/mesh.h"
+#include "core/skeleton.h"
+
+namespace bodymodel {
+
+// Distance from each point of P (#P by 3) to the triangle surface (V, F): exact point–triangle
+// distances over the triangles around the `candidates` nearest vertices (exact for meshes whose
+// triangles are small against the distances measured; an upper bound otherwise).   #P
+Eigen::VectorXd point_to_mesh_distance(const Eigen::MatrixX3d& P, const Eigen::MatrixX3d& V,
+                                       const Eigen::MatrixX3i& F, int candidates = 16);
+
+// Distance from a point to a triangle (a, b, c).
+double point_triangle_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                               const Eigen::Vector3d& b, const Eigen::Vector3d& c);
+
+struct RegistrationErrors {
+  double correspondence_mean = 0;   // mean ‖reg_i − truth_i‖ (mm)
+  double correspondence_max = 0;
+  double surface_mean = 0;          // mean distance reg vertex → truth surface (mm)
+  double surface_max = 0;
+  int hole_vertices = 0;            // template vertices whose true position is > 5 mm from scan
+  double hole_mean = 0;             // surface distance over those (mm)
+  double hole_max = 0;
+  int flipped_triangles = 0;        // triangles whose normal opposes the truth's (dot < 0)
+  Eigen::VectorXd vertex_errors;    // #V correspondence errors (mm)
+};
+
+// reg, truth: #V by 3 on the same topology F; scan_points: the scan (for the hole mask).
+RegistrationErrors registration_errors(const Eigen::MatrixX3d& reg, const Eigen::MatrixX3d& truth,
+                                       const Eigen::MatrixX3i& F,
+                                       const Eigen::MatrixX3d& scan_points,
+                                       double hole_distance = 5.0);
+
+// Major joints compared by the pose evaluation (MakeHuman default skeleton names): for each
+// body segment its most distal bone, whose world orientation is the segment's orientation
+// whichever way a pose splits a rotation between the segment's bones (MakeHuman has two bones
+// per limb segment and five in the spine).
+const std::vector<std::string>& major_joints();
+
+}  // namespace bodymodel

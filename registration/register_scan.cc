@@ -1,0 +1,40 @@
+#include "registration/register_scan.h"
+
+#include <chrono>
+
+#include "core/error.h"
+
+namespace bodymodel {
+
+RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& scan,
+                                 const std::vector<Landmark>& landmarks,
+                                 const RegistrationOptions& options, const std::string& what,
+                                 RegistrationSummary* summary, const ProgressCallback& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  RegistrationSummary sum;
+  sum.scan = prepare_scan(scan, tpl.mesh.V, what, options.scan);
+  check_landmarks(landmarks, int(tpl.mesh.V.rows()), what);
+  PoseFitOptions po = options.pose;
+  NonrigidOptions no = options.nonrigid;
+  if (sum.scan.normals_estimated) po.unsigned_normals = no.unsigned_normals = true;
+  const double pose_share = options.skip_nonrigid ? 1.0 : 0.25;
+  auto sub = [&](double a, double b) -> ProgressCallback {
+    if (!progress) return {};
+    return [&progress, a, b](double f, std::string_view w) { return progress(a + (b - a) * f, w); };
+  };
+  RegistrationResult r;
+  r.pose = fit_pose(tpl.mesh, tpl.skeleton, tpl.weights, scan, landmarks, po, &sum.pose,
+                    sub(0.0, pose_share));
+  if (options.skip_nonrigid) {
+    r.V = r.pose.V;
+  } else {
+    NonrigidRegistration reg(tpl.mesh, no);
+    r.V = reg.fit(r.pose.V, scan, landmarks, &sum.nonrigid, sub(pose_share, 1.0));
+  }
+  if (!r.V.allFinite()) throw NumericalError(what + ": registration produced non-finite vertices");
+  sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (summary) *summary = sum;
+  return r;
+}
+
+}  // namespace bodymodel

@@ -1,0 +1,157 @@
+// bodymodel eval-registration DB/ REG/ [--csv FILE]
+//
+// Compares registered meshes and poses with the database's ground truth (EVALUATION.md,
+// registration): correspondence error (per-scan mean, median over scans, 95th percentile of all
+// vertices), surface fit, hole error, flipped triangles and joint rotation error.
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <filesystem>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/io/atomic_write.h"
+#include "core/io/mesh_io.h"
+#include "core/makehuman.h"
+#include "registration/metrics.h"
+#include "registration/pose_io.h"
+#include "tools/console.h"
+#include "tools/verb.h"
+
+namespace bodymodel {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct EvalArgs {
+  std::string db, reg, csv;
+  bool per_joint = false;
+};
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const double pos = q * (v.size() - 1);
+  const size_t lo = size_t(pos), hi = std::min(lo + 1, v.size() - 1);
+  return v[lo] + (pos - lo) * (v[hi] - v[lo]);
+}
+
+}  // namespace
+
+BODYMODEL_VERB(add_eval_registration_verb) {
+  auto a = std::make_shared<EvalArgs>();
+  auto* cmd = app.add_subcommand(
+      "eval-registration",
+      "Compare registrations (REG/<id>.ply, <id>.pose.csv) with the database's ground truth\n"
+      "(DB/truth/): correspondence, surface-fit, hole and joint errors (EVALUATION.md).\n"
+      "Writes REG/evaluation.csv (per scan) unless --csv says otherwise; prints a summary.");
+  cmd->add_option("db", a->db, "Scan database folder (with truth/)")->required();
+  cmd->add_option("reg", a->reg, "Registration folder written by 'bodymodel register'")
+      ->required();
+  cmd->add_option("--csv", a->csv, "Per-scan CSV to write (default REG/evaluation.csv)");
+  cmd->add_flag("--per-joint", a->per_joint, "Also print the median error of each major joint");
+  cmd->callback([a] {
+    const fs::path db = a->db, reg = a->reg;
+    if (!fs::is_directory(db / "truth"))
+      throw InputError("'" + a->db + "': expected a scan database with a truth/ folder");
+    if (!fs::is_directory(reg))
+      throw InputError("'" + a->reg + "': expected a registration folder, it does not exist");
+    std::vector<std::string> ids;
+    {
+      std::istringstream in(read_text_file(db / "scans.csv"));
+      std::string line;
+      std::getline(in, line);
+      while (std::getline(in, line))
+        if (!line.empty()) ids.push_back(line.substr(0, line.find(',')));
+    }
+    MakeHuman mh = MakeHuman::load();
+    MakeHuman::Body body = mh.body(MacroSettings{});
+    const Skeleton& sk = body.skeleton;
+    std::vector<int> joints;
+    for (const auto& n : major_joints())
+      if (sk.find(n) >= 0) joints.push_back(sk.find(n));
+
+    std::string csv =
+        "scan_id,correspondence_mean_mm,correspondence_p95_mm,correspondence_max_mm,"
+        "surface_mean_mm,surface_max_mm,hole_vertices,hole_mean_mm,hole_max_mm,"
+        "flipped_triangles,joint_median_deg,joint_max_deg\n";
+    std::vector<double> scan_means, all_vertices, surface_means, hole_max, joint_all;
+    std::vector<double> scan_joint_medians;
+    std::vector<std::vector<double>> per_joint(joints.size());
+    int flipped_total = 0, evaluated = 0, missing = 0;
+    double worst_hole = 0;
+    cli::ProgressBar bar("eval-registration");
+    for (size_t k = 0; k < ids.size(); ++k) {
+      const std::string& id = ids[k];
+      bar.update(double(k) / ids.size(), id);
+      if (!fs::exists(reg / (id + ".ply"))) {
+        ++missing;
+        continue;
+      }
+      const Mesh r = read_mesh(reg / (id + ".ply"));
+      const Mesh t = read_mesh(db / "truth" / (id + ".ply"));
+      if (r.V.rows() != t.V.rows())
+        throw InputError((reg / (id + ".ply")).string() + ": " + std::to_string(r.V.rows()) +
+                         " vertices, the truth has " + std::to_string(t.V.rows()));
+      const PointCloud scan = read_point_cloud(db / "scans" / (id + ".ply"));
+      const RegistrationErrors e = registration_errors(r.V, t.V, t.F, scan.P);
+      std::vector<double> verr(e.vertex_errors.data(),
+                               e.vertex_errors.data() + e.vertex_errors.size());
+      all_vertices.insert(all_vertices.end(), verr.begin(), verr.end());
+      scan_means.push_back(e.correspondence_mean);
+      surface_means.push_back(e.surface_mean);
+      hole_max.push_back(e.hole_max);
+      worst_hole = std::max(worst_hole, e.hole_max);
+      flipped_total += e.flipped_triangles;
+      double jmed = std::nan(""), jmax = std::nan("");
+      if (fs::exists(reg / (id + ".pose.csv")) && fs::exists(db / "truth" / (id + ".pose.csv"))) {
+        const auto Qe = read_pose_csv(reg / (id + ".pose.csv"), sk).world_rotations(sk);
+        const auto Qt = read_pose_csv(db / "truth" / (id + ".pose.csv"), sk).world_rotations(sk);
+        std::vector<double> je;
+        for (size_t j = 0; j < joints.size(); ++j) {
+          je.push_back(rotation_angle_deg(Qe[joints[j]], Qt[joints[j]]));
+          per_joint[j].push_back(je.back());
+        }
+        joint_all.insert(joint_all.end(), je.begin(), je.end());
+        jmed = percentile(je, 0.5);
+        jmax = *std::max_element(je.begin(), je.end());
+        scan_joint_medians.push_back(jmed);
+      }
+      csv += fmt::format("{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{:.3f},{:.3f},{},{:.3f},{:.3f}\n",
+                         id, e.correspondence_mean, percentile(verr, 0.95),
+                         e.correspondence_max, e.surface_mean, e.surface_max, e.hole_vertices,
+                         e.hole_mean, e.hole_max, e.flipped_triangles, jmed, jmax);
+      ++evaluated;
+    }
+    bar.finish(fmt::format("{} scans evaluated", evaluated));
+    if (evaluated == 0)
+      throw InputError("'" + a->reg + "': no registered scans of " + a->db + " found");
+    if (missing) cli::warn(fmt::format("{} scans of the database have no registration", missing));
+    write_text_file(a->csv.empty() ? reg / "evaluation.csv" : fs::path(a->csv), csv);
+    fmt::print("registration vs truth, {} scans\n", evaluated);
+    fmt::print("  correspondence error   median of per-scan means {:8.3f} mm   (target <= 5)\n",
+               percentile(scan_means, 0.5));
+    fmt::print("                         95th percentile, all vertices {:8.3f} mm   (target <= 15)\n",
+               percentile(all_vertices, 0.95));
+    fmt::print("  surface fit            mean over scans {:8.3f} mm   (target <= 1.5)\n",
+               std::accumulate(surface_means.begin(), surface_means.end(), 0.0) /
+                   surface_means.size());
+    fmt::print("  hole error             max inside holes {:8.3f} mm, median of per-scan max "
+               "{:.3f} mm   (target <= 20)\n",
+               worst_hole, percentile(hole_max, 0.5));
+    fmt::print("  flipped triangles      {} in total\n", flipped_total);
+    if (!joint_all.empty())
+      fmt::print("  joint rotation error   median {:6.3f} deg, 95th percentile {:6.3f} deg over "
+                 "{} major joints × scans   (target median <= 5)\n",
+                 percentile(joint_all, 0.5), percentile(joint_all, 0.95), joint_all.size());
+    if (a->per_joint && !joint_all.empty())
+      for (size_t j = 0; j < joints.size(); ++j)
+        fmt::print("    {:<14} median {:6.2f} deg, max {:6.2f} deg\n", sk.names[joints[j]],
+                   percentile(per_joint[j], 0.5),
+                   *std::max_element(per_joint[j].begin(), per_joint[j].end()));
+  });
+}
+
+}  // namespace bodymodel

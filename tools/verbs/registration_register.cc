@@ -1,0 +1,228 @@
+// bodymodel register DB/ --out REG/ [--jobs N] [--shard i/n] [--schedule paper|fast] [--scan ID]
+//
+// Registers the template (MakeHuman default body, its skeleton and weights) to every scan of a
+// scan database (DB/scans.csv, DB/scans/<id>.ply, DB/scans/<id>.landmarks.json). Writes
+// REG/<id>.ply (template topology, mm), REG/<id>.pose.csv and REG/registration.csv. Never reads
+// DB/truth/.
+#include <fmt/format.h>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <sstream>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include "core/data_path.h"
+#include "core/error.h"
+#include "core/io/atomic_write.h"
+#include "core/io/mesh_io.h"
+#include "core/landmarks.h"
+#include "core/makehuman.h"
+#include "registration/pose_io.h"
+#include "registration/register_scan.h"
+#include "tools/console.h"
+#include "tools/verb.h"
+
+namespace bodymodel {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RegisterArgs {
+  std::string db, out, schedule = "fast", shard, scan;
+  int jobs = 1;
+  int fast_steps = NonrigidOptions{}.fast_steps;
+  double scan_unit_mm = 1.0;
+  bool force = false, pose_only = false;
+};
+
+std::vector<std::string> read_scan_ids(const fs::path& csv) {
+  std::istringstream in(read_text_file(csv));
+  std::string line;
+  std::vector<std::string> ids;
+  int lineno = 0;
+  while (std::getline(in, line)) {
+    ++lineno;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (lineno == 1) {
+      if (line.rfind("scan_id", 0) != 0)
+        throw InputError(csv.string() + ":1: expected a header starting with 'scan_id', found '" +
+                         line + "'");
+      continue;
+    }
+    if (line.empty()) continue;
+    std::string id = line.substr(0, line.find(','));
+    if (id.empty() || id.find('/') != std::string::npos)
+      throw InputError(csv.string() + ":" + std::to_string(lineno) + ": bad scan id '" + id + "'");
+    ids.push_back(id);
+  }
+  return ids;
+}
+
+// Per-scan summary row of registration.csv.
+std::string summary_header() {
+  return "scan_id,points,normals_estimated,landmarks,pose_icp_iterations,pose_rms_mm,"
+         "pose_landmark_rms_mm,scale,nonrigid_iterations,data_rms_mm,landmark_rms_mm,"
+         "matched_vertices,plane_matches,pose_seconds,nonrigid_seconds,seconds\n";
+}
+
+void rebuild_registration_csv(const fs::path& out) {
+  std::vector<fs::path> parts;
+  for (const auto& e : fs::directory_iterator(out))
+    if (e.path().string().size() > 12 &&
+        e.path().string().compare(e.path().string().size() - 12, 12, ".summary.csv") == 0)
+      parts.push_back(e.path());
+  std::sort(parts.begin(), parts.end());
+  std::string s = summary_header();
+  for (const auto& p : parts) s += read_text_file(p);
+  write_text_file(out / "registration.csv", s);
+}
+
+}  // namespace
+
+BODYMODEL_VERB(add_register_verb) {
+  auto a = std::make_shared<RegisterArgs>();
+  auto* cmd = app.add_subcommand(
+      "register",
+      "Register the template to every scan of a scan database (Hasler et al. 2009 §2):\n"
+      "skeleton pose fit (scale, global motion, joint rotations), then non-rigid fit.\n"
+      "Writes OUT/<id>.ply (template topology, mm), OUT/<id>.pose.csv, OUT/registration.csv.\n"
+      "Scans already registered are skipped (rerun or split into shards freely); a failed scan\n"
+      "is reported and skipped. Never reads DB/truth/.");
+  cmd->add_option("db", a->db, "Scan database folder (scans.csv, scans/)")->required();
+  cmd->add_option("--out", a->out, "Output folder")->required();
+  cmd->add_option("--jobs", a->jobs, "Scans registered in parallel")->capture_default_str();
+  cmd->add_option("--shard", a->shard,
+                  "i/n: register only scans whose position k in scans.csv has k mod n = i "
+                  "(0 ≤ i < n)");
+  cmd->add_option("--schedule", a->schedule,
+                  "Non-rigid stiffness schedule: 'paper' (1500 steps, §2.3) or 'fast'")
+      ->check(CLI::IsMember({"paper", "fast"}))
+      ->capture_default_str();
+  cmd->add_option("--fast-steps", a->fast_steps, "Steps of the fast schedule")
+      ->capture_default_str();
+  cmd->add_option("--scan", a->scan, "Register only this scan id");
+  cmd->add_option("--scan-unit-mm", a->scan_unit_mm,
+                  "Millimetres per scan unit (1000 for scans in metres)")
+      ->capture_default_str();
+  cmd->add_flag("--pose-only", a->pose_only, "Stop after the skeleton pose fit");
+  cmd->add_flag("--force", a->force, "Register again scans that are already done");
+  cmd->callback([a] {
+    const fs::path db = a->db, out = a->out;
+    if (!fs::is_directory(db))
+      throw InputError("'" + a->db + "': expected a scan database folder, it does not exist");
+    if (a->jobs < 1) throw InputError("--jobs must be at least 1, got " + std::to_string(a->jobs));
+    if (!(a->scan_unit_mm > 0))
+      throw InputError("--scan-unit-mm must be positive");
+    std::vector<std::string> ids = read_scan_ids(db / "scans.csv");
+    if (!a->scan.empty()) {
+      if (std::find(ids.begin(), ids.end(), a->scan) == ids.end())
+        throw InputError("--scan " + a->scan + ": no such scan in " + (db / "scans.csv").string());
+      ids = {a->scan};
+    }
+    if (!a->shard.empty()) {
+      int i = -1, n = 0;
+      char slash = 0;
+      std::istringstream ss(a->shard);
+      if (!(ss >> i >> slash >> n) || slash != '/' || n < 1 || i < 0 || i >= n || !ss.eof())
+        throw InputError("--shard must be i/n with 0 <= i < n, got '" + a->shard + "'");
+      std::vector<std::string> mine;
+      for (size_t k = 0; k < ids.size(); ++k)
+        if (int(k % n) == i) mine.push_back(ids[k]);
+      ids = mine;
+    }
+    ensure_directory(out);
+    std::vector<std::string> todo;
+    for (const auto& id : ids)
+      if (a->force || !fs::exists(out / (id + ".ply")) || !fs::exists(out / (id + ".pose.csv")) ||
+          !fs::exists(out / (id + ".summary.csv")))
+        todo.push_back(id);
+    if (todo.size() < ids.size())
+      cli::info(fmt::format("{} of {} scans already registered in {}: skipped", ids.size() - todo.size(),
+                            ids.size(), a->out));
+    if (todo.empty()) {
+      rebuild_registration_csv(out);
+      return;
+    }
+
+    MakeHuman mh = MakeHuman::load();
+    MakeHuman::Body body = mh.body(MacroSettings{});
+    RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights};
+    RegistrationOptions options;
+    options.nonrigid.schedule =
+        a->schedule == "paper" ? NonrigidSchedule::paper : NonrigidSchedule::fast;
+    options.nonrigid.fast_steps = a->fast_steps;
+    options.skip_nonrigid = a->pose_only;
+
+    cli::ProgressBar bar(fmt::format("register {} scans", todo.size()));
+    std::mutex mutex;
+    std::atomic<int> done{0};
+    std::vector<std::string> failures;
+    std::vector<double> current(todo.size(), 0.0);
+    auto update = [&](std::string_view what) {
+      double f = 0;
+      for (double c : current) f += c;
+      bar.update(f / todo.size(), what);
+    };
+    tbb::task_arena arena(a->jobs);
+    arena.execute([&] {
+      tbb::parallel_for(size_t(0), todo.size(), size_t(1), [&](size_t k) {
+        const std::string& id = todo[k];
+        const fs::path scan_path = db / "scans" / (id + ".ply");
+        const fs::path lm_path = db / "scans" / (id + ".landmarks.json");
+        try {
+          PointCloud scan = read_point_cloud(scan_path);
+          if (a->scan_unit_mm != 1.0) scan.P *= a->scan_unit_mm;
+          if (!fs::exists(lm_path))
+            throw InputError(lm_path.string() +
+                             ": expected the scan's landmarks {name: [x, y, z]}, file not found");
+          std::vector<Landmark> landmarks = read_landmarks(lm_path, body_landmarks());
+          for (auto& l : landmarks) l.target *= a->scan_unit_mm;
+          RegistrationSummary s;
+          auto progress = [&, k](double f, std::string_view what) {
+            std::lock_guard<std::mutex> lock(mutex);
+            current[k] = f;
+            update(id);
+            return true;
+          };
+          RegistrationResult r =
+              register_scan(tpl, scan, landmarks, options, scan_path.string(), &s, progress);
+          PoseRecord rec;
+          rec.scale = r.pose.scale;
+          rec.pose = r.pose.pose;
+          write_mesh(out / (id + ".ply"), r.V, tpl.mesh.F);
+          write_pose_csv(out / (id + ".pose.csv"), tpl.skeleton, rec);
+          write_text_file(
+              out / (id + ".summary.csv"),
+              fmt::format("{},{},{},{},{},{:.4f},{:.4f},{:.6f},{},{:.4f},{:.4f},{},{},{:.2f},{:.2f},"
+                          "{:.2f}\n",
+                          id, scan.P.rows(), s.scan.normals_estimated ? 1 : 0, landmarks.size(),
+                          s.pose.icp_iterations, s.pose.rms, s.pose.landmark_rms, r.pose.scale,
+                          s.nonrigid.iterations, s.nonrigid.data_rms, s.nonrigid.landmark_rms,
+                          s.nonrigid.matched_vertices, s.nonrigid.plane_matches, s.pose.seconds,
+                          s.nonrigid.seconds, s.seconds));
+          std::lock_guard<std::mutex> lock(mutex);
+          if (s.scan.normals_estimated)
+            cli::info(id + ": the scan has no normals; estimated them (unoriented)");
+          current[k] = 1.0;
+          ++done;
+          update(id);
+        } catch (const std::exception& e) {
+          std::lock_guard<std::mutex> lock(mutex);
+          current[k] = 1.0;
+          failures.push_back(id + ": " + e.what());
+          cli::warn(fmt::format("scan {} failed and was skipped: {}", id, e.what()));
+        }
+      });
+    });
+    bar.finish(fmt::format("{} registered, {} failed", done.load(), failures.size()));
+    rebuild_registration_csv(out);
+    if (!failures.empty())
+      throw InputError(fmt::format("{} of {} scans failed; first: {}", failures.size(),
+                                   todo.size(), failures.front()));
+  });
+}
+
+}  // namespace bodymodel
