@@ -1,0 +1,75 @@
+#include "skinning/rig_io.h"
+
+#include "core/error.h"
+#include "core/io/npz.h"
+
+namespace bodymodel {
+
+void save_rig(const std::filesystem::path& path, const SkinningRig& rig, const Eigen::MatrixX3i& faces,
+              const std::vector<BoneTransforms>& poses) {
+  rig.validate(path.string());
+  Npz z;
+  z.put_text("format", "bodymodel-skinning-rig-1");
+  z.put_text("method", skinning_method_name(rig.method));
+  z.put("bone_count", static_cast<double>(rig.bone_count));
+  z.put("rest", Eigen::MatrixXd(rig.rest));
+  z.put("faces", Eigen::MatrixXi(faces.size() ? Eigen::MatrixXi(faces) : Eigen::MatrixXi(0, 3)));
+  z.put("influences", rig.influences);
+  z.put("coefficients", rig.coefficients);
+  if (!poses.empty()) {
+    const Eigen::Index B = rig.bone_count;
+    Eigen::MatrixXd T(static_cast<Eigen::Index>(poses.size()) * B, 12);
+    for (size_t p = 0; p < poses.size(); ++p) {
+      if (static_cast<Eigen::Index>(poses[p].size()) != B)
+        throw InputError(path.string() + ": pose " + std::to_string(p) + " has " + std::to_string(poses[p].size()) +
+                         " transforms, the rig " + std::to_string(B) + " bones");
+      for (Eigen::Index b = 0; b < B; ++b) {
+        const Eigen::Matrix<double, 3, 4> A = poses[p][static_cast<size_t>(b)].affine();
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 4; ++c) T(static_cast<Eigen::Index>(p) * B + b, 4 * r + c) = A(r, c);
+      }
+    }
+    z.put("pose_transforms", T);
+  }
+  z.save(path);
+}
+
+SkinningRig load_rig(const std::filesystem::path& path, Eigen::MatrixX3i* faces,
+                     std::vector<BoneTransforms>* poses) {
+  const Npz z = Npz::load(path);
+  if (!z.has("format") || z.text("format") != "bodymodel-skinning-rig-1")
+    throw InputError(path.string() + ": not a bodymodel skinning rig (expected key 'format' = "
+                     "'bodymodel-skinning-rig-1')");
+  SkinningRig rig;
+  rig.method = parse_skinning_method(z.text("method"));
+  rig.bone_count = static_cast<int>(z.scalar("bone_count"));
+  const Eigen::MatrixXd rest = z.matrix("rest");
+  if (rest.cols() != 3) throw InputError(path.string() + ": 'rest' must have 3 columns");
+  rig.rest = rest;
+  rig.influences = z.int_matrix("influences");
+  rig.coefficients = z.matrix("coefficients");
+  rig.validate(path.string());
+  if (faces) {
+    const Eigen::MatrixXi F = z.int_matrix("faces");
+    if (F.rows() && F.cols() != 3) throw InputError(path.string() + ": 'faces' must have 3 columns");
+    *faces = F.rows() ? Eigen::MatrixX3i(F) : Eigen::MatrixX3i(0, 3);
+  }
+  if (poses) {
+    poses->clear();
+    if (z.has("pose_transforms")) {
+      const Eigen::MatrixXd T = z.matrix("pose_transforms");
+      if (T.cols() != 12 || T.rows() % rig.bone_count != 0)
+        throw InputError(path.string() + ": 'pose_transforms' must be #P·#B by 12");
+      for (Eigen::Index p = 0; p < T.rows() / rig.bone_count; ++p) {
+        BoneTransforms M(static_cast<size_t>(rig.bone_count), Eigen::Affine3d::Identity());
+        for (int b = 0; b < rig.bone_count; ++b)
+          for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 4; ++c) M[static_cast<size_t>(b)].matrix()(r, c) = T(p * rig.bone_count + b, 4 * r + c);
+        poses->push_back(M);
+      }
+    }
+  }
+  return rig;
+}
+
+}  // namespace bodymodel
