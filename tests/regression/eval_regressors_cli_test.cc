@@ -128,5 +128,40 @@ TEST_F(EvalRegressorsCli, BadInputGivesOneClearLine) {
   EXPECT_FALSE(fs::exists(dir_ / "r1" / "regressors.csv"));
 }
 
+TEST_F(EvalRegressorsCli, PoseLabelsOfTheFullModelInDegreesWithScansGroupedBySubject) {
+  // 20 subjects × 3 scans; a joint angle (radians) = 0.2·x0 + N(0, 0.1) → RMSE ≈ 0.1 rad ≈ 5.7°.
+  std::mt19937 rng(9);
+  std::normal_distribution<double> n(0, 1);
+  Eigen::MatrixXd X(60, 5), Y(60, 2);
+  std::string ids;
+  for (int i = 0; i < 60; ++i) {
+    for (int j = 0; j < 5; ++j) X(i, j) = n(rng);
+    Y(i, 0) = 0.2 * X(i, 0) + 0.1 * n(rng);
+    Y(i, 1) = 170 + (i / 3);
+    char id[32];
+    std::snprintf(id, sizeof id, "%ss%03d_p%d", i ? "," : "", i / 3, i % 3);
+    ids += id;
+  }
+  Npz z;
+  z.put("full_coefficients", X);
+  z.put("full_labels", Y);
+  z.put_text("full_label_names", R"(["pose:upperarm01.L:rx","height_cm"])");
+  z.put_text("full_label_units", R"(["rad","cm"])");
+  z.put_text("full_sample_ids", ids);
+  const fs::path model = dir_ / "full.npz", out = dir_ / "pose";
+  z.save(model);
+  const CliRun r = run("eval-regressors " + model.string() + " --set full --folds 5 --labels 'pose:*'" +
+                       " --regressors simple_linear,filtered_linear --out " + out.string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("(20 subjects)"), std::string::npos) << r.output;
+  const std::string csv = read_file(out / "regressors.csv");
+  const std::string key = "filtered_linear,pose:upperarm01.L:rx,deg,";
+  const auto at = csv.find(key);
+  ASSERT_NE(at, std::string::npos) << csv;
+  const double rmse = std::stod(csv.substr(at + key.size()));
+  EXPECT_GT(rmse, 3.5);
+  EXPECT_LT(rmse, 9.0);
+}
+
 }  // namespace
 }  // namespace bodymodel
