@@ -1,17 +1,18 @@
 // Decoding a relative rotation encoding back into a mesh: two sparse linear solves
 // (Hasler et al. 2009 §3, METHOD.md §3).
 //
-//  1. Rotations. Unknown per-triangle matrices X_f (3×3). Every stored relative rotation of an
-//     adjacent pair gives the equation R_fg X_g − X_f = 0; one triangle per connected component
-//     is fixed to the global rotation R_g. The least-squares normal equations N X = b are the
+//  1. Rotations. Unknown per-triangle matrices X_f ≈ T_f = R_fᵀ (3×3). Every stored relative
+//     rotation R_fg = R_fᵀ R_g of an adjacent pair gives the equation R_fg X_g − X_f = 0 (the
+//     paper's R_ij R_j − R_i = 0 in the inverse rotations, see relative_rotation_encoding.h);
+//     one triangle per connected component is fixed to the global rotation (identity). The least-squares normal equations N X = b are the
 //     same for the three columns of X, so X (3·#unknown by 3) is one solve with three right-hand
 //     sides. N's diagonal blocks are constant (count·I) and its off-diagonal blocks are −R_fg −
 //     R_gfᵀ: the VALUES change with every encoding, the SPARSITY PATTERN never does. The solver
 //     therefore never re-analyses it: the default solver is conjugate gradients preconditioned
 //     with the dual-graph Laplacian factorised once (exact in one iteration for encoded meshes,
 //     see RotationSolver); the Cholesky path analyses the pattern once (symbolic factorisation,
-//     AMD ordering) and only refactorises numerically per decode. Each X_f is then
-//     orthonormalised by SVD (closest rotation).
+//     AMD ordering) and only refactorises numerically per decode. Each X_fᵀ is then
+//     orthonormalised by SVD (closest rotation) to give R_f.
 //  2. Positions. With U_f = R_f S_f the target gradient of triangle f, minimise
 //     Σ_f area_f ‖∇X|_f − U_f‖² (gradient-domain Poisson): K X = Gᵀ A B with K = Gᵀ A G the
 //     cotangent Laplacian (up to sign), which depends only on the template: factorised once.

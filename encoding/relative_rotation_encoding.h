@@ -5,8 +5,15 @@
 //
 // Per triangle f the deformation gradient U_f from the template's rest triangle is split by
 // polar decomposition into U_f = R_f S_f. For each of the (up to) three edge-adjacent triangles
-// g = TT(f, k) the relative rotation R_fg = R_f R_gᵀ is stored as a rotation vector, plus the
+// g = TT(f, k) the relative rotation R_fg = R_fᵀ R_g is stored as a rotation vector, plus the
 // six upper entries of S_f: 15 numbers per triangle.
+//
+// NOTE on the convention: the paper writes R_ij = R_i · R_j⁻¹ and decodes with R_ij R_j = R_i.
+// With R_i the rotation of the polar decomposition (rest → deformed) that product is NOT
+// invariant to a global rotation P of the mesh (it becomes P R_i R_jᵀ Pᵀ), and a decode with one
+// triangle fixed then yields R_i Q instead of P R_i, i.e. a wrong shape. We store R_fᵀ R_g, which
+// is the paper's R_i R_j⁻¹ for the inverse rotations T_i = R_iᵀ (deformed → rest): invariant,
+// and the decoder solves the paper's system R_fg T_g − T_f = 0 for T and transposes.
 //
 // LAYOUT of an encoding vector (size 15·#F, triangle-major, doubles):
 //   values[15 f + 3 k + c], k = 0..2, c = 0..2   rotation vector (radians) of R_{f, TT(f,k)}, where
@@ -110,7 +117,7 @@ struct EncodedSet {
 EncodedSet encode_set(const EncodingTemplate& tmpl, const std::vector<Eigen::MatrixX3d>& meshes);
 
 // Per slot (3·#F) the relative rotation R_{f, TT(f,k)} and per triangle the stretch S_f that
-// an encoding stands for (identity for boundary slots). Used by the decoder.
+// an encoding stands for (R_fg = R_fᵀ R_g; unset for boundary slots). Used by the decoder.
 void encoding_matrices(const Encoding& e, std::vector<Eigen::Matrix3d>& slot_rotations,
                        std::vector<Eigen::Matrix3d>& stretches);
 
