@@ -70,7 +70,7 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
   const int m = static_cast<int>(conditions.size());
   std::vector<int> idx(m);
   std::set<std::string> seen;
-  bool any_measured = false;
+  bool any_measured = false, only_extent_and_volume = true;
   for (int i = 0; i < m; ++i) {
     idx[i] = reg.index(conditions[i].label);
     if (!seen.insert(conditions[i].label).second)
@@ -78,7 +78,12 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
     if (!conditions[i].keep && !(conditions[i].lo <= conditions[i].hi))
       throw InputError(fmt::format("label '{}': empty range {}..{}", conditions[i].label,
                                    conditions[i].lo, conditions[i].hi));
-    if (is_measurable_label(conditions[i].label)) any_measured = true;
+    if (is_measurable_label(conditions[i].label)) {
+      any_measured = true;
+      if (conditions[i].label != "height_cm" && conditions[i].label != "weight_kg" &&
+          conditions[i].label != "volume_l")
+        only_extent_and_volume = false;
+    }
   }
   if (o.triangle_mask.size() != 0 && o.triangle_mask.size() != model_->tmpl->triangle_count())
     throw InputError(fmt::format("mask has {} entries, the model has {} triangles", o.triangle_mask.size(),
@@ -90,7 +95,18 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
     Eigen::VectorXd v(m);
     Eigen::VectorXd pred = reg.predict(sm.pca.project(x));
     std::optional<BodyMeasurements> meas;
-    if (any_measured) meas = measure(V, o.sex);
+    if (any_measured && only_extent_and_volume) {
+      // Fast path, the same definitions as measure_body (core/measure.h) without the girth
+      // sections: height = extent along +y, weight = enclosed volume × density.
+      BodyMeasurements b;
+      b.height_cm = (V.col(1).maxCoeff() - V.col(1).minCoeff()) / 10.0;
+      b.volume_l = signed_volume(V, model_->tmpl->faces()) * 1e-6;
+      b.weight_kg = b.volume_l * MeasureOptions{}.density_kg_per_l;
+      b.body_fat_pct = std::numeric_limits<double>::quiet_NaN();
+      meas = b;
+    } else if (any_measured) {
+      meas = measure(V, o.sex);
+    }
     for (int i = 0; i < m; ++i) {
       std::optional<double> mv;
       if (meas) mv = measured_label(conditions[i].label, *meas);
@@ -121,7 +137,10 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
       hi(i) = c.hi + tol(i);
     } else {
       double margin = o.range_margin * (c.hi - c.lo);
-      target(i) = std::clamp(start(i), c.lo + margin, c.hi - margin);
+      if (o.range_aim >= 0 && (start(i) < c.lo + margin || start(i) > c.hi - margin))
+        target(i) = c.lo + margin + std::min(o.range_aim, 1.0) * (c.hi - c.lo - 2 * margin);
+      else
+        target(i) = std::clamp(start(i), c.lo + margin, c.hi - margin);
       lo(i) = c.lo;
       hi(i) = c.hi;
     }
@@ -213,7 +232,11 @@ GeneratedBody generate_body(ShapeMorpher& morpher, const std::vector<LabelCondit
   double best_missed = 1e300;
   MorphOptions mo = o.morph;
   if (mo.sex == Sex::unknown) mo.sex = sex;
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
   for (int attempt = 1; attempt <= std::max(1, o.max_attempts); ++attempt) {
+    // A sample outside a range is moved to a random point of it (not its nearest edge), so a
+    // crowd covers the range instead of piling up at one bound.
+    mo.range_aim = u01(rng);
     Eigen::VectorXd c(K);
     if (pool.size() >= 2) {
       Eigen::VectorXd mu = Eigen::VectorXd::Zero(K);

@@ -51,6 +51,9 @@ struct MorphOptions {
   // Range conditions aim this fraction of the range inside each bound (so that a body that
   // measures slightly differently still lands inside).
   double range_margin = 0.1;
+  // Where a range condition aims when the start value is outside the range's inner part:
+  // < 0 = the nearest inner point; in [0, 1] = that fraction across the inner part.
+  double range_aim = -1;
   Eigen::VectorXd triangle_mask;   // #F in [0, 1] (§5.1, Fig. 6); empty = the whole body
   Sex sex = Sex::unknown;          // for the body-fat measurement
   ConstrainedChangeOptions change; // eq. 11 solver
