@@ -19,55 +19,46 @@ constexpr int kBlock = 256;
 #define BODYMODEL_CLONES
 #endif
 
-// LBS: blend matrices over the block, then apply to rest positions.
+// LBS: per vertex, blend the slots' 3 by 4 matrices (12 contiguous floats each, in L1) and apply
+// the blend to the rest position; the 12-wide blend vectorises (SLP) and needs no gathers.
 BODYMODEL_CLONES
 void lbs_block(int K, int n, int begin, int end, const int* __restrict idx, const float* __restrict w,
                const float* __restrict rest, const float* __restrict bones, float* __restrict ox,
                float* __restrict oy, float* __restrict oz) {
-  float m[12][kBlock];
-  const int len = end - begin;
-  for (int e = 0; e < 12; ++e)
-    for (int v = 0; v < len; ++v) m[e][v] = 0.f;
-  for (int k = 0; k < K; ++k) {
-    const int* __restrict ik = idx + static_cast<size_t>(k) * n + begin;
-    const float* __restrict wk = w + static_cast<size_t>(k) * n + begin;
-    for (int e = 0; e < 12; ++e)
-      for (int v = 0; v < len; ++v) m[e][v] += wk[v] * bones[12 * ik[v] + e];
-  }
-  const float* __restrict x = rest + begin;
-  const float* __restrict y = rest + n + begin;
-  const float* __restrict z = rest + 2 * static_cast<size_t>(n) + begin;
-  for (int v = 0; v < len; ++v) {
-    ox[begin + v] = m[0][v] * x[v] + m[1][v] * y[v] + m[2][v] * z[v] + m[3][v];
-    oy[begin + v] = m[4][v] * x[v] + m[5][v] * y[v] + m[6][v] * z[v] + m[7][v];
-    oz[begin + v] = m[8][v] * x[v] + m[9][v] * y[v] + m[10][v] * z[v] + m[11][v];
+  for (int v = begin; v < end; ++v) {
+    float m[12] = {0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f};
+    const int* __restrict iv = idx + static_cast<size_t>(v) * K;
+    const float* __restrict wv = w + static_cast<size_t>(v) * K;
+    for (int k = 0; k < K; ++k) {
+      const float* __restrict M = bones + 12 * iv[k];
+      const float wk = wv[k];
+      for (int e = 0; e < 12; ++e) m[e] += wk * M[e];
+    }
+    const float x = rest[3 * static_cast<size_t>(v)], y = rest[3 * static_cast<size_t>(v) + 1],
+                z = rest[3 * static_cast<size_t>(v) + 2];
+    ox[v] = m[0] * x + m[1] * y + m[2] * z + m[3];
+    oy[v] = m[4] * x + m[5] * y + m[6] * z + m[7];
+    oz[v] = m[8] * x + m[9] * y + m[10] * z + m[11];
   }
 }
 
-// AS / MWE: out_j = Σ_k Σ_i c[k][4j+i] · bone[12 b + 4j + i]  (AS has c[k][4j+i] = p_k,i for all j).
+// AS / MWE: out_j = Σ_k Σ_i c[k][4j+i] · bone[12 b + 4j + i], coefficients vertex-major, 12 per
+// slot (AS's p_k repeated for the three rows), so each slot is one 12-wide multiply-add.
 BODYMODEL_CLONES
 void dot_block(int K, int n, int stride, int begin, int end, const int* __restrict idx,
                const float* __restrict c, const float* __restrict bones, float* __restrict ox,
                float* __restrict oy, float* __restrict oz) {
-  // stride: coefficient rows per slot: 4 (AS, shared by the three outputs) or 12 (MWE).
-  float acc[3][kBlock];
-  const int len = end - begin;
-  for (int j = 0; j < 3; ++j)
-    for (int v = 0; v < len; ++v) acc[j][v] = 0.f;
-  for (int k = 0; k < K; ++k) {
-    const int* __restrict ik = idx + static_cast<size_t>(k) * n + begin;
-    for (int j = 0; j < 3; ++j)
-      for (int i = 0; i < 4; ++i) {
-        const int row = stride == 12 ? 4 * j + i : i;
-        const float* __restrict ck = c + (static_cast<size_t>(k) * stride + row) * n + begin;
-        const int e = 4 * j + i;
-        for (int v = 0; v < len; ++v) acc[j][v] += ck[v] * bones[12 * ik[v] + e];
-      }
-  }
-  for (int v = 0; v < len; ++v) {
-    ox[begin + v] = acc[0][v];
-    oy[begin + v] = acc[1][v];
-    oz[begin + v] = acc[2][v];
+  for (int v = begin; v < end; ++v) {
+    float acc[12] = {0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f};
+    const int* __restrict iv = idx + static_cast<size_t>(v) * K;
+    const float* __restrict cv = c + static_cast<size_t>(v) * K * 12;
+    for (int k = 0; k < K; ++k) {
+      const float* __restrict M = bones + 12 * iv[k];
+      for (int e = 0; e < 12; ++e) acc[e] += cv[12 * k + e] * M[e];
+    }
+    ox[v] = acc[0] + acc[1] + acc[2] + acc[3];
+    oy[v] = acc[4] + acc[5] + acc[6] + acc[7];
+    oz[v] = acc[8] + acc[9] + acc[10] + acc[11];
   }
 }
 
@@ -82,7 +73,7 @@ void normal_block(int K, int n, int stride, int begin, int end, const int* __res
   for (int j = 0; j < 3; ++j)
     for (int v = 0; v < len; ++v) acc[j][v] = 0.f;
   for (int k = 0; k < K; ++k) {
-    const int* __restrict ik = idx + static_cast<size_t>(k) * n + begin;
+    const int* __restrict ik = idx + static_cast<size_t>(k) * n + begin;   // slot-major copy
     for (int j = 0; j < 3; ++j)
       for (int i = 0; i < 3; ++i) {
         const int e = 4 * j + i;
@@ -136,32 +127,40 @@ RuntimeSkinner::RuntimeSkinner(const SkinningRig& rig, const Eigen::MatrixX3d& n
   B_ = rig.bone_count;
   has_normals_ = normals.size() > 0;
   const size_t n = static_cast<size_t>(n_);
-  idx_.assign(static_cast<size_t>(K_) * n, B_);
+  idx_.assign(static_cast<size_t>(K_) * n, B_);      // vertex-major (positions)
+  nidx_.assign(static_cast<size_t>(K_) * n, B_);     // slot-major (normals)
   for (int k = 0; k < K_; ++k)
     for (int i = 0; i < n_; ++i) {
-      const int b = rig.influences(i, k);
-      idx_[k * n + i] = b < 0 ? B_ : b;
+      const int b = rig.influences(i, k) < 0 ? B_ : rig.influences(i, k);
+      idx_[static_cast<size_t>(i) * K_ + k] = b;
+      nidx_[k * n + i] = b;
     }
   const int c = coefficients_per_influence(method_);
   if (method_ == SkinningMethod::lbs) {
-    coef_.assign(static_cast<size_t>(K_) * n, 0.f);
+    coef_.assign(static_cast<size_t>(K_) * n, 0.f);    // vertex-major weights
+    lcoef_.assign(static_cast<size_t>(K_) * n, 0.f);   // slot-major copy (normals)
     rest_.resize(3 * n);
     for (int i = 0; i < n_; ++i) {
-      for (int k = 0; k < K_; ++k) coef_[k * n + i] = static_cast<float>(rig.coefficients(i, k));
-      for (int d = 0; d < 3; ++d) rest_[d * n + i] = static_cast<float>(rig.rest(i, d));
+      for (int k = 0; k < K_; ++k) {
+        coef_[static_cast<size_t>(i) * K_ + k] = static_cast<float>(rig.coefficients(i, k));
+        lcoef_[k * n + i] = static_cast<float>(rig.coefficients(i, k));
+      }
+      for (int d = 0; d < 3; ++d) rest_[3 * static_cast<size_t>(i) + d] = static_cast<float>(rig.rest(i, d));
     }
   } else if (method_ == SkinningMethod::animation_space) {
-    coef_.assign(static_cast<size_t>(K_) * 4 * n, 0.f);
+    coef_.assign(static_cast<size_t>(K_) * 12 * n, 0.f);
     for (int i = 0; i < n_; ++i)
       for (int k = 0; k < K_; ++k)
-        for (int r = 0; r < 4; ++r) coef_[(k * 4 + r) * n + i] = static_cast<float>(rig.coefficients(i, k * c + r));
+        for (int r = 0; r < 12; ++r)
+          coef_[(static_cast<size_t>(i) * K_ + k) * 12 + r] = static_cast<float>(rig.coefficients(i, k * c + r % 4));
   } else {
     coef_.assign(static_cast<size_t>(K_) * 12 * n, 0.f);
     for (int i = 0; i < n_; ++i) {
       const double v[4] = {rig.rest(i, 0), rig.rest(i, 1), rig.rest(i, 2), 1.0};
       for (int k = 0; k < K_; ++k)
         for (int r = 0; r < 12; ++r)
-          coef_[(k * 12 + r) * n + i] = static_cast<float>(rig.coefficients(i, k * 12 + r) * v[r % 4]);
+          coef_[(static_cast<size_t>(i) * K_ + k) * 12 + r] =
+              static_cast<float>(rig.coefficients(i, k * 12 + r) * v[r % 4]);
     }
   }
   if (has_normals_) {
@@ -203,7 +202,7 @@ void RuntimeSkinner::pose(const BoneTransforms& M, float* x, float* y, float* z,
   if (method_ == SkinningMethod::lbs) {
     run_blocks(n_, threads, [&](int b, int e) { lbs_block(K_, n_, b, e, idx_.data(), coef_.data(), rest_.data(), bp, x, y, z); });
   } else {
-    const int stride = method_ == SkinningMethod::mwe ? 12 : 4;
+    const int stride = 12;
     run_blocks(n_, threads, [&](int b, int e) { dot_block(K_, n_, stride, b, e, idx_.data(), coef_.data(), bp, x, y, z); });
   }
 }
@@ -214,9 +213,9 @@ void RuntimeSkinner::pose_normals(const BoneTransforms& M, float* nx, float* ny,
   pack_bones(M, &bones);
   const float* bp = bones.data();
   const int stride = method_ == SkinningMethod::mwe ? 9 : 1;
-  const float* c = method_ == SkinningMethod::lbs ? coef_.data() : ncoef_.data();
+  const float* c = method_ == SkinningMethod::lbs ? lcoef_.data() : ncoef_.data();
   run_blocks(n_, threads, [&](int b, int e) {
-    normal_block(K_, n_, stride, b, e, idx_.data(), c, nrest_.data(), bp, nx, ny, nz);
+    normal_block(K_, n_, stride, b, e, nidx_.data(), c, nrest_.data(), bp, nx, ny, nz);
   });
 }
 

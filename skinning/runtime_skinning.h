@@ -1,4 +1,4 @@
-// Runtime rig evaluation: float32, structure-of-arrays, multithreaded (TBB), vectorisable inner
+// Runtime rig evaluation: float32, flat arrays (outputs structure-of-arrays), multithreaded (TBB), vectorisable inner
 // loops (AVX2/FMA clone chosen at run time when the CPU has it). LBS, Animation Space and MWE with
 // up to 8 influences per vertex; positions and, optionally, normals.
 //
@@ -43,9 +43,13 @@ class RuntimeSkinner {
   void pack_bones(const BoneTransforms& M, std::vector<float>* out) const;
   SkinningMethod method_;
   int n_ = 0, K_ = 0, B_ = 0;
-  std::vector<int> idx_;           // K by n, bone per slot (B = the zero bone for unused slots)
-  std::vector<float> coef_;        // position coefficients: K·12 by n (LBS: K by n)
-  std::vector<float> rest_;        // 3 by n (LBS only)
+  // Positions read vertex-major arrays (one vertex's slots contiguous: one cache line stream),
+  // normals slot-major ones (structure of arrays over vertices).
+  std::vector<int> idx_;           // n by K bone per slot (B = the zero bone for unused slots)
+  std::vector<int> nidx_;          // K by n, the same
+  std::vector<float> coef_;        // n by K·12 position coefficients (LBS: n by K weights)
+  std::vector<float> lcoef_;       // K by n LBS weights (normals)
+  std::vector<float> rest_;        // n by 3 (LBS only)
   std::vector<float> ncoef_;       // normal coefficients: K·9 by n (LBS: none, uses coef_)
   std::vector<float> nrest_;       // 3 by n rest normals (LBS/AS)
   bool has_normals_ = false;
