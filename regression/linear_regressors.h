@@ -68,11 +68,12 @@ class FilteredLinearRegressor : public Regressor {
     unsigned inner_seed = 7;
     int max_components = 0;     // largest count tried; ≤ 0 = all features
     int fixed_components = 0;   // > 0: keep exactly this many (no inner cross-validation)
+    std::string name = "filtered_linear";  // report name (the factory's variants set their own)
   };
   FilteredLinearRegressor() = default;
   explicit FilteredLinearRegressor(const Options& options) : options_(options) {}
 
-  std::string name() const override { return "filtered_linear"; }
+  std::string name() const override { return options_.name; }
   void fit(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const std::vector<int>& groups = {}) override;
   double predict(const Eigen::VectorXd& x) const override;
   Eigen::VectorXd gradient(const Eigen::VectorXd& x) const override;

@@ -20,10 +20,17 @@ std::vector<std::string> regressor_names() {
 std::unique_ptr<Regressor> make_regressor(const std::string& name) {
   if (name == "simple_linear") return std::make_unique<SimpleLinearRegressor>();
   if (name == "filtered_linear") return std::make_unique<FilteredLinearRegressor>();
+  if (name == "filtered_linear_by_s") {  // the paper's literal ranking: |s_j| of the full fit
+    FilteredLinearRegressor::Options o;
+    o.ranking = ComponentRanking::gradient;
+    o.name = name;
+    return std::make_unique<FilteredLinearRegressor>(o);
+  }
   if (name == "svr") return std::make_unique<SvrRegressor>();
   if (name == "gaussian_process") return std::make_unique<GaussianProcessRegressor>();
   std::string known;
   for (const auto& n : regressor_names()) known += (known.empty() ? "" : ", ") + n;
+  known += ", filtered_linear_by_s";
   throw InputError("unknown regressor '" + name + "' (expected one of " + known + ")");
 }
 

@@ -48,7 +48,9 @@ class Regressor {
 //   gaussian_process GP regression, RBF + linear kernel, hyper-parameters by marginal likelihood
 std::vector<std::string> regressor_names();
 
-// A regressor with default options by name; throws InputError listing the known names.
+// A regressor with default options by name; throws InputError listing the known names. Besides
+// regressor_names(), "filtered_linear_by_s" ranks components by |s_j| of the eq. 10 fit on all
+// components (the paper's wording taken literally) instead of by correlation.
 std::unique_ptr<Regressor> make_regressor(const std::string& name);
 
 // Checks shared by every fit: X rows == y size == groups size (when given), all finite, at least

@@ -252,6 +252,8 @@ TEST(BadInput, ConstantLabelAndTooFewSubjectsAreClearErrors) {
     EXPECT_NE(std::string(e.what()).find("waist_cm"), std::string::npos) << e.what();
   }
   EXPECT_THROW(make_regressor("random_forest"), InputError);
+  EXPECT_EQ(make_regressor("filtered_linear_by_s")->name(), "filtered_linear_by_s");
+  EXPECT_EQ(make_regressor("filtered_linear_by_s")->clone()->name(), "filtered_linear_by_s");
 }
 
 TEST(MorphDirections, AnglesToTheMeanDirection) {

@@ -89,7 +89,7 @@ BODYMODEL_VERB(add_eval_regressors_verb) {
   cmd->add_option("--folds", a->folds, "Cross-validation folds (subjects grouped)")->capture_default_str();
   cmd->add_option("--labels", a->labels, "Comma-separated label names; 'pose:*' = every joint angle")
       ->capture_default_str();
-  cmd->add_option("--regressors", a->regressors, "Comma-separated: simple_linear, filtered_linear, svr, gaussian_process")
+  cmd->add_option("--regressors", a->regressors, "Comma-separated: simple_linear, filtered_linear, svr, gaussian_process (also filtered_linear_by_s)")
       ->capture_default_str();
   cmd->add_option("--out", a->out, "Report folder")->capture_default_str();
   cmd->add_option("--set", a->set, "shape (one row a subject) or full (every scan)")
