@@ -34,6 +34,8 @@ struct RegisterArgs {
   std::string db, out, schedule = "fast", shard, scan;
   int jobs = 1;
   int fast_steps = NonrigidOptions{}.fast_steps;
+  double fast_k_end = NonrigidOptions{}.fast_k_end;
+  double transform_length = NonrigidOptions{}.normalization_length;
   double scan_unit_mm = 1.0;
   bool force = false, pose_only = false;
 };
@@ -103,6 +105,13 @@ BODYMODEL_VERB(add_register_verb) {
       ->capture_default_str();
   cmd->add_option("--fast-steps", a->fast_steps, "Steps of the fast schedule")
       ->capture_default_str();
+  cmd->add_option("--fast-stiffness-end", a->fast_k_end,
+                  "Final smoothness weight β of the fast schedule (starts at k0 = 3000)")
+      ->capture_default_str();
+  cmd->add_option("--transform-length", a->transform_length,
+                  "Length (mm) normalising the affine transforms (balances Es's linear and "
+                  "translation parts)")
+      ->capture_default_str();
   cmd->add_option("--scan", a->scan, "Register only this scan id");
   cmd->add_option("--scan-unit-mm", a->scan_unit_mm,
                   "Millimetres per scan unit (1000 for scans in metres)")
@@ -116,6 +125,9 @@ BODYMODEL_VERB(add_register_verb) {
     if (a->jobs < 1) throw InputError("--jobs must be at least 1, got " + std::to_string(a->jobs));
     if (!(a->scan_unit_mm > 0))
       throw InputError("--scan-unit-mm must be positive");
+    if (a->fast_steps < 1) throw InputError("--fast-steps must be at least 1");
+    if (!(a->fast_k_end > 0) || !(a->transform_length > 0))
+      throw InputError("--fast-stiffness-end and --transform-length must be positive");
     std::vector<std::string> ids = read_scan_ids(db / "scans.csv");
     if (!a->scan.empty()) {
       if (std::find(ids.begin(), ids.end(), a->scan) == ids.end())
@@ -154,6 +166,8 @@ BODYMODEL_VERB(add_register_verb) {
     options.nonrigid.schedule =
         a->schedule == "paper" ? NonrigidSchedule::paper : NonrigidSchedule::fast;
     options.nonrigid.fast_steps = a->fast_steps;
+    options.nonrigid.fast_k_end = a->fast_k_end;
+    options.nonrigid.normalization_length = a->transform_length;
     options.skip_nonrigid = a->pose_only;
 
     cli::ProgressBar bar(fmt::format("register {} scans", todo.size()));
