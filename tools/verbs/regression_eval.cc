@@ -178,11 +178,11 @@ BODYMODEL_VERB(add_eval_regressors_verb) {
     bar.finish();
 
     // Table 1 style, with units.
-    std::string table = fmt::format("{:<18}", "RMSE");
+    std::string table = fmt::format("{:<22}", "RMSE");
     for (size_t k = 0; k < wanted.size(); ++k) table += fmt::format(" {:>16}", wanted[k] + " (" + sel_units[k] + ")");
     table += "\n";
     for (const auto& r : o.regressors) {
-      table += fmt::format("{:<18}", r);
+      table += fmt::format("{:<22}", r);
       for (const auto& l : wanted) table += fmt::format(" {:>16.3f}", study.result(r, l).rmse);
       table += "\n";
     }
@@ -211,11 +211,11 @@ BODYMODEL_VERB(add_eval_regressors_verb) {
                          r.spread.std_deg, r.spread.max_deg, r.spread.subjects);
       write_text_file(out / "directions.csv", d);
       fmt::print("\nMorph-direction angle to the mean direction, degrees (mean ± std over subjects)\n");
-      std::string t = fmt::format("{:<18}", "");
+      std::string t = fmt::format("{:<22}", "");
       for (const auto& l : wanted) t += fmt::format(" {:>16}", l);
       t += "\n";
       for (const auto& r : o.regressors) {
-        t += fmt::format("{:<18}", r);
+        t += fmt::format("{:<22}", r);
         for (const auto& dr : study.directions)
           if (dr.regressor == r) t += fmt::format(" {:>16}", fmt::format("{:.2f} ± {:.2f}", dr.spread.mean_deg, dr.spread.std_deg));
         t += "\n";
