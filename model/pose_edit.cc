@@ -149,7 +149,10 @@ Eigen::MatrixX3d pose_morph(const BodyModel& model, RelativeRotationDecoder& dec
     Eigen::MatrixX3d posed = linear_blend_skinning(V, model.rig.weights, forward_kinematics(sk, pose));
     // Tip vertex sets: weight of the tip bone and its descendants.
     std::vector<int> verts;
-    for (const auto& tip : o.tip_bones) {
+    std::vector<std::string> tips = o.tip_bones;
+    if (o.constrain_elbows_and_knees)
+      for (const char* b : {"lowerarm01.L", "lowerarm01.R", "lowerleg01.L", "lowerleg01.R"}) tips.push_back(b);
+    for (const auto& tip : tips) {
       int b = sk.find(tip);
       if (b < 0) continue;
       Eigen::VectorXd sel = Eigen::VectorXd::Zero(sk.bone_count());

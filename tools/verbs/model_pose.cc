@@ -18,7 +18,8 @@ namespace {
 struct PoseArgs {
   std::string model, in, bvh, pose_csv, truth, out;
   int frame = 0;
-  bool no_tips = false;
+  bool no_tips = false, no_joints = false;
+  double damping = 1e-4;
 };
 
 // A DB/truth/<scan>.pose.csv (bone,rx,ry,rz rotation vectors) as a Pose of `bones`.
@@ -63,6 +64,9 @@ BODYMODEL_VERB(add_model_pose_verb) {
   cmd->add_option("--pose-csv", a->pose_csv, "Target pose as bone,rx,ry,rz rotation vectors (DB/truth/*.pose.csv)");
   cmd->add_option("--truth", a->truth, "Optional true posed mesh: report the mean vertex error (after a rigid fit)");
   cmd->add_flag("--no-tips", a->no_tips, "No positional constraints at hands, feet and head");
+  cmd->add_flag("--tips-only", a->no_joints,
+                "Constrain only hands, feet and head (the paper), not also elbows and knees");
+  cmd->add_option("--damping", a->damping, "Damping of the joint-angle constraints (relative)")->capture_default_str();
   cmd->add_option("--out", a->out, "Output mesh (OBJ/PLY)")->required();
   cmd->callback([a] {
     if (a->bvh.empty() == a->pose_csv.empty()) throw InputError("pose: give exactly one of --bvh and --pose-csv");
@@ -84,6 +88,8 @@ BODYMODEL_VERB(add_model_pose_verb) {
     RelativeRotationDecoder decoder(model.tmpl);
     PoseMorphOptions o;
     o.use_tip_constraints = !a->no_tips;
+    o.constrain_elbows_and_knees = !a->no_joints;
+    o.damping = a->damping;
     PoseMorphSummary s;
     Eigen::MatrixX3d out = pose_morph(model, decoder, body.V, pose, o, &s);
     write_mesh(a->out, out, body.F);
