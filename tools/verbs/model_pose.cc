@@ -19,7 +19,7 @@ struct PoseArgs {
   std::string model, in, bvh, pose_csv, truth, out;
   int frame = 0;
   bool no_tips = false, no_joints = false;
-  double damping = 1e-4;
+  double damping = 1e-3;
 };
 
 // A DB/truth/<scan>.pose.csv (bone,rx,ry,rz rotation vectors) as a Pose of `bones`.
