@@ -4,6 +4,8 @@
 # Usage: scripts/setup.sh [--no-build]
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# ccache: paths relative to the checkout, so a fresh clone elsewhere still hits the cache.
+export CCACHE_BASEDIR="$here" CCACHE_NOHASHDIR=1
 
 packages=(
   g++ cmake ninja-build ccache pkg-config

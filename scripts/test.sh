@@ -3,6 +3,8 @@
 # Options: --sanitize   build in ./build-asan with AddressSanitizer + UBSan and run the suite there.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# ccache: paths relative to the checkout, so a fresh clone elsewhere still hits the cache.
+export CCACHE_BASEDIR="$here" CCACHE_NOHASHDIR=1
 "$here/scripts/setup.sh" --no-build
 build="$here/build"
 extra=()
