@@ -155,4 +155,14 @@ TEST(Cli, BadInputGivesOneLineErrorAndNonZeroExit) {
                         "BODYMODEL_DATA=/nonexistent");
   EXPECT_NE(r.output.find("/nonexistent"), std::string::npos) << r.output;
   EXPECT_EQ(r.exit_code, 2);
+  // An output folder that cannot be created (its parent is a file), and a data "folder" that is
+  // a file: one line naming the path, exit 2, nothing written.
+  r = fixtures::run_cli("synth-db --subjects 1 --out '" + (dir / "keep.txt" / "db").string() + "'");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("keep.txt/db"), std::string::npos) << r.output;
+  r = fixtures::run_cli("synth-db --subjects 1 --out '" + (dir / "z").string() + "'",
+                        "BODYMODEL_DATA='" + (dir / "keep.txt").string() + "'");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("keep.txt"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "z" / "subjects.csv"));
 }
