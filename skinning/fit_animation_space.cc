@@ -26,20 +26,7 @@ SkinningRig fit_animation_space(const SkinningExamples& ex, const SkinningRig* b
   const auto t0 = std::chrono::steady_clock::now();
   validate_examples(ex, false);
   if (!(options.ridge >= 0)) throw InputError("animation space: ridge must be ≥ 0");
-  SkinningRig lbs;
-  if (base_lbs) {
-    if (base_lbs->method != SkinningMethod::lbs || base_lbs->vertex_count() != ex.vertex_count() ||
-        base_lbs->bone_count != ex.bone_count())
-      throw InputError("animation space: the base rig must be an ssd rig with the examples' " +
-                       std::to_string(ex.vertex_count()) + " vertices and " +
-                       std::to_string(ex.bone_count()) + " bones");
-    lbs = *base_lbs;
-  } else {
-    LbsFitOptions lo;
-    lo.max_influences = options.max_influences;
-    lo.require_rigid = false;
-    lbs = fit_lbs(ex, {}, lo);
-  }
+  const SkinningRig lbs = base_lbs_rig(ex, base_lbs, options.max_influences, "animation space");
   const Eigen::Index n = ex.rest.rows(), K = lbs.influences.cols();
   const int P = ex.pose_count();
   SkinningRig rig;

@@ -86,6 +86,22 @@ void rig_residuals(const SkinningRig& rig, const SkinningExamples& ex, double* r
   if (max) *max = mx;
 }
 
+SkinningRig base_lbs_rig(const SkinningExamples& ex, const SkinningRig* base, int max_influences,
+                         const std::string& who) {
+  if (base) {
+    if (base->method != SkinningMethod::lbs || base->vertex_count() != ex.vertex_count() ||
+        base->bone_count != ex.bone_count())
+      throw InputError(who + ": the base rig must be an ssd rig with the examples' " +
+                       std::to_string(ex.vertex_count()) + " vertices and " +
+                       std::to_string(ex.bone_count()) + " bones");
+    return *base;
+  }
+  LbsFitOptions lo;
+  lo.max_influences = max_influences;
+  lo.require_rigid = false;
+  return fit_lbs(ex, {}, lo);
+}
+
 SkinningRig fit_lbs(const SkinningExamples& ex, const Eigen::MatrixXi& influences_in,
                     const LbsFitOptions& options, LbsFitSummary* summary,
                     const ProgressCallback& progress) {

@@ -41,6 +41,12 @@ SkinningRig fit_lbs(const SkinningExamples& ex, const Eigen::MatrixXi& influence
                     const LbsFitOptions& options = {}, LbsFitSummary* summary = nullptr,
                     const ProgressCallback& progress = {});
 
+// The SSD rig an Animation Space or MWE fit builds on: `base` after checking it is an SSD rig
+// of the examples' size, or a fresh fit_lbs with up to `max_influences` influences when `base`
+// is null. `who` names the caller in error messages.
+SkinningRig base_lbs_rig(const SkinningExamples& ex, const SkinningRig* base, int max_influences,
+                         const std::string& who);
+
 // min ½ xᵀHx − gᵀx subject to x ≥ 0 (H symmetric positive semi-definite, small): Lawson–Hanson
 // active set on the normal equations. Exposed for tests.
 Eigen::VectorXd nonnegative_least_squares(const Eigen::MatrixXd& H, const Eigen::VectorXd& g);

@@ -31,20 +31,7 @@ SkinningRig fit_mwe(const SkinningExamples& ex, const SkinningRig* base_lbs,
   validate_examples(ex, false);
   if (!(options.ridge_scale >= 0)) throw InputError("mwe: ridge scale s must be ≥ 0");
   if (options.components < 0) throw InputError("mwe: components must be ≥ 0");
-  SkinningRig lbs;
-  if (base_lbs) {
-    if (base_lbs->method != SkinningMethod::lbs || base_lbs->vertex_count() != ex.vertex_count() ||
-        base_lbs->bone_count != ex.bone_count())
-      throw InputError("mwe: the base rig must be an ssd rig with the examples' " +
-                       std::to_string(ex.vertex_count()) + " vertices and " +
-                       std::to_string(ex.bone_count()) + " bones");
-    lbs = *base_lbs;
-  } else {
-    LbsFitOptions lo;
-    lo.max_influences = options.max_influences;
-    lo.require_rigid = false;
-    lbs = fit_lbs(ex, {}, lo);
-  }
+  const SkinningRig lbs = base_lbs_rig(ex, base_lbs, options.max_influences, "mwe");
   const double base_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   t0 = std::chrono::steady_clock::now();

@@ -62,6 +62,18 @@ ProgressCallback ProgressBar::callback() {
   };
 }
 
+std::vector<std::string> split_commas(std::string_view list) {
+  std::vector<std::string> out;
+  size_t start = 0;
+  while (start <= list.size()) {
+    size_t end = list.find(',', start);
+    if (end == std::string_view::npos) end = list.size();
+    if (end > start) out.emplace_back(list.substr(start, end - start));
+    start = end + 1;
+  }
+  return out;
+}
+
 void info(std::string_view message) {
   std::fprintf(stderr, "bodymodel: %.*s\n", static_cast<int>(message.size()), message.data());
 }

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "core/progress.h"
 
@@ -27,6 +28,9 @@ class ProgressBar {
   bool finished_ = false;
   int last_percent_ = -1;
 };
+
+// "a,b,,c" → {"a", "b", "c"}: a comma-separated option value, empty items dropped.
+std::vector<std::string> split_commas(std::string_view list);
 
 // Informational line on stderr ("bodymodel: ..."), so stdout stays machine-readable.
 void info(std::string_view message);

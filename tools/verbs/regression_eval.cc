@@ -32,15 +32,6 @@ struct EvalRegressorsArgs {
   bool no_directions = false;
 };
 
-std::vector<std::string> split_commas(const std::string& s) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ','))
-    if (!item.empty()) out.push_back(item);
-  return out;
-}
-
 // A list stored as JSON text (the model file, model/model_file.h) or comma-separated text.
 std::vector<std::string> read_list(const Npz& z, const std::string& key, const std::string& file) {
   const std::string text = z.text(key);
@@ -51,7 +42,7 @@ std::vector<std::string> read_list(const Npz& z, const std::string& key, const s
       throw InputError("'" + file + "': key '" + key + "' is not a JSON list of strings: " + e.what());
     }
   }
-  return split_commas(text);
+  return cli::split_commas(text);
 }
 
 std::string default_unit(const std::string& label) {
@@ -135,7 +126,7 @@ BODYMODEL_VERB(add_eval_regressors_verb) {
     }
     // Requested labels.
     std::vector<std::string> wanted;
-    for (const auto& l : split_commas(a->labels)) {
+    for (const auto& l : cli::split_commas(a->labels)) {
       if (l == "pose:*") {
         for (const auto& n : names)
           if (n.rfind("pose:", 0) == 0) wanted.push_back(n);
@@ -164,7 +155,7 @@ BODYMODEL_VERB(add_eval_regressors_verb) {
     }
 
     RegressionStudyOptions o;
-    o.regressors = split_commas(a->regressors);
+    o.regressors = cli::split_commas(a->regressors);
     for (const auto& r : o.regressors) make_regressor(r);  // validates the names
     o.cross_validation.folds = a->folds;
     o.cross_validation.seed = a->seed;

@@ -28,15 +28,6 @@ struct EvalArgs {
   unsigned seed = 1;
 };
 
-std::vector<std::string> split_list(const std::string& s) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ','))
-    if (!item.empty()) out.push_back(item);
-  return out;
-}
-
 void merge(DeviationStats& a, const DeviationStats& b) {
   a.count += b.count;
   a.frames += b.frames;
@@ -54,7 +45,7 @@ void run_eval(const EvalArgs& a) {
   const int nf = static_cast<int>(seq.frames.size());
   SequenceEvaluationOptions opt;
   opt.methods.clear();
-  for (const auto& m : split_list(a.methods)) opt.methods.push_back(parse_skinning_method(m));
+  for (const auto& m : split_commas(a.methods)) opt.methods.push_back(parse_skinning_method(m));
   if (opt.methods.empty()) throw InputError("--methods: no method given");
   opt.recovery.bones = a.bones;
   opt.recovery.seed = a.seed;
@@ -91,7 +82,7 @@ void run_eval(const EvalArgs& a) {
   } else {
     std::vector<int> t;
     if (!a.train.empty()) {
-      for (const auto& n : split_list(a.train)) t.push_back(index_of(n));
+      for (const auto& n : split_commas(a.train)) t.push_back(index_of(n));
       protocol = "training frames listed with --train";
     } else if (a.train_every > 0) {
       for (int f = 0; f < nf; f += a.train_every) t.push_back(f);
