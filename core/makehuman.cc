@@ -257,8 +257,8 @@ struct TargetData {
 };
 
 // Parses a .target file: "# comment" lines and "<index> <dx> <dy> <dz>" lines.
-TargetData parse_target(const fs::path& path, int vertex_count) {
-  const std::string text = read_whole_file(path);
+// `text` must stay NUL-terminated (std::string): the number scanners stop at the terminator.
+TargetData parse_target_text(const std::string& text, const std::string& name, int vertex_count) {
   TargetData t;
   t.index.reserve(text.size() / 24);
   t.offset.reserve(text.size() / 8);
@@ -266,7 +266,7 @@ TargetData parse_target(const fs::path& path, int vertex_count) {
   const char* end = p + text.size();
   int line = 0;
   auto fail = [&](const std::string& what) {
-    throw InputError("target '" + path.string() + "' line " + std::to_string(line) + ": " + what);
+    throw InputError("target '" + name + "' line " + std::to_string(line) + ": " + what);
   };
   while (p < end) {
     ++line;
@@ -306,6 +306,10 @@ TargetData parse_target(const fs::path& path, int vertex_count) {
     p = eol + 1;
   }
   return t;
+}
+
+TargetData parse_target(const fs::path& path, int vertex_count) {
+  return parse_target_text(read_whole_file(path), path.string(), vertex_count);
 }
 
 // base.obj: vertices and the faces of group "body" (any other group's faces are skipped).
@@ -377,13 +381,16 @@ BaseMesh parse_base_obj(const fs::path& path) {
   return mesh;
 }
 
-nlohmann::ordered_json read_json(const fs::path& path) {
-  const std::string text = read_whole_file(path);
+nlohmann::ordered_json parse_json_text(const std::string& text, const std::string& name) {
   try {
     return nlohmann::ordered_json::parse(text);
   } catch (const nlohmann::json::parse_error& e) {
-    throw InputError("'" + path.string() + "' is not valid JSON: " + e.what());
+    throw InputError("'" + name + "' is not valid JSON: " + e.what());
   }
+}
+
+nlohmann::ordered_json read_json(const fs::path& path) {
+  return parse_json_text(read_whole_file(path), path.string());
 }
 
 }  // namespace
@@ -505,9 +512,8 @@ void apply_options(MakeHuman::Impl& m, const MakeHuman::Options& options) {
   }
 }
 
-void load_skeleton(MakeHuman::Impl& m) {
-  const fs::path path = m.dir / "rig" / "default.mhskel";
-  const auto j = read_json(path);
+void load_skeleton_json(MakeHuman::Impl& m, const nlohmann::ordered_json& j,
+                        const fs::path& path) {
   auto fail = [&](const std::string& what) {
     throw InputError("skeleton '" + path.string() + "': " + what);
   };
@@ -576,9 +582,13 @@ void load_skeleton(MakeHuman::Impl& m) {
          " bones are not connected to the root (unknown parent)");
 }
 
-void load_weights(MakeHuman::Impl& m) {
-  const fs::path path = m.dir / "rig" / "default_weights.mhw";
-  const auto j = read_json(path);
+void load_skeleton(MakeHuman::Impl& m) {
+  const fs::path path = m.dir / "rig" / "default.mhskel";
+  load_skeleton_json(m, read_json(path), path);
+}
+
+void load_weights_json(MakeHuman::Impl& m, const nlohmann::ordered_json& j,
+                       const fs::path& path) {
   if (!j.contains("weights") || !j["weights"].is_object())
     throw InputError("weights '" + path.string() + "': expected an object 'weights'");
   std::unordered_map<std::string, int> bone;
@@ -631,7 +641,33 @@ void load_weights(MakeHuman::Impl& m) {
   m.weights_body.makeCompressed();
 }
 
+void load_weights(MakeHuman::Impl& m) {
+  const fs::path path = m.dir / "rig" / "default_weights.mhw";
+  load_weights_json(m, read_json(path), path);
+}
+
 }  // namespace
+
+// ---- parse-only entry points (tests, fuzzing) -------------------------------------------------
+
+int parse_makehuman_target(const std::string& text, const std::string& name, int vertex_count) {
+  return static_cast<int>(parse_target_text(text, name, vertex_count).index.size());
+}
+
+std::vector<std::string> parse_makehuman_skeleton(const std::string& text,
+                                                  const std::string& name) {
+  MakeHuman::Impl m;
+  load_skeleton_json(m, parse_json_text(text, name), name);
+  return m.bone_names;
+}
+
+SkinWeights parse_makehuman_weights(const std::string& text, const std::string& name,
+                                    const std::vector<std::string>& bone_names) {
+  MakeHuman::Impl m;
+  m.bone_names = bone_names;
+  load_weights_json(m, parse_json_text(text, name), name);
+  return m.weights_all;
+}
 
 MakeHuman MakeHuman::load(const fs::path& makehuman_dir, const Options& options) {
   auto m = std::make_shared<Impl>();

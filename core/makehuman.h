@@ -122,6 +122,17 @@ class MakeHuman {
   std::shared_ptr<const Impl> impl_;
 };
 
+// Parse-only entry points of the readers MakeHuman::load uses, from memory (`name` names the
+// input in errors; each throws InputError exactly as load() does). For tests and fuzzing.
+// A .target file: the number of "<index> <dx> <dy> <dz>" rows.
+int parse_makehuman_target(const std::string& text, const std::string& name,
+                           int vertex_count = MakeHuman::kVertexCount);
+// A .mhskel file: the bone names in load()'s order (breadth first from the root).
+std::vector<std::string> parse_makehuman_skeleton(const std::string& text, const std::string& name);
+// A .mhw file for a skeleton with these bones: normalised weights, 19158 by #bones.
+SkinWeights parse_makehuman_weights(const std::string& text, const std::string& name,
+                                    const std::vector<std::string>& bone_names);
+
 // Body height in mm as MakeHuman measures it: the y-extent of vertices 0..13379
 // (V: #V by 3, mm, at least 13380 rows).
 double makehuman_body_height(const Eigen::MatrixX3d& V);
