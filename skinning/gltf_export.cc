@@ -1,0 +1,374 @@
+#include "skinning/gltf_export.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+#include <sstream>
+
+// The tinygltf implementation lives in this translation unit only. No images are written or
+// read, so stb_image is not needed (Debian's tiny_gltf.h would include <stb_image.h>).
+#define TINYGLTF_IMPLEMENTATION
+#define TINYGLTF_NO_STB_IMAGE
+#define TINYGLTF_NO_STB_IMAGE_WRITE
+#define TINYGLTF_NO_EXTERNAL_IMAGE
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wrestrict"
+#pragma GCC diagnostic ignored "-Wstringop-overflow"
+#include <tiny_gltf.h>
+#pragma GCC diagnostic pop
+
+#include "core/error.h"
+#include "core/geometry.h"
+#include "core/io/atomic_write.h"
+
+namespace bodymodel {
+namespace {
+
+// Builds one binary buffer (4-byte aligned views) with its views and accessors.
+class BufferBuilder {
+ public:
+  explicit BufferBuilder(tinygltf::Model* model) : model_(model) { model_->buffers.emplace_back(); }
+
+  // A view over `bytes` bytes copied from `data`; target 0 = none.
+  int view(const void* data, size_t bytes, int target) {
+    auto& buf = model_->buffers[0].data;
+    while (buf.size() % 4) buf.push_back(0);
+    tinygltf::BufferView v;
+    v.buffer = 0;
+    v.byteOffset = buf.size();
+    v.byteLength = bytes;
+    v.target = target;
+    const auto* p = static_cast<const unsigned char*>(data);
+    buf.insert(buf.end(), p, p + bytes);
+    model_->bufferViews.push_back(v);
+    return static_cast<int>(model_->bufferViews.size()) - 1;
+  }
+
+  // An accessor over a new view. `type` TINYGLTF_TYPE_*, `component` TINYGLTF_COMPONENT_TYPE_*.
+  int accessor(const void* data, size_t bytes, int component, int type, size_t count, int target,
+               std::vector<double> min = {}, std::vector<double> max = {}) {
+    tinygltf::Accessor a;
+    a.bufferView = view(data, bytes, target);
+    a.byteOffset = 0;
+    a.componentType = component;
+    a.type = type;
+    a.count = count;
+    a.minValues = std::move(min);
+    a.maxValues = std::move(max);
+    model_->accessors.push_back(a);
+    return static_cast<int>(model_->accessors.size()) - 1;
+  }
+
+ private:
+  tinygltf::Model* model_;
+};
+
+// glTF quaternion [x y z w] of a rotation matrix, sign chosen so it is closest to `previous`.
+Eigen::Vector4d quaternion_xyzw(const Eigen::Matrix3d& R, const Eigen::Vector4d* previous) {
+  Eigen::Quaterniond q(R);
+  q.normalize();
+  Eigen::Vector4d v(q.x(), q.y(), q.z(), q.w());
+  if (previous ? v.dot(*previous) < 0 : v(3) < 0) v = -v;
+  return v;
+}
+
+void check_finite(const Eigen::MatrixXd& M, const std::string& what) {
+  if (!M.allFinite()) throw InputError("glTF export: " + what + " contains NaN or infinite values");
+}
+
+}  // namespace
+
+Skeleton flat_skeleton(int bone_count, const std::string& prefix) {
+  if (bone_count < 1) throw InputError("flat skeleton: expected at least one bone, found " + std::to_string(bone_count));
+  Skeleton s;
+  for (int b = 0; b < bone_count; ++b) {
+    s.names.push_back(prefix + std::to_string(b));
+    s.parents.push_back(-1);
+  }
+  s.heads = Eigen::MatrixX3d::Zero(bone_count, 3);
+  s.tails = Eigen::MatrixX3d::Zero(bone_count, 3);
+  s.tails.col(1).setOnes();
+  return s;
+}
+
+SkinWeights gltf_top4_weights(const SkinWeights& W) {
+  std::vector<Eigen::Triplet<double>> trip;
+  for (int i = 0; i < W.rows(); ++i) {
+    std::vector<std::pair<double, int>> row;
+    for (SkinWeights::InnerIterator it(W, i); it; ++it)
+      if (it.value() > 0) row.emplace_back(it.value(), static_cast<int>(it.col()));
+    std::sort(row.begin(), row.end(), [](const auto& a, const auto& b) {
+      return a.first != b.first ? a.first > b.first : a.second < b.second;
+    });
+    if (row.size() > 4) row.resize(4);
+    double sum = 0;
+    for (const auto& [w, b] : row) sum += w;
+    if (!(sum > 0)) continue;   // an empty row stays empty (the exporter rejects it)
+    // float32 values summing to one as closely as float allows: the largest absorbs the rest.
+    float f[4] = {0, 0, 0, 0};
+    float rest = 1.f;
+    for (size_t k = 1; k < row.size(); ++k) {
+      f[k] = static_cast<float>(row[k].first / sum);
+      rest -= f[k];
+    }
+    f[0] = rest;
+    for (size_t k = 0; k < row.size(); ++k) trip.emplace_back(i, row[k].second, static_cast<double>(f[k]));
+  }
+  SkinWeights out(W.rows(), W.cols());
+  out.setFromTriplets(trip.begin(), trip.end());
+  return out;
+}
+
+std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const Eigen::MatrixX3d& N_in,
+                               const Skeleton& skeleton, const SkinWeights& W, const GltfAnimation* animation,
+                               const GltfExportOptions& options, GltfExportSummary* summary) {
+  // ---- checks ----
+  skeleton.validate();
+  const int n = static_cast<int>(V.rows()), B = skeleton.bone_count();
+  if (n == 0 || F.rows() == 0) throw InputError("glTF export: the mesh is empty (" + std::to_string(n) + " vertices, " +
+                                                std::to_string(F.rows()) + " triangles)");
+  if (B < 1 || B > 65536) throw InputError("glTF export: expected 1 to 65536 joints, found " + std::to_string(B));
+  if (!(options.unit_scale > 0) || !std::isfinite(options.unit_scale))
+    throw InputError("glTF export: unit_scale must be positive, found " + std::to_string(options.unit_scale));
+  check_finite(V, "the rest vertices");
+  check_finite(skeleton.heads, "the skeleton heads");
+  if (F.minCoeff() < 0 || F.maxCoeff() >= n)
+    throw InputError("glTF export: face indices must be in [0, " + std::to_string(n) + "), found " +
+                     std::to_string(F.minCoeff()) + ".." + std::to_string(F.maxCoeff()));
+  if (W.rows() != n || W.cols() != B)
+    throw InputError("glTF export: weights are " + std::to_string(W.rows()) + " by " + std::to_string(W.cols()) +
+                     ", expected #V " + std::to_string(n) + " by #bones " + std::to_string(B));
+  Eigen::MatrixX3d N = N_in;
+  if (N.size() == 0) {
+    N = vertex_normals(V, F);
+  } else if (N.rows() != n) {
+    throw InputError("glTF export: " + std::to_string(N.rows()) + " normals for " + std::to_string(n) + " vertices");
+  }
+  check_finite(N, "the normals");
+  GltfExportSummary sum;
+  sum.vertices = n;
+  sum.triangles = static_cast<int>(F.rows());
+  sum.joints = B;
+  const double s = options.unit_scale;
+  // Rest translation of joint b relative to its parent (input units).
+  auto rest_offset = [&](int b) -> Eigen::Vector3d {
+    const int p = skeleton.parents[static_cast<size_t>(b)];
+    Eigen::Vector3d t = skeleton.heads.row(b).transpose();
+    if (p >= 0) t -= skeleton.heads.row(p).transpose();
+    return t;
+  };
+
+  tinygltf::Model model;
+  model.asset.version = "2.0";
+  model.asset.generator = options.generator;
+  BufferBuilder buf(&model);
+
+  // ---- mesh attributes ----
+  std::vector<float> pos(3 * static_cast<size_t>(n)), nrm(3 * static_cast<size_t>(n));
+  std::vector<double> pmin(3, 1e300), pmax(3, -1e300);
+  for (int i = 0; i < n; ++i) {
+    Eigen::Vector3d nn = N.row(i).transpose();
+    const double len = nn.norm();
+    nn = len > 1e-12 ? Eigen::Vector3d(nn / len) : Eigen::Vector3d(0, 1, 0);   // degenerate: any unit vector
+    for (int d = 0; d < 3; ++d) {
+      const float p = static_cast<float>(V(i, d) * s);
+      pos[3 * static_cast<size_t>(i) + d] = p;
+      pmin[d] = std::min(pmin[d], double(p));
+      pmax[d] = std::max(pmax[d], double(p));
+      nrm[3 * static_cast<size_t>(i) + d] = static_cast<float>(nn(d));
+    }
+  }
+  std::vector<uint32_t> idx(3 * static_cast<size_t>(F.rows()));
+  for (int f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) idx[3 * static_cast<size_t>(f) + k] = static_cast<uint32_t>(F(f, k));
+
+  // ---- weights: top 4, renormalised ----
+  const SkinWeights W4 = gltf_top4_weights(W);
+  const bool short_joints = B > 256;
+  std::vector<uint8_t> j8;
+  std::vector<uint16_t> j16;
+  if (short_joints) j16.assign(4 * static_cast<size_t>(n), 0); else j8.assign(4 * static_cast<size_t>(n), 0);
+  std::vector<float> w4(4 * static_cast<size_t>(n), 0.f);
+  for (int i = 0; i < n; ++i) {
+    double total = 0;
+    int nonzero = 0;
+    for (SkinWeights::InnerIterator it(W, i); it; ++it) {
+      if (!std::isfinite(it.value()) || it.value() < 0)
+        throw InputError("glTF export: weight of vertex " + std::to_string(i) + ", bone " + std::to_string(it.col()) +
+                         " is " + std::to_string(it.value()) + ", expected a finite non-negative value");
+      if (it.value() > 0) { total += it.value(); ++nonzero; }
+    }
+    if (!(total > 0)) throw InputError("glTF export: vertex " + std::to_string(i) + " has no positive weight");
+    std::vector<std::pair<double, int>> kept;
+    for (SkinWeights::InnerIterator it(W4, i); it; ++it) kept.emplace_back(it.value(), static_cast<int>(it.col()));
+    std::sort(kept.begin(), kept.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+    if (nonzero > 4) {
+      ++sum.vertices_truncated;
+      double kept_orig = 0;   // original weights of the kept bones
+      for (const auto& [w, b] : kept) kept_orig += W.coeff(i, b);
+      sum.max_dropped_weight = std::max(sum.max_dropped_weight, (total - kept_orig) / total);
+    }
+    for (size_t k = 0; k < kept.size(); ++k) {
+      const size_t o = 4 * static_cast<size_t>(i) + k;
+      w4[o] = static_cast<float>(kept[k].first);
+      if (short_joints) j16[o] = static_cast<uint16_t>(kept[k].second); else j8[o] = static_cast<uint8_t>(kept[k].second);
+    }
+  }
+
+  tinygltf::Primitive prim;
+  prim.mode = TINYGLTF_MODE_TRIANGLES;
+  prim.attributes["POSITION"] = buf.accessor(pos.data(), pos.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                             TINYGLTF_TYPE_VEC3, n, TINYGLTF_TARGET_ARRAY_BUFFER, pmin, pmax);
+  prim.attributes["NORMAL"] = buf.accessor(nrm.data(), nrm.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                           TINYGLTF_TYPE_VEC3, n, TINYGLTF_TARGET_ARRAY_BUFFER);
+  if (short_joints)
+    prim.attributes["JOINTS_0"] = buf.accessor(j16.data(), j16.size() * 2, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
+                                               TINYGLTF_TYPE_VEC4, n, TINYGLTF_TARGET_ARRAY_BUFFER);
+  else
+    prim.attributes["JOINTS_0"] = buf.accessor(j8.data(), j8.size(), TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+                                               TINYGLTF_TYPE_VEC4, n, TINYGLTF_TARGET_ARRAY_BUFFER);
+  prim.attributes["WEIGHTS_0"] = buf.accessor(w4.data(), w4.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                              TINYGLTF_TYPE_VEC4, n, TINYGLTF_TARGET_ARRAY_BUFFER);
+  prim.indices = buf.accessor(idx.data(), idx.size() * 4, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR,
+                              idx.size(), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+  tinygltf::Mesh mesh;
+  mesh.name = options.mesh_name;
+  mesh.primitives.push_back(prim);
+  model.meshes.push_back(mesh);
+
+  // ---- joints: nodes 0..B-1, the mesh node B ----
+  for (int b = 0; b < B; ++b) {
+    tinygltf::Node node;
+    node.name = skeleton.names[static_cast<size_t>(b)];
+    const Eigen::Vector3d t = rest_offset(b) * s;
+    if (t.squaredNorm() > 0) node.translation = {t(0), t(1), t(2)};
+    model.nodes.push_back(node);
+  }
+  for (int b = 0; b < B; ++b) {
+    const int p = skeleton.parents[static_cast<size_t>(b)];
+    if (p >= 0) model.nodes[static_cast<size_t>(p)].children.push_back(b);
+  }
+  std::vector<float> ibm(16 * static_cast<size_t>(B), 0.f);
+  for (int b = 0; b < B; ++b) {
+    float* m = ibm.data() + 16 * static_cast<size_t>(b);   // column-major 4 by 4
+    m[0] = m[5] = m[10] = m[15] = 1.f;
+    for (int d = 0; d < 3; ++d) m[12 + d] = static_cast<float>(-skeleton.heads(b, d) * s);
+  }
+  tinygltf::Skin skin;
+  skin.name = "skeleton";
+  skin.inverseBindMatrices = buf.accessor(ibm.data(), ibm.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                          TINYGLTF_TYPE_MAT4, B, 0);
+  skin.joints.resize(static_cast<size_t>(B));
+  std::iota(skin.joints.begin(), skin.joints.end(), 0);
+  int roots = 0;
+  for (int b = 0; b < B; ++b) roots += skeleton.parents[static_cast<size_t>(b)] < 0;
+  if (roots == 1) skin.skeleton = 0;   // parents[b] < b: bone 0 is the root
+  model.skins.push_back(skin);
+
+  tinygltf::Node mesh_node;
+  mesh_node.name = options.mesh_name;
+  mesh_node.mesh = 0;
+  mesh_node.skin = 0;
+  model.nodes.push_back(mesh_node);
+
+  tinygltf::Scene scene;
+  scene.name = "scene";
+  scene.nodes.push_back(B);
+  for (int b = 0; b < B; ++b)
+    if (skeleton.parents[static_cast<size_t>(b)] < 0) scene.nodes.push_back(b);
+  model.scenes.push_back(scene);
+  model.defaultScene = 0;
+
+  // ---- animation ----
+  if (animation && !animation->frames.empty()) {
+    const int T = static_cast<int>(animation->frames.size());
+    if (!(animation->frame_time > 0) || !std::isfinite(animation->frame_time))
+      throw InputError("glTF export: animation frame time must be positive, found " + std::to_string(animation->frame_time));
+    sum.frames = T;
+    std::vector<std::vector<float>> rot(static_cast<size_t>(B)), tra(static_cast<size_t>(B));
+    std::vector<Eigen::Vector4d> prev(static_cast<size_t>(B));
+    std::vector<bool> moves(static_cast<size_t>(B), false);
+    std::vector<Eigen::Matrix3d> Q(static_cast<size_t>(B));
+    std::vector<Eigen::Vector3d> head(static_cast<size_t>(B));
+    for (int t = 0; t < T; ++t) {
+      const BoneTransforms& M = animation->frames[static_cast<size_t>(t)];
+      if (static_cast<int>(M.size()) != B)
+        throw InputError("glTF export: animation frame " + std::to_string(t) + " has " + std::to_string(M.size()) +
+                         " bone transforms, expected " + std::to_string(B));
+      for (int b = 0; b < B; ++b) {
+        const Eigen::Matrix3d R = M[static_cast<size_t>(b)].linear();
+        check_finite(M[static_cast<size_t>(b)].matrix(), "animation frame " + std::to_string(t) + ", bone " + std::to_string(b));
+        const double dev = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+        if (dev > options.rigid_tolerance || R.determinant() < 0)
+          throw InputError("glTF export: animation frame " + std::to_string(t) + ", bone " +
+                           skeleton.names[static_cast<size_t>(b)] + " is not a rigid motion (|RᵀR − I| = " +
+                           std::to_string(dev) + ", det " + std::to_string(R.determinant()) + ")");
+        // Project onto the nearest rotation so the quaternion is exact.
+        Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
+        Q[static_cast<size_t>(b)] = svd.matrixU() * svd.matrixV().transpose();
+        head[static_cast<size_t>(b)] = M[static_cast<size_t>(b)] * Eigen::Vector3d(skeleton.heads.row(b).transpose());
+      }
+      for (int b = 0; b < B; ++b) {
+        const int p = skeleton.parents[static_cast<size_t>(b)];
+        const Eigen::Matrix3d local_R = p >= 0 ? Eigen::Matrix3d(Q[static_cast<size_t>(p)].transpose() * Q[static_cast<size_t>(b)])
+                                               : Q[static_cast<size_t>(b)];
+        const Eigen::Vector3d local_t =
+            (p >= 0 ? Eigen::Vector3d(Q[static_cast<size_t>(p)].transpose() * (head[static_cast<size_t>(b)] - head[static_cast<size_t>(p)]))
+                    : head[static_cast<size_t>(b)]) * s;
+        const Eigen::Vector4d q = quaternion_xyzw(local_R, t ? &prev[static_cast<size_t>(b)] : nullptr);
+        prev[static_cast<size_t>(b)] = q;
+        for (int d = 0; d < 4; ++d) rot[static_cast<size_t>(b)].push_back(static_cast<float>(q(d)));
+        for (int d = 0; d < 3; ++d) tra[static_cast<size_t>(b)].push_back(static_cast<float>(local_t(d)));
+        const Eigen::Vector3d rest_t = rest_offset(b) * s;
+        if (p < 0 || (local_t - rest_t).norm() > 1e-6 * std::max(1.0, rest_t.norm())) moves[static_cast<size_t>(b)] = true;
+      }
+    }
+    std::vector<float> times(static_cast<size_t>(T));
+    for (int t = 0; t < T; ++t) times[static_cast<size_t>(t)] = static_cast<float>(t * animation->frame_time);
+    const int input = buf.accessor(times.data(), times.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR,
+                                   static_cast<size_t>(T), 0, {double(times.front())}, {double(times.back())});
+    tinygltf::Animation anim;
+    anim.name = animation->name;
+    auto add = [&](int node, const std::vector<float>& values, int type, const char* path) {
+      tinygltf::AnimationSampler sampler;
+      sampler.input = input;
+      sampler.interpolation = "LINEAR";
+      sampler.output = buf.accessor(values.data(), values.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT, type,
+                                    static_cast<size_t>(T), 0);
+      anim.samplers.push_back(sampler);
+      tinygltf::AnimationChannel ch;
+      ch.sampler = static_cast<int>(anim.samplers.size()) - 1;
+      ch.target_node = node;
+      ch.target_path = path;
+      anim.channels.push_back(ch);
+    };
+    for (int b = 0; b < B; ++b) {
+      add(b, rot[static_cast<size_t>(b)], TINYGLTF_TYPE_VEC4, "rotation");
+      if (moves[static_cast<size_t>(b)]) add(b, tra[static_cast<size_t>(b)], TINYGLTF_TYPE_VEC3, "translation");
+    }
+    model.animations.push_back(anim);
+  }
+
+  // ---- serialise ----
+  std::ostringstream out;
+  tinygltf::TinyGLTF writer;
+  if (!writer.WriteGltfSceneToStream(&model, out, false, true))
+    throw NumericalError("glTF export: tinygltf could not serialise the model");
+  std::string bytes = out.str();
+  sum.bytes = bytes.size();
+  if (summary) *summary = sum;
+  return bytes;
+}
+
+GltfExportSummary write_skinned_gltf(const std::filesystem::path& path, const Eigen::MatrixX3d& V,
+                                     const Eigen::MatrixX3i& F, const Eigen::MatrixX3d& N, const Skeleton& skeleton,
+                                     const SkinWeights& W, const GltfAnimation* animation,
+                                     const GltfExportOptions& options) {
+  GltfExportSummary summary;
+  const std::string bytes = skinned_gltf_bytes(V, F, N, skeleton, W, animation, options, &summary);
+  write_atomically(path, [&](std::ostream& os) { os.write(bytes.data(), static_cast<std::streamsize>(bytes.size())); });
+  return summary;
+}
+
+}  // namespace bodymodel

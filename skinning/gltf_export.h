@@ -1,0 +1,83 @@
+// glTF 2.0 binary (.glb) export of a linear-blend-skinned character: rest mesh, normals, the
+// joint hierarchy, up to 4 weights per vertex, inverse bind matrices and an optional animation.
+//
+// Units: the input is in `unit_scale`-units (mm for bodies); glTF is in METRES, so positions,
+// joint translations and inverse bind matrices are multiplied by unit_scale (default 0.001).
+//
+// Joints (one node each, named after the bone, children under their parent node): the rest
+// world matrix of joint b is a pure translation to its head h_b (no rest rotation), so the
+// inverse bind matrix is translate(−h_b) and, for bone maps M_b (rest → posed, rigid,
+// core/skeleton.h), the posed joint's world matrix is G_b = [Q_b | M_b(h_b)] with Q_b the linear
+// part of M_b. Then G_b · IBM_b = M_b, i.e. glTF's skinning v' = Σ_k w_k G_k IBM_k v equals
+// our LBS v' = Σ_k w_k M_k v. Local node transforms are G_parent⁻¹ G_b: rotation Q_pᵀ Q_b and
+// translation Q_pᵀ (M_b(h_b) − M_p(h_p)) (constant = h_b − h_p for forward kinematics poses).
+//
+// Animation: one LINEAR sampler per joint for its local rotation (unit quaternions, sign kept
+// continuous between frames) and one for the translation of every root joint and of any joint
+// whose local translation changes over the clip; keyframe times k · frame_time seconds.
+//
+// Weights: each vertex keeps its 4 largest weights (ties: lower bone index), renormalised to sum
+// to one (in float32, exactly as stored); unused slots get joint 0 and weight 0.
+// The skinned mesh node sits at the scene root without a transform (as the spec requires); the
+// joint roots are scene roots too. Bytes are written through write_atomically.
+#pragma once
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/skeleton.h"
+
+namespace bodymodel {
+
+struct GltfAnimation {
+  std::string name = "clip";
+  double frame_time = 1.0 / 30;         // seconds per frame (> 0)
+  std::vector<BoneTransforms> frames;   // #frames, each #B rigid bone maps rest → posed
+                                        // (input units), e.g. forward_kinematics of a pose
+};
+
+struct GltfExportOptions {
+  double unit_scale = 0.001;            // input unit → metre (mm → m)
+  std::string mesh_name = "body";
+  std::string generator = "bodymodel";
+  double rigid_tolerance = 1e-4;        // max |QᵀQ − I| accepted for an animation bone map
+};
+
+struct GltfExportSummary {
+  int vertices = 0, triangles = 0, joints = 0, frames = 0;
+  int vertices_truncated = 0;           // vertices that had more than 4 non-zero weights
+  double max_dropped_weight = 0;        // largest total weight dropped from one vertex
+  size_t bytes = 0;                     // size of the .glb
+};
+
+// The .glb bytes.
+//   V  #V by 3 rest positions (input units, e.g. mm)      F  #F by 3 triangles (0-based)
+//   N  #V by 3 rest normals (unit), or empty: area-weighted vertex normals of (V, F)
+//   skeleton  #B bones (heads in input units)              W  #V by #B skinning weights
+//   animation optional (nullptr: no animation)
+// Throws InputError naming the element for inconsistent sizes, NaNs, out-of-range faces,
+// empty weight rows, non-rigid animation transforms or more than 65 536 joints.
+std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
+                               const Eigen::MatrixX3d& N, const Skeleton& skeleton,
+                               const SkinWeights& W, const GltfAnimation* animation = nullptr,
+                               const GltfExportOptions& options = {},
+                               GltfExportSummary* summary = nullptr);
+
+// skinned_gltf_bytes written to `path` atomically.
+GltfExportSummary write_skinned_gltf(const std::filesystem::path& path, const Eigen::MatrixX3d& V,
+                                     const Eigen::MatrixX3i& F, const Eigen::MatrixX3d& N,
+                                     const Skeleton& skeleton, const SkinWeights& W,
+                                     const GltfAnimation* animation = nullptr,
+                                     const GltfExportOptions& options = {});
+
+// The 4-influence weights the exporter stores (#V by #B, float32 values widened to double):
+// for tests and for comparing against the exported file.
+SkinWeights gltf_top4_weights(const SkinWeights& W);
+
+// A skeleton of #B unconnected joints with heads at the origin, for rigs whose bones have no
+// hierarchy (bones recovered from a mesh sequence): the animation then carries each bone's map.
+Skeleton flat_skeleton(int bone_count, const std::string& prefix = "bone");
+
+}  // namespace bodymodel

@@ -1,0 +1,278 @@
+// glTF export: the .glb re-read with tinygltf has the expected counts, weights summing to one, and
+// glTF's own skinning (node hierarchy from the animation's first frame × inverse bind matrices)
+// reproduces our LBS of the same frame within 1e-3 mm.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <random>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#define TINYGLTF_NO_STB_IMAGE
+#define TINYGLTF_NO_STB_IMAGE_WRITE
+#define TINYGLTF_NO_EXTERNAL_IMAGE
+#include <tiny_gltf.h>   // declarations only: the implementation is in skinning/gltf_export.cc
+
+#include "core/error.h"
+#include "core/geometry.h"
+#include "core/io/atomic_write.h"
+#include "skinning/gltf_export.h"
+
+namespace bodymodel {
+namespace {
+
+// A tube along +x (mm, 300 long) with a branching 5-bone skeleton: 0 root → 1 → 2, and 0 → 3 → 4.
+// Weights: smooth hats over all five bones, so vertices have up to 5 non-zero weights (truncated
+// to 4 by the export).
+struct Character {
+  Eigen::MatrixX3d V;
+  Eigen::MatrixX3i F;
+  Skeleton skeleton;
+  SkinWeights W;
+};
+
+Character make_character() {
+  Character c;
+  const int rings = 21, seg = 12;
+  c.V.resize(rings * seg, 3);
+  for (int r = 0; r < rings; ++r)
+    for (int s = 0; s < seg; ++s) {
+      const double a = 2 * M_PI * s / seg;
+      c.V.row(r * seg + s) << 300.0 * r / (rings - 1), 30 * std::cos(a), 30 * std::sin(a) + 500;
+    }
+  std::vector<Eigen::Vector3i> tris;
+  for (int r = 0; r + 1 < rings; ++r)
+    for (int s = 0; s < seg; ++s) {
+      const int a = r * seg + s, b = r * seg + (s + 1) % seg;
+      tris.emplace_back(a, b, b + seg);
+      tris.emplace_back(a, b + seg, a + seg);
+    }
+  c.F.resize(static_cast<Eigen::Index>(tris.size()), 3);
+  for (size_t i = 0; i < tris.size(); ++i) c.F.row(static_cast<Eigen::Index>(i)) = tris[i];
+  c.skeleton.names = {"root", "upper", "lower", "side", "tip"};
+  c.skeleton.parents = {-1, 0, 1, 0, 3};
+  c.skeleton.heads.resize(5, 3);
+  c.skeleton.heads << 0, 0, 500, 100, 0, 500, 200, 0, 500, 50, 0, 520, 150, 0, 530;
+  c.skeleton.tails = c.skeleton.heads;
+  c.skeleton.tails.col(0).array() += 100;
+  std::vector<Eigen::Triplet<double>> trip;
+  for (int i = 0; i < c.V.rows(); ++i) {
+    double w[5], sum = 0;
+    for (int b = 0; b < 5; ++b) {
+      const double d = (c.V.row(i) - c.skeleton.heads.row(b)).norm();
+      w[b] = std::exp(-d * d / (2 * 90.0 * 90.0)) + (b == 0 ? 1e-3 : 0);
+      sum += w[b];
+    }
+    for (int b = 0; b < 5; ++b) trip.emplace_back(i, b, w[b] / sum);
+  }
+  c.W.resize(c.V.rows(), 5);
+  c.W.setFromTriplets(trip.begin(), trip.end());
+  return c;
+}
+
+Pose random_pose(std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(-1, 1);
+  Pose p = Pose::rest(5);
+  for (auto& R : p.rotations)
+    R = Eigen::AngleAxisd(1.2 * u(rng), Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized()).toRotationMatrix();
+  p.root_translation = Eigen::Vector3d(u(rng), u(rng), u(rng)) * 200;
+  return p;
+}
+
+tinygltf::Model load(const std::string& bytes) {
+  tinygltf::Model model;
+  tinygltf::TinyGLTF loader;
+  std::string err, warn;
+  const bool ok = loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
+                                              static_cast<unsigned int>(bytes.size()));
+  EXPECT_TRUE(ok) << err;
+  EXPECT_TRUE(err.empty()) << err;
+  return model;
+}
+
+// Typed element access through accessor → bufferView → buffer (tightly packed views).
+template <typename T>
+const T* data_of(const tinygltf::Model& m, int accessor) {
+  const auto& a = m.accessors.at(static_cast<size_t>(accessor));
+  const auto& v = m.bufferViews.at(static_cast<size_t>(a.bufferView));
+  return reinterpret_cast<const T*>(m.buffers.at(static_cast<size_t>(v.buffer)).data.data() + v.byteOffset + a.byteOffset);
+}
+
+Eigen::Matrix4d trs(const std::vector<double>& t, const std::vector<double>& q) {
+  Eigen::Matrix4d M = Eigen::Matrix4d::Identity();
+  if (q.size() == 4) M.topLeftCorner<3, 3>() = Eigen::Quaterniond(q[3], q[0], q[1], q[2]).normalized().toRotationMatrix();
+  if (t.size() == 3) M.topRightCorner<3, 1>() << t[0], t[1], t[2];
+  return M;
+}
+
+TEST(GltfExport, ReReadCountsWeightsAndSkinningMatchOurLbs) {
+  const Character c = make_character();
+  std::mt19937 rng(3);
+  GltfAnimation anim;
+  anim.frame_time = 0.04;
+  std::vector<Pose> poses;
+  for (int t = 0; t < 6; ++t) {
+    poses.push_back(random_pose(rng));
+    anim.frames.push_back(forward_kinematics(c.skeleton, poses.back()));
+  }
+  GltfExportSummary summary;
+  const std::string bytes = skinned_gltf_bytes(c.V, c.F, {}, c.skeleton, c.W, &anim, {}, &summary);
+  EXPECT_EQ(summary.bytes, bytes.size());
+  EXPECT_EQ(summary.frames, 6);
+  EXPECT_GT(summary.vertices_truncated, 0);                  // 5 non-zero weights per vertex
+  EXPECT_LT(summary.max_dropped_weight, 0.3);
+  ASSERT_EQ(bytes.substr(0, 4), "glTF");
+
+  const tinygltf::Model m = load(bytes);
+  ASSERT_EQ(m.meshes.size(), 1u);
+  ASSERT_EQ(m.skins.size(), 1u);
+  ASSERT_EQ(m.animations.size(), 1u);
+  ASSERT_EQ(m.nodes.size(), 6u);   // 5 joints + the mesh node
+  const auto& prim = m.meshes[0].primitives.at(0);
+  const int n = static_cast<int>(c.V.rows());
+  EXPECT_EQ(m.accessors.at(static_cast<size_t>(prim.attributes.at("POSITION"))).count, static_cast<size_t>(n));
+  EXPECT_EQ(m.accessors.at(static_cast<size_t>(prim.indices)).count, static_cast<size_t>(3 * c.F.rows()));
+  EXPECT_EQ(m.skins[0].joints.size(), 5u);
+  EXPECT_EQ(m.nodes[0].children, (std::vector<int>{1, 3}));
+
+  // Weights: 4 per vertex, sum to one; the same as gltf_top4_weights.
+  const float* w = data_of<float>(m, prim.attributes.at("WEIGHTS_0"));
+  const uint8_t* j = data_of<uint8_t>(m, prim.attributes.at("JOINTS_0"));
+  ASSERT_EQ(m.accessors.at(static_cast<size_t>(prim.attributes.at("JOINTS_0"))).componentType,
+            TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE);
+  const SkinWeights W4 = gltf_top4_weights(c.W);
+  Eigen::MatrixXd Wfile = Eigen::MatrixXd::Zero(n, 5);
+  double worst_sum = 0;
+  for (int i = 0; i < n; ++i) {
+    double s = 0;
+    for (int k = 0; k < 4; ++k) {
+      s += w[4 * i + k];
+      Wfile(i, j[4 * i + k]) += w[4 * i + k];
+    }
+    worst_sum = std::max(worst_sum, std::abs(s - 1));
+  }
+  EXPECT_LT(worst_sum, 1e-6);
+  EXPECT_LT((Wfile - Eigen::MatrixXd(W4)).cwiseAbs().maxCoeff(), 1e-7);
+
+  // glTF skinning of frame 0: node locals from the animation's first keyframes, world matrices
+  // down the hierarchy, joint matrix = world · IBM; in metres, compared in mm.
+  const auto& anim_m = m.animations[0];
+  std::vector<std::vector<double>> T(5), Q(5);
+  for (int b = 0; b < 5; ++b) {
+    T[static_cast<size_t>(b)] = m.nodes[static_cast<size_t>(b)].translation;
+    Q[static_cast<size_t>(b)] = m.nodes[static_cast<size_t>(b)].rotation;
+  }
+  for (const auto& ch : anim_m.channels) {
+    const auto& sampler = anim_m.samplers.at(static_cast<size_t>(ch.sampler));
+    EXPECT_EQ(m.accessors.at(static_cast<size_t>(sampler.output)).count, 6u);
+    const float* out = data_of<float>(m, sampler.output);
+    auto& dst = ch.target_path == "rotation" ? Q[static_cast<size_t>(ch.target_node)] : T[static_cast<size_t>(ch.target_node)];
+    const int width = ch.target_path == "rotation" ? 4 : 3;
+    dst.assign(out, out + width);   // keyframe 0
+    if (width == 4) {
+      EXPECT_NEAR(Eigen::Vector4d(out[0], out[1], out[2], out[3]).norm(), 1.0, 1e-6);
+    }
+  }
+  const float* times = data_of<float>(m, anim_m.samplers.at(0).input);
+  EXPECT_FLOAT_EQ(times[5], 0.2f);
+  std::vector<Eigen::Matrix4d> G(5);
+  for (int b = 0; b < 5; ++b) {
+    const Eigen::Matrix4d L = trs(T[static_cast<size_t>(b)], Q[static_cast<size_t>(b)]);
+    const int p = c.skeleton.parents[static_cast<size_t>(b)];
+    G[static_cast<size_t>(b)] = p >= 0 ? Eigen::Matrix4d(G[static_cast<size_t>(p)] * L) : L;
+  }
+  const float* ibm = data_of<float>(m, m.skins[0].inverseBindMatrices);
+  std::vector<Eigen::Matrix4d> J(5);
+  for (int b = 0; b < 5; ++b)
+    J[static_cast<size_t>(b)] = G[static_cast<size_t>(b)] * Eigen::Map<const Eigen::Matrix4f>(ibm + 16 * b).cast<double>();
+  const float* pos = data_of<float>(m, prim.attributes.at("POSITION"));
+  Eigen::MatrixX3d gltf_posed(n, 3);
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector4d v(pos[3 * i], pos[3 * i + 1], pos[3 * i + 2], 1.0);
+    Eigen::Vector4d acc = Eigen::Vector4d::Zero();
+    for (int k = 0; k < 4; ++k) acc += double(w[4 * i + k]) * (J[j[4 * i + k]] * v);
+    gltf_posed.row(i) = acc.head<3>().transpose() * 1000.0;   // m → mm
+  }
+  const Eigen::MatrixX3d ours = linear_blend_skinning(c.V, W4, anim.frames[0]);
+  EXPECT_LT((gltf_posed - ours).cwiseAbs().maxCoeff(), 1e-3);
+  // The pose really moves the mesh (the comparison is not trivial).
+  EXPECT_GT((ours - c.V).rowwise().norm().maxCoeff(), 50.0);
+
+  // Normals are unit; positions' min/max are present (required by the spec).
+  const auto& pa = m.accessors.at(static_cast<size_t>(prim.attributes.at("POSITION")));
+  EXPECT_EQ(pa.minValues.size(), 3u);
+  EXPECT_NEAR(pa.maxValues[0], 0.3, 1e-6);
+}
+
+TEST(GltfExport, FlatSkeletonCarriesArbitraryRigidBoneMaps) {
+  const Character c = make_character();
+  const Skeleton flat = flat_skeleton(5);
+  std::mt19937 rng(5);
+  GltfAnimation anim;
+  anim.frames.push_back(forward_kinematics(c.skeleton, random_pose(rng)));
+  const std::string bytes = skinned_gltf_bytes(c.V, c.F, {}, flat, c.W, &anim);
+  const tinygltf::Model m = load(bytes);
+  ASSERT_EQ(m.animations.size(), 1u);
+  // Every flat joint is a root: 5 rotation + 5 translation channels.
+  EXPECT_EQ(m.animations[0].channels.size(), 10u);
+  EXPECT_EQ(m.scenes.at(0).nodes.size(), 6u);
+}
+
+TEST(GltfExport, BadInputIsRejectedWithAReason) {
+  const Character c = make_character();
+  // Wrong weight shape.
+  EXPECT_THROW(skinned_gltf_bytes(c.V, c.F, {}, c.skeleton, SkinWeights(c.V.rows(), 4)), InputError);
+  // A vertex without weights.
+  SkinWeights W = c.W;
+  W.prune([](Eigen::Index r, Eigen::Index, double) { return r != 7; });
+  EXPECT_THROW(skinned_gltf_bytes(c.V, c.F, {}, c.skeleton, W), InputError);
+  // NaN vertex.
+  Eigen::MatrixX3d V = c.V;
+  V(3, 1) = std::nan("");
+  EXPECT_THROW(skinned_gltf_bytes(V, c.F, {}, c.skeleton, c.W), InputError);
+  // Non-rigid animation transform.
+  GltfAnimation anim;
+  anim.frames.push_back(BoneTransforms(5, Eigen::Affine3d::Identity()));
+  anim.frames[0][2].linear() *= 1.1;
+  try {
+    skinned_gltf_bytes(c.V, c.F, {}, c.skeleton, c.W, &anim);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("lower"), std::string::npos) << e.what();
+  }
+}
+
+// The Khronos validator (npm gltf-validator) finds no errors in the exported file. Runs when
+// `node` can load the package (NODE_PATH, or BODYMODEL_GLTF_VALIDATOR = its node_modules folder);
+// skipped otherwise.
+TEST(GltfExport, KhronosValidatorReportsNoErrors) {
+  const char* modules = std::getenv("BODYMODEL_GLTF_VALIDATOR");
+  const char* node_path = std::getenv("NODE_PATH");
+  std::string env;
+  if (modules) env = std::string("NODE_PATH=") + modules + " ";
+  else if (node_path) env = std::string("NODE_PATH=") + node_path + " ";
+  else if (std::filesystem::exists("/tmp/node_modules/gltf-validator")) env = "NODE_PATH=/tmp/node_modules ";
+  else GTEST_SKIP() << "gltf-validator not installed (npm install gltf-validator; set BODYMODEL_GLTF_VALIDATOR)";
+  const Character c = make_character();
+  std::mt19937 rng(11);
+  GltfAnimation anim;
+  for (int t = 0; t < 4; ++t) anim.frames.push_back(forward_kinematics(c.skeleton, random_pose(rng)));
+  const auto dir = std::filesystem::temp_directory_path() / ("bodymodel_gltf_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const auto file = dir / "tube.glb";
+  write_skinned_gltf(file, c.V, c.F, {}, c.skeleton, c.W, &anim);
+  const auto script = std::filesystem::path(__FILE__).parent_path() / "gltf_validate.js";
+  const auto log = dir / "validator.txt";
+  const int rc = std::system((env + "node " + script.string() + " " + file.string() + " > " + log.string() + " 2>&1").c_str());
+  const std::string text = read_text_file(log);
+  std::filesystem::remove_all(dir);
+  if (WIFEXITED(rc) && WEXITSTATUS(rc) == 2) GTEST_SKIP() << text;
+  EXPECT_EQ(rc, 0) << text;
+  EXPECT_NE(text.find("errors 0 "), std::string::npos) << text;
+  std::printf("%s", text.c_str());   // the validator's counts and first messages, for the log
+}
+
+}  // namespace
+}  // namespace bodymodel
