@@ -1,0 +1,146 @@
+#include "tools/pipeline/animate_job.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <set>
+
+#include "core/error.h"
+#include "core/io/atomic_write.h"
+#include "core/io/mesh_io.h"
+#include "core/retarget.h"
+#include "skinning/runtime_skinning.h"
+#include "tools/render/render.h"
+
+namespace bodymodel {
+
+namespace fs = std::filesystem;
+
+ClipPoses retarget_clip(const BvhMotion& clip, const Skeleton& skeleton, const fs::path& makehuman_dir,
+                        bool with_translation, const std::string& what) {
+  ClipPoses out;
+  out.frame_time = clip.frame_time > 0 ? clip.frame_time : 1.0 / 30;
+  int named = 0;
+  for (const auto& j : clip.joints) named += skeleton.find(j.name) >= 0;
+  if (named * 2 >= skeleton.bone_count()) {
+    out.mapping = "MakeHuman names";
+    for (const auto& j : clip.joints)
+      if (skeleton.find(j.name) < 0) out.ignored_joints.push_back(j.name);
+    out.poses = poses_from_bvh(clip, skeleton, makehuman_dir, with_translation);
+    return out;
+  }
+  // Which names a map knows: the Poser/DAZ map and rig/cmu_mb.mhskel's references.
+  std::set<std::string> known;
+  RetargetMap poser = RetargetMap::poser_cmu();
+  for (auto& e : poser.entries) known.insert(e.source);
+  const fs::path mb = makehuman_dir / "rig" / "cmu_mb.mhskel";
+  std::error_code ec;
+  if (fs::exists(mb, ec))
+    for (auto& e : RetargetMap::from_mhskel(mb).entries) known.insert(e.source);
+  RetargetMap map;
+  try {
+    map = RetargetMap::for_clip(clip, makehuman_dir);
+  } catch (const InputError&) {
+    std::vector<std::string> unknown;
+    for (const auto& j : clip.joints)
+      if (!known.count(j.name) && skeleton.find(j.name) < 0) unknown.push_back(j.name);
+    std::string list;
+    for (size_t i = 0; i < unknown.size(); ++i) list += (i ? ", " : "") + unknown[i];
+    throw InputError(fmt::format("{}: cannot map the clip onto the MakeHuman skeleton: {} of its {} joints match "
+                                 "no bone or retarget map: {}",
+                                 what, unknown.size(), clip.joints.size(), list));
+  }
+  std::set<std::string> sources;
+  for (auto& e : map.entries) sources.insert(e.source);
+  for (const auto& j : clip.joints)
+    if (!sources.count(j.name)) out.ignored_joints.push_back(j.name);
+  out.mapping = map.entries.size() == poser.entries.size() ? "Poser/DAZ CMU map" : "rig/cmu_mb.mhskel map";
+  RetargetOptions ro;
+  ro.apply_root_translation = with_translation;
+  out.poses = Retargeter(clip, skeleton, map, ro).all_poses();
+  return out;
+}
+
+SkinWeights skin_weights_of(const SkinningRig& lbs) {
+  std::vector<Eigen::Triplet<double>> t;
+  for (int v = 0; v < lbs.vertex_count(); ++v)
+    for (int k = 0; k < lbs.max_influences(); ++k) {
+      const int b = lbs.influences(v, k);
+      if (b >= 0 && lbs.coefficients(v, k) > 0) t.emplace_back(v, b, lbs.coefficients(v, k));
+    }
+  SkinWeights W(lbs.vertex_count(), lbs.bone_count);
+  W.setFromTriplets(t.begin(), t.end());
+  return W;
+}
+
+double AnimateResult::max_edge_ratio(const std::vector<FrameCheck>& c) const {
+  double m = 0;
+  for (auto& x : c) m = std::isnan(x.max_edge_ratio) ? x.max_edge_ratio : std::max(m, x.max_edge_ratio);
+  return m;
+}
+
+int AnimateResult::max_flipped(const std::vector<FrameCheck>& c) const {
+  int m = 0;
+  for (auto& x : c) m = std::max(m, x.flipped);
+  return m;
+}
+
+AnimateResult animate_character(const CharacterRigFile& ch, const ClipPoses& clip, const fs::path& dir,
+                                const AnimateOptions& o, const ProgressCallback& progress) {
+  if (!(o.fps > 0)) throw InputError("--fps must be positive");
+  if (o.format != "ply" && o.format != "obj" && o.format != "none")
+    throw InputError("--format must be ply, obj or none (got '" + o.format + "')");
+  AnimateResult res;
+  const int src = static_cast<int>(clip.poses.size());
+  const int stride = std::max(1, static_cast<int>(std::lround(1.0 / (clip.frame_time * o.fps))));
+  for (int f = 0; f < src; f += stride) {
+    if (o.max_frames > 0 && static_cast<int>(res.source_frames.size()) >= o.max_frames) break;
+    res.source_frames.push_back(f);
+  }
+  res.frames = static_cast<int>(res.source_frames.size());
+  res.frame_time = stride * clip.frame_time;
+  const RuntimeSkinner skinner(ch.rig);
+  const DeformationChecker checker(ch.rig.rest, ch.F, ch.lbs);
+  std::vector<BoneTransforms> transforms;
+  std::vector<Eigen::MatrixX3d> sheet;
+  std::vector<int> sheet_at;
+  for (int k = 0; k < o.sheet_frames && res.frames > 0; ++k)
+    sheet_at.push_back(static_cast<int>(std::lround(double(k) * (res.frames - 1) / std::max(1, o.sheet_frames - 1))));
+  auto t0 = std::chrono::steady_clock::now();
+  double skin_seconds = 0;
+  for (int i = 0; i < res.frames; ++i) {
+    const BoneTransforms M = forward_kinematics(ch.skeleton, clip.poses[res.source_frames[i]]);
+    auto ts = std::chrono::steady_clock::now();
+    const Eigen::MatrixX3d X = skinner.pose(M).cast<double>();
+    skin_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
+    if (!X.allFinite())
+      throw NumericalError(fmt::format("frame {} of the clip gave non-finite vertices", res.source_frames[i]));
+    res.rig.push_back(checker.check(X, M));
+    res.lbs.push_back(checker.check(evaluate_rig(ch.lbs, M), M));
+    res.template_lbs.push_back(checker.check(evaluate_rig(ch.template_lbs, M), M));
+    if (o.format != "none") write_mesh(dir / fmt::format("frame_{:04d}.{}", i, o.format), X, ch.F);
+    if (std::find(sheet_at.begin(), sheet_at.end(), i) != sheet_at.end()) sheet.push_back(X);
+    transforms.push_back(M);
+    report_progress(progress, double(i + 1) / res.frames, fmt::format("frame {}", i));
+  }
+  res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::string csv =
+      "frame,clip_frame,time_s,max_edge_ratio,min_edge_ratio,flipped,lbs_max_edge_ratio,lbs_flipped,"
+      "template_max_edge_ratio,template_flipped\n";
+  for (int i = 0; i < res.frames; ++i)
+    csv += fmt::format("{},{},{:.4f},{:.4f},{:.4f},{},{:.4f},{},{:.4f},{}\n", i, res.source_frames[i],
+                       i * res.frame_time, res.rig[i].max_edge_ratio, res.rig[i].min_edge_ratio, res.rig[i].flipped,
+                       res.lbs[i].max_edge_ratio, res.lbs[i].flipped, res.template_lbs[i].max_edge_ratio,
+                       res.template_lbs[i].flipped);
+  write_text_file(dir / "animation.csv", csv);
+  if (!sheet.empty()) {
+    // Frames side by side; each centred horizontally (a walk travels), common scale.
+    render_row(sheet, ch.F, {}, 200, 400).save_png(dir / "frames.png");
+  }
+  (void)skin_seconds;
+  return res;
+}
+
+}  // namespace bodymodel

@@ -1,0 +1,263 @@
+#include "tools/pipeline/character.h"
+
+#include <fmt/format.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <mutex>
+#include <random>
+
+#include "core/error.h"
+#include "core/geometry.h"
+#include "core/io/bvh.h"
+#include "core/retarget.h"
+#include "encoding/relative_rotation_decoder.h"
+
+namespace bodymodel {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+Pose slerp_pose(const Pose& a, const Pose& b, double t) {
+  Pose p = a;
+  for (size_t i = 0; i < a.rotations.size(); ++i) {
+    Eigen::Quaterniond qa(a.rotations[i]), qb(b.rotations[i]);
+    p.rotations[i] = qa.slerp(t, qb).toRotationMatrix();
+  }
+  p.root_translation = (1 - t) * a.root_translation + t * b.root_translation;
+  return p;
+}
+
+}  // namespace
+
+std::vector<RangeOfMotionPose> range_of_motion(const Skeleton& skeleton, const fs::path& makehuman_dir,
+                                               const RangeOfMotionOptions& o) {
+  std::vector<RangeOfMotionPose> out;
+  out.push_back({"rest", Pose::rest(skeleton.bone_count())});
+  // MakeHuman's static poses (the skeleton's own bone names).
+  const fs::path poses_dir = makehuman_dir / "motion" / "poses";
+  std::vector<fs::path> files;
+  std::error_code ec;
+  if (fs::is_directory(poses_dir, ec))
+    for (auto& e : fs::directory_iterator(poses_dir))
+      if (e.path().extension() == ".bvh") files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  for (auto& f : files) {
+    const std::string stem = f.stem().string();
+    if (std::find(o.excluded_static.begin(), o.excluded_static.end(), stem) != o.excluded_static.end()) continue;
+    BvhMotion m = read_bvh(f);
+    out.push_back({stem, bvh_frame_to_pose(m, 0, skeleton)});
+  }
+  // CMU clips, retargeted: the database's frames for training, frames between them held out.
+  const fs::path cmu_dir = makehuman_dir / "motion" / "cmu";
+  std::vector<fs::path> clips;
+  if (fs::is_directory(cmu_dir, ec))
+    for (auto& e : fs::directory_iterator(cmu_dir))
+      if (e.path().extension() == ".bvh") clips.push_back(e.path());
+  std::sort(clips.begin(), clips.end());
+  for (auto& c : clips) {
+    BvhMotion m = read_bvh(c);
+    Retargeter r(m, skeleton, RetargetMap::for_clip(m, makehuman_dir));
+    const int n = m.frame_count();
+    std::vector<int> train;
+    for (int k = 0; k < o.training_frames_per_clip; ++k) {
+      int f = static_cast<int>((k + 0.5) * n / o.training_frames_per_clip);
+      train.push_back(f);
+      Pose p = r.pose(f);
+      p.root_translation.setZero();
+      out.push_back({fmt::format("cmu{}-f{}", c.stem().string(), f), p});
+    }
+    for (int k = 1; k <= o.held_out_frames_per_clip; ++k) {
+      int f = static_cast<int>(double(k) * n / (o.held_out_frames_per_clip + 1));
+      while (std::find(train.begin(), train.end(), f) != train.end()) ++f;
+      if (f >= n) continue;
+      Pose p = r.pose(f);
+      p.root_translation.setZero();
+      out.push_back({fmt::format("cmu{}-f{}", c.stem().string(), f), p, true});
+    }
+  }
+  // In-betweens: pairs of training morphs (not the rest pose), chosen by the seed.
+  std::vector<int> train_idx;
+  for (int i = 1; i < static_cast<int>(out.size()); ++i)
+    if (!out[i].held_out) train_idx.push_back(i);
+  std::mt19937_64 rng(o.seed);
+  auto add_blends = [&](int count, double t, bool held) {
+    for (int k = 0; k < count && train_idx.size() >= 2; ++k) {
+      std::uniform_int_distribution<size_t> pick(0, train_idx.size() - 1);
+      int a = train_idx[pick(rng)], b = train_idx[pick(rng)];
+      while (b == a) b = train_idx[pick(rng)];
+      RangeOfMotionPose p{fmt::format("blend:{}+{}@{:.2f}", out[a].name, out[b].name, t),
+                          slerp_pose(out[a].pose, out[b].pose, t), held, a, b, t};
+      out.push_back(std::move(p));
+    }
+  };
+  add_blends(o.training_blends, 0.5, false);
+  add_blends(o.held_out_blends, 0.3, true);
+  return out;
+}
+
+CharacterExamples make_character_examples(const BodyModel& model, const Eigen::MatrixX3d& V,
+                                          const fs::path& makehuman_dir, const CharacterOptions& o,
+                                          const ProgressCallback& progress) {
+  auto t0 = std::chrono::steady_clock::now();
+  if (model.rig.empty())
+    throw InputError("the model has no skeleton: rebuild it without --no-rig (a character needs one)");
+  model.check_topology(V, model.tmpl->faces(), "body");
+  CharacterExamples ex;
+  ex.rest = V;
+  ex.F = model.tmpl->faces();
+  ex.skeleton = model.rig.skeleton_for(V);
+  ex.template_weights = model.rig.weights;
+  ex.poses = range_of_motion(ex.skeleton, makehuman_dir, o.range_of_motion);
+  const int P = static_cast<int>(ex.poses.size());
+  ex.transforms.resize(P);
+  ex.meshes.resize(P);
+  for (int p = 0; p < P; ++p) ex.transforms[p] = forward_kinematics(ex.skeleton, ex.poses[p].pose);
+
+  // Morphs (every non-blend pose but the rest), in parallel with a decoder per thread.
+  std::vector<int> morphs, blends;
+  for (int p = 1; p < P; ++p) (ex.poses[p].blend_a >= 0 ? blends : morphs).push_back(p);
+  ex.meshes[0] = V;
+  std::atomic<int> done{0};
+  std::mutex mtx;
+  std::atomic<bool> cancelled{false};
+  auto tick = [&](const std::string& what) {
+    int d = ++done;
+    std::lock_guard<std::mutex> lock(mtx);
+    if (cancelled) return;
+    try {
+      report_progress(progress, double(d) / (P - 1), what);
+    } catch (const Cancelled&) {
+      cancelled = true;
+    }
+  };
+  tbb::enumerable_thread_specific<std::unique_ptr<RelativeRotationDecoder>> decoders;
+  auto decoder = [&]() -> RelativeRotationDecoder& {
+    auto& d = decoders.local();
+    if (!d) d = std::make_unique<RelativeRotationDecoder>(model.tmpl);
+    return *d;
+  };
+  tbb::task_arena arena(o.threads > 0 ? o.threads : tbb::task_arena::automatic);
+  arena.execute([&] {
+    tbb::parallel_for(size_t(0), morphs.size(), [&](size_t i) {
+      if (cancelled) return;
+      const int p = morphs[i];
+      Eigen::MatrixX3d D = pose_morph(model, decoder(), V, ex.poses[p].pose, o.pose_morph);
+      // The morph is defined up to a rigid motion: place it where skinning puts the body.
+      Eigen::MatrixX3d target = linear_blend_skinning(V, model.rig.weights, ex.transforms[p]);
+      ex.meshes[p] = apply(fit_rigid_motion(D, target), D);
+      tick(ex.poses[p].name);
+    });
+    if (cancelled) return;
+    // In-betweens: interpolate the two morphs' encodings, decode, place the result rigidly
+    // where skinning the body with the in-between pose puts it.
+    tbb::parallel_for(size_t(0), blends.size(), [&](size_t i) {
+      if (cancelled) return;
+      const RangeOfMotionPose& rp = ex.poses[blends[i]];
+      Encoding ea = model.encode(ex.meshes[rp.blend_a], rp.name);
+      Encoding eb = model.encode(ex.meshes[rp.blend_b], rp.name);
+      Eigen::MatrixX3d D = decoder().decode(interpolate(ea, eb, rp.t));
+      Eigen::MatrixX3d target = linear_blend_skinning(V, model.rig.weights, ex.transforms[blends[i]]);
+      ex.meshes[blends[i]] = apply(fit_rigid_motion(D, target), D);
+      tick(rp.name);
+    });
+  });
+  if (cancelled) throw Cancelled{};
+  for (int p = 0; p < P; ++p)
+    if (!ex.meshes[p].allFinite())
+      throw NumericalError("pose morph '" + ex.poses[p].name + "' produced non-finite vertices");
+  ex.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return ex;
+}
+
+namespace {
+
+SkinningExamples training_examples(const CharacterExamples& ex) {
+  SkinningExamples s;
+  s.rest = ex.rest;
+  for (size_t p = 0; p < ex.poses.size(); ++p)
+    if (!ex.poses[p].held_out) {
+      s.transforms.push_back(ex.transforms[p]);
+      s.poses.push_back(ex.meshes[p]);
+    }
+  return s;
+}
+
+}  // namespace
+
+CharacterRigs fit_character_rigs(const CharacterExamples& ex, const CharacterOptions& o,
+                                 const ProgressCallback& progress) {
+  CharacterRigs r;
+  const SkinningExamples s = training_examples(ex);
+  r.template_lbs = lbs_rig_from_weights(ex.rest, Eigen::MatrixXd(ex.template_weights), o.max_influences);
+  auto sub = [&](double a, double b) -> ProgressCallback {
+    if (!progress) return {};
+    return [=](double f, std::string_view w) { return progress(a + (b - a) * f, w); };
+  };
+  r.lbs = fit_lbs(s, r.template_lbs.influences, o.lbs, &r.lbs_summary, sub(0.0, 0.3));
+  r.as = fit_animation_space(s, &r.lbs, o.animation_space, &r.as_summary, sub(0.3, 0.5));
+  r.mwe = fit_mwe(s, &r.lbs, o.mwe, &r.mwe_summary, sub(0.5, 1.0));
+  return r;
+}
+
+namespace {
+
+Eigen::VectorXd vertex_errors(const SkinningRig& rig, const BoneTransforms& M, const Eigen::MatrixX3d& Y) {
+  return (evaluate_rig(rig, M) - Y).rowwise().norm();
+}
+
+}  // namespace
+
+std::vector<RigErrorRow> evaluate_character_rigs(const CharacterExamples& ex, const CharacterRigs& rigs) {
+  std::vector<RigErrorRow> rows;
+  const std::pair<const char*, const SkinningRig*> methods[] = {
+      {"template_lbs", &rigs.template_lbs}, {"lbs", &rigs.lbs}, {"as", &rigs.as}, {"mwe", &rigs.mwe}};
+  for (auto [name, rig] : methods)
+    for (bool held : {false, true}) {
+      std::vector<double> e;
+      int poses = 0;
+      for (size_t p = 0; p < ex.poses.size(); ++p) {
+        if (ex.poses[p].held_out != held) continue;
+        Eigen::VectorXd v = vertex_errors(*rig, ex.transforms[p], ex.meshes[p]);
+        e.insert(e.end(), v.data(), v.data() + v.size());
+        ++poses;
+      }
+      if (!poses) continue;
+      RigErrorRow row{name, held ? "held_out" : "train", poses};
+      double sum = 0, sq = 0;
+      for (double x : e) sum += x, sq += x * x, row.max_mm = std::max(row.max_mm, x);
+      row.mean_mm = sum / e.size();
+      row.rms_mm = std::sqrt(sq / e.size());
+      std::nth_element(e.begin(), e.begin() + static_cast<long>(0.95 * (e.size() - 1)), e.end());
+      row.p95_mm = e[static_cast<size_t>(0.95 * (e.size() - 1))];
+      rows.push_back(row);
+    }
+  return rows;
+}
+
+Eigen::VectorXd held_out_vertex_error(const CharacterExamples& ex, const SkinningRig& rig) {
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(ex.rest.rows());
+  int n = 0;
+  for (size_t p = 0; p < ex.poses.size(); ++p)
+    if (ex.poses[p].held_out) {
+      sum += vertex_errors(rig, ex.transforms[p], ex.meshes[p]);
+      ++n;
+    }
+  return n ? Eigen::VectorXd(sum / n) : sum;
+}
+
+std::string rig_errors_csv(const std::vector<RigErrorRow>& rows) {
+  std::string s = "method,split,poses,mean_mm,max_mm,rms_mm,p95_mm\n";
+  for (auto& r : rows)
+    s += fmt::format("{},{},{},{:.3f},{:.3f},{:.3f},{:.3f}\n", r.method, r.split, r.poses, r.mean_mm, r.max_mm,
+                     r.rms_mm, r.p95_mm);
+  return s;
+}
+
+}  // namespace bodymodel

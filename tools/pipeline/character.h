@@ -1,0 +1,114 @@
+// A rigged character from the statistical model (METHOD.md §6 "Generated characters"; Hasler
+// et al. 2009 §5.4 for the poses, Wang & Phillips 2002 for the rig):
+//  1. a range of motion: MakeHuman's static poses and frames of the CMU clips (the poses the
+//     synthetic database draws from), each turned into a mesh by the model's POSE MORPHING
+//     (model/pose_edit.h), plus in-between poses made by interpolating two morphs in encoding
+//     space (relative rotations: limbs keep their length) — training examples; other CMU frames
+//     and other in-betweens are held out;
+//  2. bone transforms of every example from the template skeleton placed in the body
+//     (model.rig.skeleton_for) by forward kinematics of the pose;
+//  3. SSD weights fitted on the template's influence sets, Animation Space and MWE (delta space
+//     over that SSD) fitted to the training examples (skinning/ fit_lbs, fit_animation_space,
+//     fit_mwe);
+//  4. errors of every rig against the model's own pose morphs, training and held out (mm).
+#pragma once
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/progress.h"
+#include "core/skeleton.h"
+#include "model/body_model.h"
+#include "model/pose_edit.h"
+#include "skinning/fit_animation_space.h"
+#include "skinning/fit_lbs.h"
+#include "skinning/fit_mwe.h"
+#include "skinning/skinning_rig.h"
+
+namespace bodymodel {
+
+struct RangeOfMotionOptions {
+  // MakeHuman static poses left out (self-contact or lying/handstand: the synthetic database
+  // leaves them out too, so the model has never seen them).
+  std::vector<std::string> excluded_static = {"benchmark", "gym01", "sit01"};
+  int training_frames_per_clip = 4;   // CMU frames (k + 0.5)·n / count: the database's frames
+  int held_out_frames_per_clip = 2;   // CMU frames k·n / (count + 1), k ≥ 1, never a training frame
+  int training_blends = 8;            // encoding-space in-betweens of two training morphs (t = 0.5)
+  int held_out_blends = 4;            // in-betweens of other pairs at t = 0.3
+  unsigned seed = 3;                  // which pairs are blended
+};
+
+// One example pose of the range of motion.
+struct RangeOfMotionPose {
+  std::string name;       // "fight01", "cmu02_02-f112", "blend:fight01+run01@0.50", "rest"
+  Pose pose;              // for the character's skeleton (for blends: per-bone slerp)
+  bool held_out = false;
+  int blend_a = -1, blend_b = -1;  // blends: indices of the two morphs, earlier in the list
+  double t = 0;
+};
+
+// The poses (morphs come first, then blends of earlier entries). Throws InputError naming the
+// file when a pose file cannot be read.
+std::vector<RangeOfMotionPose> range_of_motion(const Skeleton& skeleton,
+                                               const std::filesystem::path& makehuman_dir,
+                                               const RangeOfMotionOptions& options = {});
+
+struct CharacterOptions {
+  RangeOfMotionOptions range_of_motion;
+  PoseMorphOptions pose_morph;
+  int max_influences = 4;           // slots per vertex (the template weights' largest ones)
+  LbsFitOptions lbs;
+  AnimationSpaceFitOptions animation_space;
+  MweFitOptions mwe;
+  int threads = 0;                  // pose morphs in parallel (one decoder each); 0 = all cores
+};
+
+// The example meshes of a character.
+struct CharacterExamples {
+  Eigen::MatrixX3d rest;                  // #V by 3, mm (the body, standard pose)
+  Eigen::MatrixX3i F;                     // #F by 3
+  Skeleton skeleton;                      // template skeleton placed in the body
+  SkinWeights template_weights;           // #V by #B, the model's (MakeHuman's) weights
+  std::vector<RangeOfMotionPose> poses;   // #P (the rest pose first)
+  std::vector<BoneTransforms> transforms; // #P forward kinematics of each pose
+  std::vector<Eigen::MatrixX3d> meshes;   // #P pose morphs, #V by 3, mm
+  double seconds = 0;
+};
+
+// Pose-morphs the body V (#V by 3, mm, the model's topology, standard pose) into the range of
+// motion. Throws InputError when the model has no rig or V is not of the model's topology.
+CharacterExamples make_character_examples(const BodyModel& model, const Eigen::MatrixX3d& V,
+                                          const std::filesystem::path& makehuman_dir,
+                                          const CharacterOptions& options = {},
+                                          const ProgressCallback& progress = {});
+
+struct CharacterRigs {
+  SkinningRig template_lbs;   // the model's weights as they are (largest max_influences kept)
+  SkinningRig lbs, as, mwe;   // fitted to the training examples
+  LbsFitSummary lbs_summary;
+  AnimationSpaceFitSummary as_summary;
+  MweFitSummary mwe_summary;
+};
+
+CharacterRigs fit_character_rigs(const CharacterExamples& ex, const CharacterOptions& options = {},
+                                 const ProgressCallback& progress = {});
+
+// Errors of one rig on one split: vertex error ‖x_i − y_i‖ against the pose morph (mm), over all
+// vertices of all poses of the split (EVALUATION.md: vertex error).
+struct RigErrorRow {
+  std::string method;   // "template_lbs", "lbs", "as", "mwe"
+  std::string split;    // "train" or "held_out"
+  int poses = 0;
+  double mean_mm = 0, max_mm = 0, rms_mm = 0, p95_mm = 0;
+};
+
+std::vector<RigErrorRow> evaluate_character_rigs(const CharacterExamples& ex, const CharacterRigs& rigs);
+// Per-vertex mean error (mm) of `rig` over the held-out poses: #V.
+Eigen::VectorXd held_out_vertex_error(const CharacterExamples& ex, const SkinningRig& rig);
+
+// fit.csv text: method,split,poses,mean_mm,max_mm,rms_mm,p95_mm
+std::string rig_errors_csv(const std::vector<RigErrorRow>& rows);
+
+}  // namespace bodymodel

@@ -1,0 +1,113 @@
+#include "tools/pipeline/character_job.h"
+
+#include <fmt/format.h>
+
+#include <chrono>
+
+#include "core/data_path.h"
+#include "core/error.h"
+#include "core/io/atomic_write.h"
+#include "core/io/mesh_io.h"
+#include "core/measure.h"
+#include "tools/pipeline/character_file.h"
+#include "tools/render/render.h"
+
+namespace bodymodel {
+
+namespace fs = std::filesystem;
+
+const RigErrorRow& find_row(const std::vector<RigErrorRow>& rows, const std::string& method, const std::string& split) {
+  for (auto& r : rows)
+    if (r.method == method && r.split == split) return r;
+  throw InputError("no fit error row for " + method + " / " + split);
+}
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Held-out pose with the largest SSD mean error: pose morph | SSD | AS | MWE coloured by error.
+void write_error_picture(const CharacterExamples& ex, const CharacterRigs& rigs, double scale_mm,
+                         const fs::path& png) {
+  int worst = -1;
+  double worst_err = -1;
+  for (size_t p = 0; p < ex.poses.size(); ++p) {
+    if (!ex.poses[p].held_out) continue;
+    double e = (evaluate_rig(rigs.lbs, ex.transforms[p]) - ex.meshes[p]).rowwise().norm().mean();
+    if (e > worst_err) worst_err = e, worst = static_cast<int>(p);
+  }
+  if (worst < 0) return;
+  std::vector<Eigen::MatrixX3d> meshes{ex.meshes[worst]};
+  std::vector<Eigen::MatrixX3d> colors{Eigen::MatrixX3d()};
+  for (const SkinningRig* r : {&rigs.lbs, &rigs.as, &rigs.mwe}) {
+    Eigen::MatrixX3d X = evaluate_rig(*r, ex.transforms[worst]);
+    colors.push_back(heat_colors((X - ex.meshes[worst]).rowwise().norm(), 0, scale_mm));
+    meshes.push_back(std::move(X));
+  }
+  const int cell = 220, h = 440;
+  Image row = render_row(meshes, ex.F, colors, cell, h);
+  Image img(row.width, h + 24);
+  img.paste(row, 0, 0);
+  img.paste(heat_colorbar(row.width - 40, 12), 20, h + 6);
+  img.save_png(png);
+}
+
+}  // namespace
+
+CharacterJobResult write_character(const BodyModel& model, const Eigen::MatrixX3d& V, const fs::path& dir,
+                                   const nlohmann::json& description, const CharacterJobOptions& o,
+                                   const ProgressCallback& progress) {
+  CharacterJobResult res;
+  auto t0 = std::chrono::steady_clock::now();
+  auto sub = [&](double a, double b) -> ProgressCallback {
+    if (!progress) return {};
+    return [=](double f, std::string_view w) { return progress(a + (b - a) * f, w); };
+  };
+  CharacterExamples ex = make_character_examples(model, V, data_file("makehuman"), o.character, sub(0, 0.6));
+  res.examples_seconds = seconds_since(t0);
+  auto t1 = std::chrono::steady_clock::now();
+  CharacterRigs rigs = fit_character_rigs(ex, o.character, sub(0.6, 0.95));
+  res.fit_seconds = seconds_since(t1);
+  res.errors = evaluate_character_rigs(ex, rigs);
+  for (auto& p : ex.poses) (p.held_out ? res.held_out_poses : res.training_poses)++;
+  report_progress(progress, 0.96, "writing");
+
+  write_mesh(dir / "body.obj", V, ex.F);
+  write_text_file(dir / "fit.csv", rig_errors_csv(res.errors));
+  std::string poses = "pose,split,made_by\n";
+  for (auto& p : ex.poses)
+    poses += fmt::format("{},{},{}\n", p.name, p.held_out ? "held_out" : "train",
+                         p.name == "rest" ? "the body" : p.blend_a >= 0 ? "encoding-space interpolation"
+                                                                        : "pose morph");
+  write_text_file(dir / "poses.csv", poses);
+
+  const BodyMeasurements m = measure_body(V, ex.F);
+  res.character = description;
+  res.character["measured"] = {{"height_cm", m.height_cm}, {"weight_kg", m.weight_kg}, {"volume_l", m.volume_l},
+                               {"waist_cm", m.waist_cm}, {"hips_cm", m.hips_cm}, {"chest_cm", m.chest_cm}};
+  res.character["training_poses"] = res.training_poses;
+  res.character["held_out_poses"] = res.held_out_poses;
+  nlohmann::json errs = nlohmann::json::array();
+  for (auto& r : res.errors)
+    errs.push_back({{"method", r.method}, {"split", r.split}, {"mean_mm", r.mean_mm}, {"max_mm", r.max_mm}});
+  res.character["fit_errors"] = errs;
+
+  CharacterRigFile f;
+  f.rig = rigs.mwe;
+  f.lbs = rigs.lbs;
+  f.template_lbs = rigs.template_lbs;
+  f.F = ex.F;
+  f.skeleton = ex.skeleton;
+  for (size_t p = 0; p < ex.poses.size(); ++p)
+    if (!ex.poses[p].held_out) f.training_transforms.push_back(ex.transforms[p]);
+  f.character = res.character;
+  save_character_rig(dir / "rig.npz", f);
+  if (o.write_pictures) write_error_picture(ex, rigs, o.error_scale_mm, dir / "skinning_error.png");
+  res.glb_note = "the glTF writer (skinning/gltf_export.h) is not in this build";
+  report_progress(progress, 1.0, "done");
+  return res;
+}
+
+}  // namespace bodymodel

@@ -1,0 +1,37 @@
+// Plausibility of an animated mesh frame against its rest shape: exploded triangles show as
+// edges much longer than at rest, flipped ones as triangles whose normal turns against the
+// rotation of the bone that mostly carries them.
+#pragma once
+
+#include <Eigen/Core>
+
+#include "core/skeleton.h"
+#include "skinning/skinning_rig.h"
+
+namespace bodymodel {
+
+struct FrameCheck {
+  double max_edge_ratio = 1;   // max over edges of |e'| / |e|
+  double min_edge_ratio = 1;
+  int worst_edge = -1;         // index into the checker's edges
+  int flipped = 0;             // triangles with n' · (R_b n) < 0
+};
+
+class DeformationChecker {
+ public:
+  // rest #V by 3, F #F by 3, lbs: an SSD rig of the same vertices whose largest weight per
+  // triangle (summed over its corners) names the triangle's dominant bone.
+  DeformationChecker(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3i& F, const SkinningRig& lbs);
+  // X #V by 3 posed vertices; M the bone maps of the frame (#B).
+  FrameCheck check(const Eigen::MatrixX3d& X, const BoneTransforms& M) const;
+  const Eigen::MatrixX2i& edges() const { return E_; }
+
+ private:
+  Eigen::MatrixX3i F_;
+  Eigen::MatrixX2i E_;
+  Eigen::VectorXd rest_length_;
+  Eigen::MatrixX3d rest_normals_;
+  Eigen::VectorXi dominant_bone_;
+};
+
+}  // namespace bodymodel

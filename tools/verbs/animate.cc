@@ -1,0 +1,67 @@
+// bodymodel animate char/rig.npz --bvh clip.bvh --out frames/
+#include <fmt/format.h>
+
+#include <memory>
+
+#include "core/data_path.h"
+#include "core/error.h"
+#include "core/io/bvh.h"
+#include "tools/console.h"
+#include "tools/pipeline/animate_job.h"
+#include "tools/pipeline/output_folder.h"
+#include "tools/verb.h"
+
+namespace bodymodel {
+namespace {
+
+struct AnimateArgs {
+  std::string rig, bvh, out;
+  AnimateOptions options;
+  bool force = false, no_translation = false;
+};
+
+}  // namespace
+
+BODYMODEL_VERB(add_animate_verb) {
+  auto a = std::make_shared<AnimateArgs>();
+  auto* cmd = app.add_subcommand(
+      "animate",
+      "Animate a character rig (char/rig.npz from `bodymodel character`) with a BVH clip: CMU clips\n"
+      "are retargeted to the template skeleton (MakeHuman-named files apply directly). Writes\n"
+      "OUT/frame_NNNN.ply, OUT/animation.csv (per frame: largest and smallest edge-length ratio to\n"
+      "rest and flipped triangles, for the rig, its SSD and the template weights), OUT/frames.png\n"
+      "and OUT/animated.glb (SSD rig with the clip).");
+  cmd->add_option("rig", a->rig, "Character rig (.npz from `bodymodel character`)")->required();
+  cmd->add_option("--bvh", a->bvh, "Motion clip (BVH)")->required();
+  cmd->add_option("--out", a->out, "Output folder (must not exist unless --force)")->required();
+  cmd->add_option("--fps", a->options.fps, "Output frame rate (the clip is sampled)")->capture_default_str();
+  cmd->add_option("--max-frames", a->options.max_frames, "At most this many frames (0 = all)")->capture_default_str();
+  cmd->add_option("--format", a->options.format, "Frame meshes: ply, obj or none")->capture_default_str();
+  cmd->add_flag("--no-translation", a->no_translation, "Keep the root in place (no travel)");
+  cmd->add_flag("--force", a->force, "Replace an existing output folder");
+  cmd->callback([a] {
+    StagedFolder out(a->out, a->force);
+    CharacterRigFile ch = load_character_rig(a->rig);
+    BvhMotion clip = read_bvh(a->bvh);
+    ClipPoses poses = retarget_clip(clip, ch.skeleton, data_file("makehuman"), !a->no_translation, a->bvh);
+    cli::info(fmt::format("{}: {} frames at {:.0f} fps, mapped by {}", a->bvh, poses.poses.size(),
+                          1 / poses.frame_time, poses.mapping));
+    if (!poses.ignored_joints.empty()) {
+      std::string list;
+      for (size_t i = 0; i < poses.ignored_joints.size(); ++i) list += (i ? ", " : "") + poses.ignored_joints[i];
+      cli::info(fmt::format("{} clip joints drive no bone (ignored): {}", poses.ignored_joints.size(), list));
+    }
+    cli::ProgressBar bar("animate");
+    AnimateResult r = animate_character(ch, poses, out.path(), a->options, bar.callback());
+    bar.finish(fmt::format("{} frames, skinning + checks {:.1f} s", r.frames, r.seconds));
+    out.commit();
+    fmt::print("frames                      {} ({:.1f} fps)\n", r.frames, 1 / r.frame_time);
+    fmt::print("max edge ratio to rest      rig {:.2f}, its SSD {:.2f}, template weights {:.2f}\n",
+               r.max_edge_ratio(r.rig), r.max_edge_ratio(r.lbs), r.max_edge_ratio(r.template_lbs));
+    fmt::print("flipped triangles (worst)   rig {}, its SSD {}, template weights {}\n", r.max_flipped(r.rig),
+               r.max_flipped(r.lbs), r.max_flipped(r.template_lbs));
+    cli::info("wrote " + a->out);
+  });
+}
+
+}  // namespace bodymodel

@@ -1,0 +1,95 @@
+// bodymodel character model.npz [--where LABEL=VALUE ...] [--seed N | --in body.ply] --out char/
+#include <fmt/format.h>
+
+#include <memory>
+
+#include "core/error.h"
+#include "core/io/mesh_io.h"
+#include "model/model_file.h"
+#include "model/morph.h"
+#include "tools/console.h"
+#include "tools/pipeline/character_job.h"
+#include "tools/pipeline/conditions.h"
+#include "tools/pipeline/output_folder.h"
+#include "tools/verb.h"
+
+namespace bodymodel {
+namespace {
+
+struct CharacterArgs {
+  std::string model, in, out;
+  std::vector<std::string> where;
+  uint64_t seed = 1;
+  bool force = false;
+  int threads = 0;
+};
+
+void print_fit_table(const std::vector<RigErrorRow>& rows) {
+  fmt::print("{:<13} {:<9} {:>5} {:>9} {:>9} {:>9}\n", "rig", "split", "poses", "mean mm", "p95 mm", "max mm");
+  for (auto& r : rows)
+    fmt::print("{:<13} {:<9} {:>5} {:>9.2f} {:>9.2f} {:>9.2f}\n", r.method, r.split, r.poses, r.mean_mm, r.p95_mm,
+               r.max_mm);
+}
+
+}  // namespace
+
+BODYMODEL_VERB(add_character_verb) {
+  auto a = std::make_shared<CharacterArgs>();
+  auto* cmd = app.add_subcommand(
+      "character",
+      "Make a rigged character: generate a body from the model (or take --in), pose-morph it into a\n"
+      "range of motion (MakeHuman static poses, CMU frames, encoding-space in-betweens), fit SSD,\n"
+      "Animation Space and MWE (delta space over SSD) with the template skeleton, and write\n"
+      "OUT/body.obj, OUT/rig.npz (MWE + skeleton), OUT/fit.csv (training and held-out errors, mm),\n"
+      "OUT/poses.csv, OUT/skinning_error.png and OUT/character.glb (SSD rig, glTF 2.0).");
+  cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`, with its skeleton)")->required();
+  cmd->add_option("--where", a->where, "LABEL=VALUE or LABEL=LO..HI for the generated body, repeatable");
+  cmd->add_option("--seed", a->seed, "Random seed of the generated body")->capture_default_str();
+  cmd->add_option("--in", a->in, "Use this body (model topology, standard pose, mm) instead of generating one");
+  cmd->add_option("--out", a->out, "Output folder (must not exist unless --force)")->required();
+  cmd->add_flag("--force", a->force, "Replace an existing output folder");
+  cmd->add_option("--threads", a->threads, "Threads for the pose morphs (0 = all cores)")->capture_default_str();
+  cmd->callback([a] {
+    if (!a->in.empty() && !a->where.empty()) throw InputError("character: give --where or --in, not both");
+    StagedFolder out(a->out, a->force);
+    auto model = std::make_shared<const BodyModel>(load_model(a->model));
+    if (model->rig.empty())
+      throw InputError("'" + a->model + "' has no skeleton: rebuild it without --no-rig (a character needs one)");
+    Eigen::MatrixX3d V;
+    nlohmann::json desc = {{"model", a->model}};
+    if (!a->in.empty()) {
+      Mesh body = read_mesh(a->in);
+      model->check_topology(body.V, body.F, "'" + a->in + "'");
+      V = body.V;
+      desc["input"] = a->in;
+    } else {
+      std::vector<LabelCondition> cond = parse_conditions(model->shape.regression, a->where);
+      ShapeMorpher morpher(model);
+      GenerateOptions go;
+      go.morph.sex = sex_of(cond);
+      GeneratedBody g = generate_body(morpher, cond, a->seed, go);
+      if (!g.satisfied) cli::warn("the generated body does not meet every --where condition:\n" + g.summary.report());
+      V = g.V;
+      desc["seed"] = a->seed;
+      desc["where"] = a->where;
+      cli::info(fmt::format("generated body: {:.1f} cm, {:.1f} kg (measured)", g.measured.height_cm,
+                            g.measured.weight_kg));
+    }
+    CharacterJobOptions o;
+    o.character.threads = a->threads;
+    cli::ProgressBar bar("character");
+    CharacterJobResult r = write_character(*model, V, out.path(), desc, o, bar.callback());
+    bar.finish(fmt::format("{} training + {} held-out poses; examples {:.0f} s, fits {:.0f} s", r.training_poses,
+                           r.held_out_poses, r.examples_seconds, r.fit_seconds));
+    out.commit();
+    print_fit_table(r.errors);
+    const RigErrorRow& lbs = find_row(r.errors, "lbs", "held_out");
+    const RigErrorRow& mwe = find_row(r.errors, "mwe", "held_out");
+    fmt::print("held-out poses: MWE mean {:.2f} mm vs SSD {:.2f} mm ({})\n", mwe.mean_mm, lbs.mean_mm,
+               mwe.mean_mm < lbs.mean_mm ? "MWE better" : "MWE NOT better");
+    if (!r.wrote_glb) cli::warn("no character.glb: " + r.glb_note);
+    cli::info("wrote " + a->out);
+  });
+}
+
+}  // namespace bodymodel
