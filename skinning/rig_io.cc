@@ -3,10 +3,12 @@
 #include "core/error.h"
 #include "core/io/npz.h"
 
+#include <nlohmann/json.hpp>
+
 namespace bodymodel {
 
 void save_rig(const std::filesystem::path& path, const SkinningRig& rig, const Eigen::MatrixX3i& faces,
-              const std::vector<BoneTransforms>& poses) {
+              const std::vector<BoneTransforms>& poses, const Skeleton* skeleton) {
   rig.validate(path.string());
   Npz z;
   z.put_text("format", "bodymodel-skinning-rig-1");
@@ -31,11 +33,23 @@ void save_rig(const std::filesystem::path& path, const SkinningRig& rig, const E
     }
     z.put("pose_transforms", T);
   }
+  if (skeleton && skeleton->bone_count() > 0) {
+    skeleton->validate();
+    if (skeleton->bone_count() != rig.bone_count)
+      throw InputError(path.string() + ": the skeleton has " + std::to_string(skeleton->bone_count()) +
+                       " bones, the rig " + std::to_string(rig.bone_count));
+    z.put_text("skeleton_names", nlohmann::json(skeleton->names).dump());
+    Eigen::VectorXi parents(skeleton->bone_count());
+    for (int b = 0; b < skeleton->bone_count(); ++b) parents(b) = skeleton->parents[static_cast<size_t>(b)];
+    z.put("skeleton_parents", parents);
+    z.put("skeleton_heads", Eigen::MatrixXd(skeleton->heads));
+    z.put("skeleton_tails", Eigen::MatrixXd(skeleton->tails));
+  }
   z.save(path);
 }
 
 SkinningRig load_rig(const std::filesystem::path& path, Eigen::MatrixX3i* faces,
-                     std::vector<BoneTransforms>* poses) {
+                     std::vector<BoneTransforms>* poses, Skeleton* skeleton) {
   const Npz z = Npz::load(path);
   if (!z.has("format") || z.text("format") != "bodymodel-skinning-rig-1")
     throw InputError(path.string() + ": not a bodymodel skinning rig (expected key 'format' = "
@@ -67,6 +81,29 @@ SkinningRig load_rig(const std::filesystem::path& path, Eigen::MatrixX3i* faces,
             for (int c = 0; c < 4; ++c) M[static_cast<size_t>(b)].matrix()(r, c) = T(p * rig.bone_count + b, 4 * r + c);
         poses->push_back(M);
       }
+    }
+  }
+  if (skeleton) {
+    *skeleton = Skeleton{};
+    if (z.has("skeleton_names")) {
+      try {
+        skeleton->names = nlohmann::json::parse(z.text("skeleton_names")).get<std::vector<std::string>>();
+      } catch (const nlohmann::json::exception& e) {
+        throw InputError(path.string() + ": 'skeleton_names' is not a JSON list of names: " + e.what());
+      }
+      for (const char* key : {"skeleton_parents", "skeleton_heads", "skeleton_tails"})
+        if (!z.has(key)) throw InputError(path.string() + ": 'skeleton_names' without '" + key + "'");
+      const Eigen::VectorXi parents = z.int_vector("skeleton_parents");
+      skeleton->parents.assign(parents.data(), parents.data() + parents.size());
+      const Eigen::MatrixXd heads = z.matrix("skeleton_heads"), tails = z.matrix("skeleton_tails");
+      if (heads.cols() != 3 || tails.cols() != 3)
+        throw InputError(path.string() + ": 'skeleton_heads' and 'skeleton_tails' must have 3 columns");
+      skeleton->heads = heads;
+      skeleton->tails = tails;
+      skeleton->validate();
+      if (skeleton->bone_count() != rig.bone_count)
+        throw InputError(path.string() + ": the skeleton has " + std::to_string(skeleton->bone_count()) +
+                         " bones, the rig " + std::to_string(rig.bone_count));
     }
   }
   return rig;

@@ -9,6 +9,11 @@
 //                     12 (mwe: W_k[j][i] at 12k + 4j + i, output row j, input column i of M_k)
 //   pose_transforms   optional, #P·#B by 12 float64: the fitted poses' bone maps M_b rest → posed,
 //                     row p·#B + b = the 3 by 4 matrix [R t] in row-major order
+//   skeleton_names    optional text, a JSON list of the #B bone names (the bones the rig's
+//                     influences index), with
+//   skeleton_parents  #B int32 parent index (−1 root), skeleton_heads / skeleton_tails #B by 3
+//                     float64 rest joint positions (data units). The same keys as the character
+//                     rigs of `bodymodel character` (tools/pipeline/character_file.h).
 // Posing: ssd v' = Σ_k w_k M_k ṽ; as v' = Σ_k M_k p_k; mwe v'_j = Σ_k Σ_i W_k[j][i] (M_k)_ji ṽ_i,
 // with ṽ = [v; 1] and k over the vertex's slots.
 #pragma once
@@ -20,11 +25,13 @@
 
 namespace bodymodel {
 
+// skeleton: optional (nullptr or 0 bones: no skeleton keys); must have rig.bone_count bones.
 void save_rig(const std::filesystem::path& path, const SkinningRig& rig, const Eigen::MatrixX3i& faces = {},
-              const std::vector<BoneTransforms>& pose_transforms = {});
+              const std::vector<BoneTransforms>& pose_transforms = {}, const Skeleton* skeleton = nullptr);
 
 // Throws InputError naming the file and key when a key is missing or inconsistent.
+// skeleton (optional): the stored skeleton, or an empty Skeleton (0 bones) when the file has none.
 SkinningRig load_rig(const std::filesystem::path& path, Eigen::MatrixX3i* faces = nullptr,
-                     std::vector<BoneTransforms>* pose_transforms = nullptr);
+                     std::vector<BoneTransforms>* pose_transforms = nullptr, Skeleton* skeleton = nullptr);
 
 }  // namespace bodymodel
