@@ -3,10 +3,12 @@
 #include <tbb/parallel_for.h>
 
 #include <Eigen/CholmodSupport>
+#include <Eigen/LU>
 #include <Eigen/Sparse>
 #include <algorithm>
 #include <chrono>
 #include <map>
+#include <mutex>
 #include <numeric>
 #include <string>
 
@@ -23,11 +25,14 @@ double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-// CHOLMOD's simplicial LLᵀ: on this machine (ATLAS BLAS, 2 cores) it factorises the 3·#F
-// rotation system faster than the supernodal variant (≈ 190 vs 350 ms CPU for the body) and
-// solves small multi-column right-hand sides faster too.
+// CHOLMOD's simplicial LLᵀ for the per-decode refactorisation of the rotation system: on this
+// machine (ATLAS BLAS, 2 cores) it factorises the 3·#F system faster than the supernodal
+// variant (≈ 190 vs 350 ms CPU for the body). Its solve uses workspace inside the object, so
+// each concurrent caller gets its own (RotationPool).
 using Cholesky = Eigen::CholmodSimplicialLLT<SparseMatrixd, Eigen::Lower>;
-using SimplicialCholesky = Cholesky;
+// Factorisations shared by concurrent callers: Eigen's own simplicial Cholesky, whose solve is
+// const and allocates its own temporaries.
+using SharedCholesky = Eigen::SimplicialLLT<SparseMatrixd, Eigen::Lower>;
 
 struct UnionFind {
   std::vector<int> parent;
@@ -64,14 +69,24 @@ int value_index(const SparseMatrixd& M, int row, int col) {
 void DecoderOptions::validate() const {
   if (!(cg_tolerance > 0) || cg_max_iterations < 1)
     throw InputError("decoder options: cg_tolerance must be positive and cg_max_iterations >= 1");
+  if (!(consistency_tolerance >= 0) || !(cg_start_residual >= 0))
+    throw InputError("decoder options: consistency_tolerance and cg_start_residual must be >= 0");
   if (!(constraint_weight > 0) || !std::isfinite(constraint_weight))
     throw InputError("decoder options: constraint_weight must be positive and finite, found " +
                      std::to_string(constraint_weight));
 }
 
+// A Poisson factorisation for one set of constrained vertices (immutable once built).
+struct PoissonFactor {
+  SharedCholesky solver;
+  std::vector<char> pinned;            // #V: row replaced by identity
+  Eigen::VectorXi key_vertices;        // the constraint set it was built for
+  Eigen::VectorXd key_weights;
+};
+
 struct RelativeRotationDecoder::Impl {
   int nf = 0, nv = 0;
-  // ---- rotation system ----
+  // ---- rotation system (read-only after construction) ----
   std::vector<int> unknown;            // #F: unknown block index, −1 for a fixed triangle
   std::vector<int> fixed_triangles;    // one per component
   int n_unknown = 0;
@@ -81,33 +96,126 @@ struct RelativeRotationDecoder::Impl {
     bool transposed;                   // block stored at (g, f): add −R_fgᵀ
   };
   std::vector<Slot> slots;
-  SparseMatrixd N;                     // lower triangle of the normal matrix
-  Eigen::VectorXd N_base_values;       // diagonal filled, off-diagonal zero
-  Cholesky rotation_solver;
-  bool rotation_analysed = false;
-  bool rotation_factorised = false;    // rotation_solver holds the factor of some N
-  // ---- preconditioned CG on the rotation system ----
+  SparseMatrixd N_pattern;             // lower triangle of the normal matrix, base values
   std::vector<int> reverse_slot;       // 3#F: k' with TT(g, k') = f for g = TT(f, k), or −1
   std::vector<int> degree;             // #F: diagonal of N (2 per neighbour)
   std::vector<std::pair<int, int>> tree;  // BFS order: (child, slot 3·parent + k) per non-root
-  SimplicialCholesky dual_laplacian;             // L_s on the unknown triangles, factorised once
-  std::vector<Eigen::Matrix3d> M;      // 3#F: R_fg + R_gfᵀ (off-diagonal block −M)
-  // ---- Poisson ----
+  SharedCholesky dual_laplacian;       // L_s on the unknown triangles, factorised once
+  // ---- Poisson (read-only after construction) ----
   SparseMatrixd K;                     // Gᵀ A G, #V by #V (full symmetric)
   SparseMatrixd D;                     // Gᵀ A, #V by 3#F
   std::vector<int> vertex_component;   // #V, −1 for unreferenced vertices
   std::vector<int> component_first_vertex;
-  std::unique_ptr<SimplicialCholesky> poisson_solver;
-  std::vector<char> poisson_pinned;
-  Eigen::VectorXi poisson_key_vertices;  // constraint set of the current factorisation
-  Eigen::VectorXd poisson_key_weights;
-  bool poisson_ready = false;
+  std::shared_ptr<const PoissonFactor> free_poisson;  // no constraints (built once if reused)
+  // ---- shared mutable state, guarded by `mutex` ----
+  mutable std::mutex mutex;
+  mutable std::vector<std::unique_ptr<Cholesky>> rotation_pool;  // analysed, idle
+  mutable std::shared_ptr<const PoissonFactor> constrained_poisson;  // last constraint set
+  mutable DecodeTiming last;
+
+  std::unique_ptr<Cholesky> analysed_rotation_solver() const {
+    auto solver = std::make_unique<Cholesky>();
+    solver->analyzePattern(N_pattern);
+    if (solver->info() != Eigen::Success)
+      throw NumericalError("rotation system: symbolic analysis failed");
+    return solver;
+  }
+  std::shared_ptr<const PoissonFactor> build_poisson(const Eigen::VectorXi& vertices,
+                                                     const Eigen::VectorXd& weights) const;
 };
+
+namespace {
+
+// Borrows an analysed rotation solver from the decoder's pool for one call (a new one is
+// analysed when every pooled solver is in use) and returns it afterwards.
+class PooledRotationSolver {
+ public:
+  explicit PooledRotationSolver(const RelativeRotationDecoder::Impl& m) : m_(m) {
+    {
+      std::lock_guard<std::mutex> lock(m_.mutex);
+      if (!m_.rotation_pool.empty()) {
+        solver_ = std::move(m_.rotation_pool.back());
+        m_.rotation_pool.pop_back();
+      }
+    }
+    if (!solver_) solver_ = m_.analysed_rotation_solver();
+  }
+  ~PooledRotationSolver() {
+    std::lock_guard<std::mutex> lock(m_.mutex);
+    m_.rotation_pool.push_back(std::move(solver_));
+  }
+  PooledRotationSolver(const PooledRotationSolver&) = delete;
+  PooledRotationSolver& operator=(const PooledRotationSolver&) = delete;
+  Cholesky& operator*() { return *solver_; }
+
+ private:
+  const RelativeRotationDecoder::Impl& m_;
+  std::unique_ptr<Cholesky> solver_;
+};
+
+// Closest rotation; one Newton step of the polar iteration (R ← (X + X⁻ᵀ)/2, error ε → ε²/2)
+// when X is already orthonormal to 1e-8 (the realisable case), else the SVD.
+Eigen::Matrix3d orthonormalise(const Eigen::Matrix3d& X) {
+  const double e = (X.transpose() * X - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  if (e < 1e-8 && X.determinant() > 0) return 0.5 * (X + X.inverse().transpose());
+  return closest_rotation(X);
+}
+
+}  // namespace
+
+std::shared_ptr<const PoissonFactor> RelativeRotationDecoder::Impl::build_poisson(
+    const Eigen::VectorXi& vertices, const Eigen::VectorXd& weights) const {
+  auto out = std::make_shared<PoissonFactor>();
+  std::vector<char> has_constraint(component_first_vertex.size(), 0);
+  SparseMatrixd A = K;
+  if (vertices.size() > 0) {
+    std::vector<Eigen::Triplet<double>> t;
+    for (Eigen::Index i = 0; i < vertices.size(); ++i) {
+      t.emplace_back(vertices(i), vertices(i), weights(i));
+      has_constraint[vertex_component[vertices(i)]] = 1;
+    }
+    SparseMatrixd W(nv, nv);
+    W.setFromTriplets(t.begin(), t.end());
+    A += W;
+  }
+  out->pinned.assign(nv, 0);
+  for (int v = 0; v < nv; ++v)
+    if (vertex_component[v] < 0) out->pinned[v] = 1;
+  for (size_t comp = 0; comp < component_first_vertex.size(); ++comp)
+    if (!has_constraint[comp]) out->pinned[component_first_vertex[comp]] = 1;
+  const auto& pinned = out->pinned;
+  A.prune([&](Eigen::Index r, Eigen::Index col, double) {
+    return r == col || (!pinned[r] && !pinned[col]);
+  });
+  // Pinned rows: identity (a missing diagonal entry of an unreferenced vertex is inserted).
+  std::vector<Eigen::Triplet<double>> diag;
+  for (int v = 0; v < nv; ++v)
+    if (pinned[v]) diag.emplace_back(v, v, 1.0 - A.coeff(v, v));
+  SparseMatrixd P(nv, nv);
+  P.setFromTriplets(diag.begin(), diag.end());
+  A += P;
+  out->solver.compute(A);
+  if (out->solver.info() != Eigen::Success)
+    throw NumericalError("Poisson system: factorisation failed");
+  out->key_vertices = vertices;
+  out->key_weights = weights;
+  return out;
+}
 
 RelativeRotationDecoder::~RelativeRotationDecoder() = default;
 
 int RelativeRotationDecoder::component_count() const {
   return static_cast<int>(impl_->fixed_triangles.size());
+}
+
+DecodeTiming RelativeRotationDecoder::last_timing() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->last;
+}
+
+void RelativeRotationDecoder::set_last_timing(const DecodeTiming& t) const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  impl_->last = t;
 }
 
 RelativeRotationDecoder::RelativeRotationDecoder(std::shared_ptr<const EncodingTemplate> tmpl,
@@ -154,13 +262,13 @@ RelativeRotationDecoder::RelativeRotationDecoder(std::shared_ptr<const EncodingT
     }
   for (int p = 0; p < m.n_unknown; ++p)
     for (int a = 0; a < 3; ++a) trip.emplace_back(3 * p + a, 3 * p + a, 0.0);
-  m.N.resize(3 * m.n_unknown, 3 * m.n_unknown);
-  m.N.setFromTriplets(trip.begin(), trip.end());
-  m.N.makeCompressed();
-  m.N_base_values = Eigen::VectorXd::Zero(m.N.nonZeros());
+  m.N_pattern.resize(3 * m.n_unknown, 3 * m.n_unknown);
+  m.N_pattern.setFromTriplets(trip.begin(), trip.end());
+  m.N_pattern.makeCompressed();
   for (int p = 0; p < m.n_unknown; ++p)
     for (int a = 0; a < 3; ++a)
-      m.N_base_values(value_index(m.N, 3 * p + a, 3 * p + a)) = std::max(1.0, diag_count(p));
+      m.N_pattern.valuePtr()[value_index(m.N_pattern, 3 * p + a, 3 * p + a)] =
+          std::max(1.0, diag_count(p));
   for (auto& s : m.slots) {
     const int pf = m.unknown[s.f], pg = m.unknown[s.g];
     std::fill(std::begin(s.value), std::end(s.value), -1);
@@ -169,13 +277,14 @@ RelativeRotationDecoder::RelativeRotationDecoder(std::shared_ptr<const EncodingT
     s.transposed = pf < pg;
     const int hi = std::max(pf, pg), lo = std::min(pf, pg);
     for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) s.value[3 * a + b] = value_index(m.N, 3 * hi + a, 3 * lo + b);
+      for (int b = 0; b < 3; ++b)
+        s.value[3 * a + b] = value_index(m.N_pattern, 3 * hi + a, 3 * lo + b);
   }
   if (options_.reuse_factorisations && m.n_unknown > 0 &&
       options_.rotation_solver == RotationSolver::kCholeskyRefactor)
-    analyse_rotation_pattern();
+    m.rotation_pool.push_back(m.analysed_rotation_solver());
 
-  // CG: reverse slots, degrees, spanning tree and the scalar dual-graph Laplacian.
+  // Reverse slots, degrees, spanning tree and the scalar dual-graph Laplacian.
   m.reverse_slot.assign(3 * static_cast<size_t>(m.nf), -1);
   m.degree.assign(m.nf, 0);
   for (int f = 0; f < m.nf; ++f)
@@ -204,19 +313,19 @@ RelativeRotationDecoder::RelativeRotationDecoder(std::shared_ptr<const EncodingT
         m.tree.emplace_back(g, 3 * f + k);
       }
     }
-    std::vector<Eigen::Triplet<double>> t;
-    for (int f = 0; f < m.nf; ++f) {
-      const int pf = m.unknown[f];
-      if (pf < 0) continue;
-      t.emplace_back(pf, pf, std::max(1, m.degree[f]));
-      for (int k = 0; k < 3; ++k) {
-        const int g = TT(f, k);
-        if (g >= 0 && m.unknown[g] >= 0) t.emplace_back(pf, m.unknown[g], -2.0);
+    if (options_.rotation_solver == RotationSolver::kPreconditionedCG && m.n_unknown > 0) {
+      std::vector<Eigen::Triplet<double>> t;
+      for (int f = 0; f < m.nf; ++f) {
+        const int pf = m.unknown[f];
+        if (pf < 0) continue;
+        t.emplace_back(pf, pf, std::max(1, m.degree[f]));
+        for (int k = 0; k < 3; ++k) {
+          const int g = TT(f, k);
+          if (g >= 0 && m.unknown[g] >= 0) t.emplace_back(pf, m.unknown[g], -2.0);
+        }
       }
-    }
-    SparseMatrixd Ls(m.n_unknown, m.n_unknown);
-    Ls.setFromTriplets(t.begin(), t.end());
-    if (m.n_unknown > 0) {
+      SparseMatrixd Ls(m.n_unknown, m.n_unknown);
+      Ls.setFromTriplets(t.begin(), t.end());
       m.dual_laplacian.compute(Ls);
       if (m.dual_laplacian.info() != Eigen::Success)
         throw NumericalError("rotation system: factorising the dual-graph Laplacian failed");
@@ -247,47 +356,99 @@ RelativeRotationDecoder::RelativeRotationDecoder(std::shared_ptr<const EncodingT
     if (inserted) m.component_first_vertex.push_back(v);
     m.vertex_component[v] = it->second;
   }
-}
-
-void RelativeRotationDecoder::analyse_rotation_pattern() {
-  Impl& m = *impl_;
-  SparseMatrixd pattern = m.N;
-  std::copy(m.N_base_values.data(), m.N_base_values.data() + m.N_base_values.size(),
-            pattern.valuePtr());
-  m.rotation_solver.analyzePattern(pattern);
-  if (m.rotation_solver.info() != Eigen::Success)
-    throw NumericalError("rotation system: symbolic analysis failed");
-  m.rotation_analysed = true;
+  if (options_.reuse_factorisations)
+    m.free_poisson = m.build_poisson(Eigen::VectorXi(), Eigen::VectorXd());
 }
 
 std::vector<Eigen::Matrix3d> RelativeRotationDecoder::solve_rotations(
-    const std::vector<Eigen::Matrix3d>& slot_rotations) {
-  Impl& m = *impl_;
+    const std::vector<Eigen::Matrix3d>& slot_rotations) const {
+  DecodeTiming timing;
+  std::vector<Eigen::Matrix3d> R = rotations(slot_rotations, timing);
+  set_last_timing(timing);
+  return R;
+}
+
+std::vector<Eigen::Matrix3d> RelativeRotationDecoder::rotations(
+    const std::vector<Eigen::Matrix3d>& slot_rotations, DecodeTiming& timing) const {
+  const Impl& m = *impl_;
+  const Eigen::MatrixX3i& TT = tmpl_->adjacency();
   if (static_cast<int>(slot_rotations.size()) != 3 * m.nf)
     throw InputError("decoder: expected " + std::to_string(3 * m.nf) + " slot rotations, found " +
                      std::to_string(slot_rotations.size()));
   auto t0 = Clock::now();
-  const Eigen::Matrix3d Rg = Eigen::Matrix3d::Identity();
   std::vector<Eigen::Matrix3d> R(m.nf);
-  for (int f : m.fixed_triangles) R[f] = Rg;
+  for (int f : m.fixed_triangles) R[f].setIdentity();
   if (m.n_unknown == 0) return R;
-  if (options_.rotation_solver == RotationSolver::kPreconditionedCG && options_.reuse_factorisations) {
-    Eigen::MatrixXd X;
-    if (solve_rotations_cg(slot_rotations, R, X)) {
+  const bool use_tree = options_.rotation_solver == RotationSolver::kPreconditionedCG &&
+                        options_.reuse_factorisations;
+
+  Eigen::MatrixXd X;
+  if (use_tree) {
+    // a. Integrate along the spanning tree: R_fg T_g = T_f  →  T_g = R_fgᵀ T_f.
+    std::vector<Eigen::Matrix3d> T(m.nf);
+    for (int f : m.fixed_triangles) T[f] = R[f].transpose();
+    for (const auto& [child, slot] : m.tree) T[child] = slot_rotations[slot].transpose() * T[slot / 3];
+    // Largest equation residual over every slot.
+    std::vector<double> worst(m.nf, 0.0);
+    parallel_range(m.nf, [&](int f) {
+      double w = 0;
+      for (int k = 0; k < 3; ++k) {
+        const int g = TT(f, k);
+        if (g >= 0) w = std::max(w, (slot_rotations[3 * f + k] * T[g] - T[f]).norm());
+      }
+      worst[f] = w;
+    });
+    double residual = 0;
+    for (double w : worst) residual = std::max(residual, std::isnan(w) ? 1e300 : w);
+    timing.assemble_ms += ms_since(t0);
+    if (residual <= options_.consistency_tolerance) {
+      timing.rotation_path = 0;
       t0 = Clock::now();
       parallel_range(m.nf, [&](int f) {
-        const int p = m.unknown[f];
-        if (p >= 0) R[f] = closest_rotation(X.middleRows<3>(3 * p).transpose());
+        if (m.unknown[f] >= 0) R[f] = orthonormalise(T[f].transpose());
       });
-      timing_.orthonormalise_ms += ms_since(t0);
+      timing.orthonormalise_ms += ms_since(t0);
       return R;
     }
-    t0 = Clock::now();  // not converged: fall back to Cholesky
+    if (residual <= options_.cg_start_residual) {
+      // b. Nearly consistent: conjugate gradients from T.
+      t0 = Clock::now();
+      Eigen::MatrixXd b = Eigen::MatrixXd::Zero(3 * m.n_unknown, 3);
+      for (int f = 0; f < m.nf; ++f) {
+        const int pf = m.unknown[f];
+        if (pf < 0) continue;
+        for (int k = 0; k < 3; ++k) {
+          const int g = TT(f, k);
+          if (g < 0 || m.unknown[g] >= 0) continue;
+          const int kk = m.reverse_slot[3 * f + k];
+          const Eigen::Matrix3d M = slot_rotations[3 * f + k] +
+                                    (kk >= 0 ? Eigen::Matrix3d(slot_rotations[3 * g + kk].transpose())
+                                             : Eigen::Matrix3d(slot_rotations[3 * f + k]));
+          b.middleRows<3>(3 * pf) += M * T[g];
+        }
+      }
+      X.resize(3 * m.n_unknown, 3);
+      for (int f = 0; f < m.nf; ++f)
+        if (m.unknown[f] >= 0) X.middleRows<3>(3 * m.unknown[f]) = T[f];
+      timing.assemble_ms += ms_since(t0);
+      if (rotations_cg(slot_rotations, T, b, X, timing)) {
+        timing.rotation_path = 1;
+        t0 = Clock::now();
+        parallel_range(m.nf, [&](int f) {
+          const int p = m.unknown[f];
+          if (p >= 0) R[f] = orthonormalise(X.middleRows<3>(3 * p).transpose());
+        });
+        timing.orthonormalise_ms += ms_since(t0);
+        return R;
+      }
+    }
+    t0 = Clock::now();
   }
 
-  // Values of N and the right-hand side b (3·#unknown by 3).
-  double* val = m.N.valuePtr();
-  std::copy(m.N_base_values.data(), m.N_base_values.data() + m.N_base_values.size(), val);
+  // c. Cholesky: values of N and the right-hand side b (3·#unknown by 3).
+  timing.rotation_path = 2;
+  SparseMatrixd N = m.N_pattern;
+  double* val = N.valuePtr();
   Eigen::MatrixXd b = Eigen::MatrixXd::Zero(3 * m.n_unknown, 3);
   for (const auto& s : m.slots) {
     const Eigen::Matrix3d& Rfg = slot_rotations[3 * s.f + s.k];
@@ -301,41 +462,48 @@ std::vector<Eigen::Matrix3d> RelativeRotationDecoder::solve_rotations(
       b.middleRows<3>(3 * pf) += Rfg * R[s.g].transpose();               // g fixed
     }
   }
-  timing_.assemble_ms += ms_since(t0);
+  timing.assemble_ms += ms_since(t0);
 
   t0 = Clock::now();
-  Eigen::MatrixXd X;
   if (options_.reuse_factorisations) {
-    if (!m.rotation_analysed) analyse_rotation_pattern();
-    m.rotation_factorised = false;
-    m.rotation_solver.factorize(m.N);
-    if (m.rotation_solver.info() != Eigen::Success)
+    PooledRotationSolver solver(m);
+    (*solver).factorize(N);
+    if ((*solver).info() != Eigen::Success)
       throw NumericalError("rotation system: numeric factorisation failed");
-    m.rotation_factorised = true;
-    X = m.rotation_solver.solve(b);
+    X = (*solver).solve(b);
   } else {
     Cholesky fresh;
-    fresh.compute(m.N);
+    fresh.compute(N);
     if (fresh.info() != Eigen::Success)
       throw NumericalError("rotation system: factorisation failed");
     X = fresh.solve(b);
   }
-  timing_.rotation_solve_ms += ms_since(t0);
+  timing.rotation_solve_ms += ms_since(t0);
   if (!X.allFinite()) throw NumericalError("rotation system: the solve produced NaN");
 
   t0 = Clock::now();
   parallel_range(m.nf, [&](int f) {
     const int p = m.unknown[f];
-    if (p >= 0) R[f] = closest_rotation(X.middleRows<3>(3 * p).transpose());
+    if (p >= 0) R[f] = orthonormalise(X.middleRows<3>(3 * p).transpose());
   });
-  timing_.orthonormalise_ms += ms_since(t0);
+  timing.orthonormalise_ms += ms_since(t0);
   return R;
 }
 
 Eigen::MatrixX3d RelativeRotationDecoder::solve_positions(const std::vector<Eigen::Matrix3d>& R,
                                                           const std::vector<Eigen::Matrix3d>& S,
-                                                          const PositionConstraints* c) {
-  Impl& m = *impl_;
+                                                          const PositionConstraints* c) const {
+  DecodeTiming timing;
+  Eigen::MatrixX3d X = positions(R, S, c, timing);
+  set_last_timing(timing);
+  return X;
+}
+
+Eigen::MatrixX3d RelativeRotationDecoder::positions(const std::vector<Eigen::Matrix3d>& R,
+                                                    const std::vector<Eigen::Matrix3d>& S,
+                                                    const PositionConstraints* c,
+                                                    DecodeTiming& timing) const {
+  const Impl& m = *impl_;
   if (static_cast<int>(R.size()) != m.nf || static_cast<int>(S.size()) != m.nf)
     throw InputError("decoder: expected " + std::to_string(m.nf) + " rotations and stretches");
   const bool constrained = c && !c->empty();
@@ -362,47 +530,26 @@ Eigen::MatrixX3d RelativeRotationDecoder::solve_positions(const std::vector<Eige
   const Eigen::VectorXi key_vertices = constrained ? c->vertices : Eigen::VectorXi();
   auto t0 = Clock::now();
 
-  // (Re)factorise when needed.
-  const bool same_key = m.poisson_ready && key_vertices.size() == m.poisson_key_vertices.size() &&
-                        key_vertices == m.poisson_key_vertices &&
-                        weights.size() == m.poisson_key_weights.size() &&
-                        weights == m.poisson_key_weights;
-  if (!same_key || !options_.reuse_factorisations) {
-    std::vector<char> has_constraint(m.component_first_vertex.size(), 0);
-    SparseMatrixd A = m.K;
-    if (constrained) {
-      std::vector<Eigen::Triplet<double>> t;
-      for (Eigen::Index i = 0; i < key_vertices.size(); ++i) {
-        t.emplace_back(key_vertices(i), key_vertices(i), weights(i));
-        has_constraint[m.vertex_component[key_vertices(i)]] = 1;
-      }
-      SparseMatrixd W(m.nv, m.nv);
-      W.setFromTriplets(t.begin(), t.end());
-      A += W;
+  // The factorisation for this constraint set: the unconstrained one built at set-up, the
+  // cached constrained one if the set and weights match, else a new one (then cached).
+  std::shared_ptr<const PoissonFactor> factor;
+  if (!options_.reuse_factorisations) {
+    factor = m.build_poisson(key_vertices, weights);
+  } else if (!constrained) {
+    factor = m.free_poisson;
+  } else {
+    {
+      std::lock_guard<std::mutex> lock(m.mutex);
+      factor = m.constrained_poisson;
     }
-    m.poisson_pinned.assign(m.nv, 0);
-    for (int v = 0; v < m.nv; ++v)
-      if (m.vertex_component[v] < 0) m.poisson_pinned[v] = 1;
-    for (size_t comp = 0; comp < m.component_first_vertex.size(); ++comp)
-      if (!has_constraint[comp]) m.poisson_pinned[m.component_first_vertex[comp]] = 1;
-    const auto& pinned = m.poisson_pinned;
-    A.prune([&](Eigen::Index r, Eigen::Index col, double) {
-      return r == col || (!pinned[r] && !pinned[col]);
-    });
-    // Pinned rows: identity (a missing diagonal entry of an unreferenced vertex is inserted).
-    std::vector<Eigen::Triplet<double>> diag;
-    for (int v = 0; v < m.nv; ++v)
-      if (pinned[v]) diag.emplace_back(v, v, 1.0 - A.coeff(v, v));
-    SparseMatrixd P(m.nv, m.nv);
-    P.setFromTriplets(diag.begin(), diag.end());
-    A += P;
-    m.poisson_solver = std::make_unique<SimplicialCholesky>();
-    m.poisson_solver->compute(A);
-    if (m.poisson_solver->info() != Eigen::Success)
-      throw NumericalError("Poisson system: factorisation failed");
-    m.poisson_key_vertices = key_vertices;
-    m.poisson_key_weights = weights;
-    m.poisson_ready = true;
+    const bool same = factor && factor->key_vertices.size() == key_vertices.size() &&
+                      factor->key_vertices == key_vertices &&
+                      factor->key_weights.size() == weights.size() && factor->key_weights == weights;
+    if (!same) {
+      factor = m.build_poisson(key_vertices, weights);
+      std::lock_guard<std::mutex> lock(m.mutex);
+      m.constrained_poisson = factor;
+    }
   }
 
   // Right-hand side: divergence of the target gradients (+ constraint terms).
@@ -418,52 +565,40 @@ Eigen::MatrixX3d RelativeRotationDecoder::solve_positions(const std::vector<Eige
       rhs.row(key_vertices(i)) += weights(i) * c->targets.row(i);
   const Eigen::MatrixX3d& Vrest = tmpl_->rest_vertices();
   for (int v = 0; v < m.nv; ++v)
-    if (m.poisson_pinned[v])
+    if (factor->pinned[v])
       rhs.row(v) = m.vertex_component[v] < 0 ? Eigen::RowVector3d(Vrest.row(v))
                                              : Eigen::RowVector3d::Zero();
-  Eigen::MatrixX3d X = m.poisson_solver->solve(rhs);
-  timing_.poisson_ms += ms_since(t0);
+  Eigen::MatrixX3d X = factor->solver.solve(rhs);
+  timing.poisson_ms += ms_since(t0);
   if (!X.allFinite()) throw NumericalError("Poisson system: the solve produced NaN");
   return X;
 }
 
-// Preconditioned CG on N X = b (X = stacked T_f = R_fᵀ, 3 columns solved together).
-// Returns false if it did not converge within cg_max_iterations.
-bool RelativeRotationDecoder::solve_rotations_cg(const std::vector<Eigen::Matrix3d>& slot_rotations,
-                                                 const std::vector<Eigen::Matrix3d>& R_fixed,
-                                                 Eigen::MatrixXd& X) {
-  Impl& m = *impl_;
+// Preconditioned CG on N X = b (X = stacked T_f = R_fᵀ, 3 columns solved together), from the
+// X given, with the dual-graph Laplacian in the gauge T as preconditioner. Returns false if it
+// did not converge within cg_max_iterations (or stalls: see below).
+bool RelativeRotationDecoder::rotations_cg(const std::vector<Eigen::Matrix3d>& slot_rotations,
+                                           const std::vector<Eigen::Matrix3d>& T,
+                                           const Eigen::MatrixXd& b, Eigen::MatrixXd& X,
+                                           DecodeTiming& timing) const {
+  const Impl& m = *impl_;
   const Eigen::MatrixX3i& TT = tmpl_->adjacency();
   auto t0 = Clock::now();
-  m.M.resize(3 * static_cast<size_t>(m.nf));
+  std::vector<Eigen::Matrix3d> M(3 * static_cast<size_t>(m.nf));  // R_fg + R_gfᵀ per slot
   parallel_range(m.nf, [&](int f) {
     for (int k = 0; k < 3; ++k) {
       const int g = TT(f, k);
       if (g < 0) continue;
       const int kk = m.reverse_slot[3 * f + k];
-      m.M[3 * f + k] = slot_rotations[3 * f + k] +
-                       (kk >= 0 ? Eigen::Matrix3d(slot_rotations[3 * g + kk].transpose())
-                                : Eigen::Matrix3d(slot_rotations[3 * f + k]));
+      M[3 * f + k] = slot_rotations[3 * f + k] +
+                     (kk >= 0 ? Eigen::Matrix3d(slot_rotations[3 * g + kk].transpose())
+                              : Eigen::Matrix3d(slot_rotations[3 * f + k]));
     }
   });
-  // Right-hand side from the fixed triangles, and the gauge T̃ along the spanning tree.
-  const int n = m.n_unknown;
-  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(3 * n, 3);
-  std::vector<Eigen::Matrix3d> T(m.nf);
-  for (int f : m.fixed_triangles) T[f] = R_fixed[f].transpose();
-  for (int f = 0; f < m.nf; ++f) {
-    const int pf = m.unknown[f];
-    if (pf < 0) continue;
-    for (int k = 0; k < 3; ++k) {
-      const int g = TT(f, k);
-      if (g >= 0 && m.unknown[g] < 0) b.middleRows<3>(3 * pf) += m.M[3 * f + k] * T[g];
-    }
-  }
-  for (const auto& [child, slot] : m.tree)  // R_fg T_g = T_f  →  T_g = R_fgᵀ T_f
-    T[child] = slot_rotations[slot].transpose() * T[slot / 3];
-  timing_.assemble_ms += ms_since(t0);
+  timing.assemble_ms += ms_since(t0);
 
   t0 = Clock::now();
+  const int n = m.n_unknown;
   auto apply_N = [&](const Eigen::MatrixXd& Xin, Eigen::MatrixXd& out) {
     out.resize(3 * n, 3);
     parallel_range(m.nf, [&](int f) {
@@ -472,13 +607,13 @@ bool RelativeRotationDecoder::solve_rotations_cg(const std::vector<Eigen::Matrix
       Eigen::Matrix3d acc = m.degree[f] * Xin.middleRows<3>(3 * pf);
       for (int k = 0; k < 3; ++k) {
         const int g = TT(f, k);
-        if (g >= 0 && m.unknown[g] >= 0) acc -= m.M[3 * f + k] * Xin.middleRows<3>(3 * m.unknown[g]);
+        if (g >= 0 && m.unknown[g] >= 0) acc -= M[3 * f + k] * Xin.middleRows<3>(3 * m.unknown[g]);
       }
       out.middleRows<3>(3 * pf) = acc;
     });
   };
   Eigen::MatrixXd Y(n, 9);
-  auto apply_P_inverse = [&](const Eigen::MatrixXd& r, Eigen::MatrixXd& z) {
+  auto precondition = [&](const Eigen::MatrixXd& r, Eigen::MatrixXd& z) {
     parallel_range(m.nf, [&](int f) {
       const int pf = m.unknown[f];
       if (pf < 0) return;
@@ -498,27 +633,34 @@ bool RelativeRotationDecoder::solve_rotations_cg(const std::vector<Eigen::Matrix
     });
   };
   const Eigen::RowVector3d b_norm = b.colwise().norm().cwiseMax(1e-300);
-  // PCG from X with preconditioner `precondition`; gives up when the relative residual is
-  // still above `give_up_above` after `give_up_after` iterations.
-  int total_iterations = 0;
-  auto pcg = [&](const auto& precondition, double tolerance, int give_up_after, double give_up_above) {
-    Eigen::MatrixXd r, z, p, q;
-    apply_N(X, q);
-    r = b - q;
+  Eigen::MatrixXd r, z, p, q;
+  apply_N(X, q);
+  r = b - q;
+  bool converged = (r.colwise().norm().array() / b_norm.array()).maxCoeff() <= options_.cg_tolerance;
+  if (!converged) {
     precondition(r, z);
     p = z;
     Eigen::RowVector3d rz = (r.cwiseProduct(z)).colwise().sum();
+    double previous = 1e300;
     for (int it = 0; it < options_.cg_max_iterations; ++it) {
       apply_N(p, q);
-      ++total_iterations;
+      ++timing.cg_iterations;
       const Eigen::RowVector3d pq = (p.cwiseProduct(q)).colwise().sum();
       Eigen::RowVector3d alpha;
       for (int c = 0; c < 3; ++c) alpha(c) = pq(c) > 0 ? rz(c) / pq(c) : 0.0;
       X += p * alpha.asDiagonal();
       r -= q * alpha.asDiagonal();
       const double relative = (r.colwise().norm().array() / b_norm.array()).maxCoeff();
-      if (relative <= tolerance) return true;
-      if (it + 1 >= give_up_after && relative > give_up_above) return false;
+      if (relative <= options_.cg_tolerance) {
+        converged = true;
+        break;
+      }
+      // Stalling (less than a halving per two iterations): the encoding has holonomy this
+      // preconditioner cannot see; leave it to the Cholesky solve.
+      if (it % 2 == 1) {
+        if (relative > 0.5 * previous) break;
+        previous = relative;
+      }
       precondition(r, z);
       const Eigen::RowVector3d rz_new = (r.cwiseProduct(z)).colwise().sum();
       Eigen::RowVector3d beta;
@@ -526,28 +668,19 @@ bool RelativeRotationDecoder::solve_rotations_cg(const std::vector<Eigen::Matrix
       rz = rz_new;
       p = z + p * beta.asDiagonal();
     }
-    return false;
-  };
-  X = Eigen::MatrixXd::Zero(3 * n, 3);
-  // Tree-gauge Laplacian preconditioner: exact for consistent encodings. An inconsistent
-  // encoding (a blend, a model sample) converges slowly with it: give up after 3 iterations
-  // and let the caller use the Cholesky refactorisation. (Preconditioning with the Cholesky
-  // factor of a NEARBY encoding was tried: 7 iterations at Δt = 0.01 along a horse blend, 15
-  // at Δt = 0.05 — not worth it.)
-  bool converged = pcg(apply_P_inverse, options_.cg_tolerance, 3, 1e-4);
-  const int it = total_iterations;
-  timing_.cg_iterations = it;
-  timing_.rotation_solve_ms += ms_since(t0);
+  }
+  timing.rotation_solve_ms += ms_since(t0);
   return converged && X.allFinite();
 }
 
-Eigen::MatrixX3d RelativeRotationDecoder::decode(const Encoding& e) {
-  return decode(e, PositionConstraints{});
+Eigen::MatrixX3d RelativeRotationDecoder::decode(const Encoding& e) const {
+  return decode(e, PositionConstraints{}, nullptr);
 }
 
 Eigen::MatrixX3d RelativeRotationDecoder::decode(const Encoding& e,
-                                                 const PositionConstraints& constraints) {
-  timing_ = DecodeTiming{};
+                                                 const PositionConstraints& constraints,
+                                                 DecodeTiming* timing_out) const {
+  DecodeTiming timing;
   const auto start = Clock::now();
   if (e.values.size() != tmpl_->encoding_size())
     throw InputError("decode: expected an encoding of " + std::to_string(tmpl_->encoding_size()) +
@@ -561,18 +694,18 @@ Eigen::MatrixX3d RelativeRotationDecoder::decode(const Encoding& e,
   auto t0 = Clock::now();
   std::vector<Eigen::Matrix3d> slot_rotations, S;
   encoding_matrices(e, slot_rotations, S);
-  timing_.assemble_ms += ms_since(t0);
-  std::vector<Eigen::Matrix3d> R = solve_rotations(slot_rotations);
+  timing.assemble_ms += ms_since(t0);
+  std::vector<Eigen::Matrix3d> R = rotations(slot_rotations, timing);
 
   Eigen::MatrixX3d X;
   if (constraints.empty()) {
-    X = solve_positions(R, S, nullptr);
+    X = positions(R, S, nullptr, timing);
     t0 = Clock::now();
     if (options_.align_to_template) X = apply(fit_rigid_motion(X, tmpl_->rest_vertices()), X);
-    timing_.finish_ms += ms_since(t0);
+    timing.finish_ms += ms_since(t0);
   } else {
     if (options_.orient_to_constraints && constraints.vertices.size() >= 3) {
-      const Eigen::MatrixX3d free = solve_positions(R, S, nullptr);
+      const Eigen::MatrixX3d free = positions(R, S, nullptr, timing);
       t0 = Clock::now();
       if (constraints.targets.rows() == constraints.vertices.size()) {
         Eigen::MatrixX3d A(constraints.vertices.size(), 3);
@@ -586,12 +719,14 @@ Eigen::MatrixX3d RelativeRotationDecoder::decode(const Encoding& e,
         const RigidMotion fit = fit_rigid_motion(A, constraints.targets, constraints.weights);
         for (auto& r : R) r = fit.R * r;
       }
-      timing_.finish_ms += ms_since(t0);
+      timing.finish_ms += ms_since(t0);
     }
-    X = solve_positions(R, S, &constraints);
+    X = positions(R, S, &constraints, timing);
   }
   if (!X.allFinite()) throw NumericalError("decode produced non-finite positions");
-  timing_.total_ms = ms_since(start);
+  timing.total_ms = ms_since(start);
+  set_last_timing(timing);
+  if (timing_out) *timing_out = timing;
   return X;
 }
 

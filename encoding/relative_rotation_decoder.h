@@ -4,24 +4,40 @@
 //  1. Rotations. Unknown per-triangle matrices X_f ≈ T_f = R_fᵀ (3×3). Every stored relative
 //     rotation R_fg = R_fᵀ R_g of an adjacent pair gives the equation R_fg X_g − X_f = 0 (the
 //     paper's R_ij R_j − R_i = 0 in the inverse rotations, see relative_rotation_encoding.h);
-//     one triangle per connected component is fixed to the global rotation (identity). The least-squares normal equations N X = b are the
-//     same for the three columns of X, so X (3·#unknown by 3) is one solve with three right-hand
-//     sides. N's diagonal blocks are constant (count·I) and its off-diagonal blocks are −R_fg −
-//     R_gfᵀ: the VALUES change with every encoding, the SPARSITY PATTERN never does. The solver
-//     therefore never re-analyses it: the default solver is conjugate gradients preconditioned
-//     with the dual-graph Laplacian factorised once (exact in one iteration for encoded meshes,
-//     see RotationSolver); the Cholesky path analyses the pattern once (symbolic factorisation,
-//     AMD ordering) and only refactorises numerically per decode. Each X_fᵀ is then
-//     orthonormalised by SVD (closest rotation) to give R_f.
+//     one triangle per connected component is fixed to the global rotation (identity). The
+//     least-squares normal equations N X = b are the same for the three columns of X, so X
+//     (3·#unknown by 3) is one solve with three right-hand sides. N's diagonal blocks are
+//     constant (count·I) and its off-diagonal blocks are −R_fg − R_gfᵀ: the VALUES change with
+//     every encoding, the SPARSITY PATTERN never does.
+//     Solve order (RotationSolver::kPreconditionedCG, the default):
+//       a. integrate the R_fg along a spanning tree of the dual graph from the fixed triangle
+//          (#F 3×3 products). If every equation then holds (max ‖R_fg T_g − T_f‖ ≤
+//          DecoderOptions::consistency_tolerance) the encoding is realisable and T is the exact
+//          least-squares solution (objective 0): no linear solve at all. Every encoded mesh and
+//          every rebase/relative_to of one takes this path.
+//       b. nearly consistent encodings (max equation residual ≤ cg_start_residual): conjugate
+//          gradients from T, preconditioned with the dual-graph Laplacian (factorised once) in
+//          the gauge of T.
+//       c. otherwise (blends, model samples, masked changes: the relative rotations have
+//          holonomy, so no flat gauge exists and the preconditioner above needs > 20 iterations
+//          even in the gauge of the exact solution): sparse Cholesky (CHOLMOD) with the
+//          symbolic analysis done once and only the numeric factorisation per decode.
+//     Each X_fᵀ is then orthonormalised (closest rotation) to give R_f.
 //  2. Positions. With U_f = R_f S_f the target gradient of triangle f, minimise
 //     Σ_f area_f ‖∇X|_f − U_f‖² (gradient-domain Poisson): K X = Gᵀ A B with K = Gᵀ A G the
-//     cotangent Laplacian (up to sign), which depends only on the template: factorised once.
-//     One vertex per component is fixed (translation); optional soft positional constraints add
-//     w‖x_v − t_v‖² rows (the factorisation is redone only when the constrained vertex set or
-//     the weights change).
+//     cotangent Laplacian (up to sign), which depends only on the template: factorised once,
+//     per decode one sparse product (the divergence Gᵀ A, precomputed) and a back-substitution
+//     with three right-hand sides. One vertex per component is fixed (translation); optional
+//     soft positional constraints add w‖x_v − t_v‖² rows (that factorisation is redone only
+//     when the constrained vertex set or the weights change, and is cached).
 //
-// The decoder is built once per template and reused; it is not thread-safe (decode() reuses
-// its factorisations and scratch memory): use one decoder per thread.
+// THREAD SAFETY: decode(), solve_rotations() and solve_positions() are const and may be called
+// concurrently from several threads on ONE decoder (each call has its own workspace; the
+// shared factorisations are only read; the per-call Cholesky factorisations come from a pool
+// of pre-analysed solvers, one per concurrent caller; the constrained-Poisson cache is
+// guarded). Concurrent calls give bit-identical results to sequential ones. last_timing() is
+// the timing of the most recent call to finish (from any thread); pass a DecodeTiming* to
+// decode() for the timing of one call.
 #pragma once
 
 #include <Eigen/Core>
@@ -35,22 +51,22 @@ namespace bodymodel {
 
 // How the rotation system is solved (both give the least-squares solution).
 enum class RotationSolver {
-  // Preconditioned conjugate gradients (default, fastest; see the .cc): the preconditioner is
-  // the dual-graph Laplacian L (topology only, factorised ONCE) in the gauge of rotations
-  // propagated along a spanning tree, P = D (L ⊗ I₃) Dᵀ, D = blockdiag(T̃_f). For a consistent
-  // encoding (any encoded mesh) P equals the system matrix and CG stops after one iteration.
-  // Inconsistent encodings (blends, model samples, masked changes) accumulate holonomy that
-  // this preconditioner does not capture: when CG has not reduced the residual below 1e-4
-  // after 3 iterations (or reached cg_tolerance within cg_max_iterations) the decoder falls
-  // back to kCholeskyRefactor (symbolic analysis done at the first fallback, then reused).
+  // Default: exact tree integration for realisable encodings, preconditioned conjugate
+  // gradients for nearly consistent ones, else the Cholesky refactorisation (see above).
   kPreconditionedCG,
-  // Sparse Cholesky (CHOLMOD, AMD ordering) of the 3·#F system: symbolic analysis once,
-  // numeric refactorisation on every decode.
+  // Always the sparse Cholesky (CHOLMOD, AMD ordering) of the 3·#F system: symbolic analysis
+  // once, numeric refactorisation on every decode.
   kCholeskyRefactor,
 };
 
 struct DecoderOptions {
   RotationSolver rotation_solver = RotationSolver::kPreconditionedCG;
+  // Tree integration: the encoding counts as realisable when every rotation equation holds to
+  // this (max Frobenius norm of R_fg T_g − T_f; rounding in an encoded mesh gives ~1e-14).
+  double consistency_tolerance = 1e-9;
+  // Conjugate gradients are tried only when the largest equation residual of the tree
+  // integration is at most this (above it they do not converge in a few iterations: Cholesky).
+  double cg_start_residual = 1e-5;
   // Conjugate gradients: stop when every column's residual ‖b − N X‖ ≤ tolerance · ‖b‖; after
   // max_iterations without convergence the decoder falls back to the Cholesky solve.
   double cg_tolerance = 1e-10;
@@ -90,6 +106,9 @@ struct DecodeTiming {
   double assemble_ms = 0;        // encoding → matrices, rotation system values
   double rotation_solve_ms = 0;  // rotation system: CG iterations, or numeric factorisation + solve
   int cg_iterations = 0;         // CG iterations of the rotation solve (0 for Cholesky)
+  // Which path solved the rotations: 0 exact tree integration (realisable encoding), 1 CG,
+  // 2 Cholesky refactorisation.
+  int rotation_path = 0;
   double orthonormalise_ms = 0;  // per-triangle SVD
   double poisson_ms = 0;         // right-hand side + Poisson solve (+ factorisation if needed)
   double finish_ms = 0;          // alignment and checks
@@ -98,8 +117,9 @@ struct DecodeTiming {
 
 class RelativeRotationDecoder {
  public:
-  // One-time set-up: adjacency, components, pattern analysis of the rotation system,
-  // Poisson factorisation.
+  // One-time set-up: adjacency, components, spanning tree, dual-graph Laplacian factorisation,
+  // Poisson factorisation (the Cholesky pattern analysis of the rotation system happens at the
+  // first decode that needs it).
   explicit RelativeRotationDecoder(std::shared_ptr<const EncodingTemplate> tmpl,
                                    DecoderOptions options = {});
   ~RelativeRotationDecoder();
@@ -108,36 +128,46 @@ class RelativeRotationDecoder {
 
   // Vertex positions (#V by 3) of an encoding. Throws InputError if the encoding does not fit
   // the template or has non-finite values; NumericalError if a solve fails (never NaN output).
-  Eigen::MatrixX3d decode(const Encoding& e);
+  // Thread-safe (see the top of this file).
+  Eigen::MatrixX3d decode(const Encoding& e) const;
   // The same with soft positional constraints (no alignment to the template: the constraints
-  // place the mesh).
-  Eigen::MatrixX3d decode(const Encoding& e, const PositionConstraints& constraints);
+  // place the mesh). `timing`, if given, receives this call's timing.
+  Eigen::MatrixX3d decode(const Encoding& e, const PositionConstraints& constraints,
+                          DecodeTiming* timing = nullptr) const;
 
-  // The two stages on their own.
+  // The two stages on their own (thread-safe).
   //   slot_rotations 3·#F relative rotations (encoding_matrices); returns #F rotations R_f.
-  std::vector<Eigen::Matrix3d> solve_rotations(const std::vector<Eigen::Matrix3d>& slot_rotations);
+  std::vector<Eigen::Matrix3d> solve_rotations(
+      const std::vector<Eigen::Matrix3d>& slot_rotations) const;
   //   R, S #F each; returns #V by 3 positions (first vertex of each component at the origin
   //   unless constrained).
   Eigen::MatrixX3d solve_positions(const std::vector<Eigen::Matrix3d>& R,
                                    const std::vector<Eigen::Matrix3d>& S,
-                                   const PositionConstraints* constraints = nullptr);
+                                   const PositionConstraints* constraints = nullptr) const;
 
-  const DecodeTiming& last_timing() const { return timing_; }
+  // Timing of the most recent call to finish (any thread).
+  DecodeTiming last_timing() const;
   const EncodingTemplate& encoding_template() const { return *tmpl_; }
   const std::shared_ptr<const EncodingTemplate>& template_ptr() const { return tmpl_; }
+  const DecoderOptions& options() const { return options_; }
   int component_count() const;
 
   struct Impl;
 
  private:
-  void analyse_rotation_pattern();
-  bool solve_rotations_cg(const std::vector<Eigen::Matrix3d>& slot_rotations,
-                          const std::vector<Eigen::Matrix3d>& R_fixed, Eigen::MatrixXd& X);
+  std::vector<Eigen::Matrix3d> rotations(const std::vector<Eigen::Matrix3d>& slot_rotations,
+                                         DecodeTiming& timing) const;
+  bool rotations_cg(const std::vector<Eigen::Matrix3d>& slot_rotations,
+                    const std::vector<Eigen::Matrix3d>& T, const Eigen::MatrixXd& b,
+                    Eigen::MatrixXd& X, DecodeTiming& timing) const;
+  Eigen::MatrixX3d positions(const std::vector<Eigen::Matrix3d>& R,
+                             const std::vector<Eigen::Matrix3d>& S,
+                             const PositionConstraints* constraints, DecodeTiming& timing) const;
+  void set_last_timing(const DecodeTiming& t) const;
 
   std::shared_ptr<const EncodingTemplate> tmpl_;
   DecoderOptions options_;
   std::unique_ptr<Impl> impl_;
-  DecodeTiming timing_;
 };
 
 // One-off convenience: builds a decoder for `tmpl` and decodes `e`.

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <thread>
 
 #include "core/error.h"
 #include "encoding/deformation_gradient.h"
@@ -242,6 +243,82 @@ TEST(Decoder, BaselineWithoutReuseGivesTheSameResult) {
   EXPECT_LT((fast.decode(e) - slow.decode(e)).cwiseAbs().maxCoeff(), 1e-9);
   // Decoding twice with the reused factorisation gives the same again.
   EXPECT_LT((fast.decode(e) - slow.decode(e)).cwiseAbs().maxCoeff(), 1e-9);
+}
+
+// The three rotation paths (exact tree integration, conjugate gradients, Cholesky) give the
+// least-squares solution: each agrees with the forced Cholesky decode.
+TEST(Decoder, RotationPathsAgreeWithTheCholeskySolve) {
+  const Mesh m = torus_mesh(40, 16);
+  auto tmpl = std::make_shared<const EncodingTemplate>(m.V, m.F);
+  DecoderOptions chol;
+  chol.rotation_solver = RotationSolver::kCholeskyRefactor;
+  RelativeRotationDecoder fast(tmpl), reference(tmpl, chol);
+  const double diag = bounding_box_diagonal(m.V);
+  const EncodedSet set = encode_set(*tmpl, {deform(m.V, 0.5), deform(m.V, -1.2)});
+  // Realisable: no linear solve.
+  DecodeTiming t;
+  const Eigen::MatrixX3d exact = fast.decode(set.encodings[0], {}, &t);
+  EXPECT_EQ(t.rotation_path, 0);
+  EXPECT_LT((exact - reference.decode(set.encodings[0])).cwiseAbs().maxCoeff(), 1e-9 * diag);
+  // Nearly consistent (rotation vectors perturbed by ~1e-7 rad): conjugate gradients.
+  Encoding noisy = set.encodings[0];
+  std::mt19937 rng(11);
+  std::normal_distribution<double> n(0, 1e-7);
+  for (int f = 0; f < tmpl->triangle_count(); ++f)
+    for (int i = 0; i < 9; ++i) noisy.values(15 * f + i) += n(rng);
+  const Eigen::MatrixX3d cg = fast.decode(noisy, {}, &t);
+  EXPECT_EQ(t.rotation_path, 1);
+  EXPECT_GT(t.cg_iterations, 0);
+  EXPECT_LT((cg - reference.decode(noisy)).cwiseAbs().maxCoeff(), 1e-7 * diag);
+  // A blend (holonomy): the Cholesky path, and a result that differs from both ends.
+  const Encoding blend = interpolate(set.encodings[0], set.encodings[1], 0.5);
+  const Eigen::MatrixX3d b = fast.decode(blend, {}, &t);
+  EXPECT_EQ(t.rotation_path, 2);
+  EXPECT_LT((b - reference.decode(blend)).cwiseAbs().maxCoeff(), 1e-9 * diag);
+  EXPECT_GT((b - exact).cwiseAbs().maxCoeff(), 1e-3 * diag);
+}
+
+// One decoder, several threads: every concurrent decode (realisable, blend, constrained with
+// two different constraint sets) is bit-identical to the sequential one.
+TEST(Decoder, ConcurrentDecodesOnOneDecoderMatchSequentialOnes) {
+  const Mesh m = torus_mesh(40, 16);
+  auto tmpl = std::make_shared<const EncodingTemplate>(m.V, m.F);
+  const RelativeRotationDecoder decoder(tmpl);
+  const EncodedSet set = encode_set(*tmpl, {deform(m.V, 0.5), deform(m.V, -1.2)});
+  const Encoding blend = interpolate(set.encodings[0], set.encodings[1], 0.3);
+  PositionConstraints c1, c2;
+  c1.vertices = Eigen::Vector3i(0, 200, 400);
+  c1.targets = m.V(c1.vertices, Eigen::all).rowwise() + Eigen::RowVector3d(0, 0, 20);
+  c2.vertices = Eigen::Vector4i(10, 150, 300, 500);
+  c2.targets = m.V(c2.vertices, Eigen::all).rowwise() + Eigen::RowVector3d(15, 0, 0);
+  struct Job {
+    const Encoding* e;
+    const PositionConstraints* c;
+  };
+  const PositionConstraints none;
+  const std::vector<Job> jobs = {{&set.encodings[0], &none}, {&blend, &none},
+                                 {&set.encodings[1], &c1}, {&blend, &c2}};
+  std::vector<Eigen::MatrixX3d> sequential;
+  for (const Job& j : jobs) sequential.push_back(decoder.decode(*j.e, *j.c));
+  constexpr int kThreads = 4, kRounds = 3;
+  std::vector<std::vector<Eigen::MatrixX3d>> got(kThreads);
+  std::vector<std::thread> threads;
+  for (int i = 0; i < kThreads; ++i)
+    threads.emplace_back([&, i] {
+      for (int r = 0; r < kRounds; ++r)
+        for (size_t k = 0; k < jobs.size(); ++k) {
+          const Job& j = jobs[(k + i) % jobs.size()];  // threads in different orders
+          got[i].push_back(decoder.decode(*j.e, *j.c));
+        }
+    });
+  for (auto& t : threads) t.join();
+  for (int i = 0; i < kThreads; ++i)
+    for (size_t n = 0; n < got[i].size(); ++n) {
+      const Eigen::MatrixX3d& expected = sequential[(n % jobs.size() + i) % jobs.size()];
+      ASSERT_EQ(got[i][n].rows(), expected.rows());
+      EXPECT_EQ((got[i][n] - expected).cwiseAbs().maxCoeff(), 0.0)
+          << "thread " << i << ", decode " << n;
+    }
 }
 
 }  // namespace
