@@ -3,15 +3,19 @@
 //
 //   encoding_bench [--benchmark_filter=...]
 //
-// Benchmarks (wall time; counters give the decode split in ms per call):
-//   Encode                  posed body → encoding relative to a set mean
-//   Decode/encoded          decode of an encoded mesh (a consistent encoding): CG rotation solve
-//   Decode/blend            decode of the halfway blend of two poses (inconsistent encoding):
-//                           CG gives up early and the Cholesky refactorisation solves it
-//   Decode/cholesky         the Cholesky refactorisation path on the encoded mesh
-//   Decode/baseline         analyses and factorises both systems from scratch on every call
-// At the end a summary gives the medians (wall clock, and process CPU time summed over all
-// threads, which is the fairer figure on a shared machine) and the baseline / reuse ratios.
+// Benchmarks (Google Benchmark's wall time is inflated on a shared machine: the summary at
+// the end gives medians in process CPU time summed over threads, the fairer figure):
+//   Encode                 posed body → encoding relative to the set mean
+//   Setup                  decoder construction (once per template)
+//   Decode/0 encoded       an encoded mesh (realisable: exact tree integration, no linear solve)
+//   Decode/1 pose-blend    default body, halfway between fight01 and run01
+//   Decode/2 body-blend    0.5·(default body in fight01 + heavy male in run01)
+//   Decode/3 sample        set mean + a 2σ random combination of the 6 set encodings
+//   Decode/4 cholesky      the body blend with the Cholesky path forced (same as 1–3 today)
+//   Decode/5 baseline      the body blend, both systems analysed and factorised on every call
+//   DecodeTwoThreads       one decoder, two threads decoding a sample and a blend concurrently
+// Each decode is also run in its two stages (split/...: rotation = encoding → matrices,
+// rotation solve, orthonormalisation; Poisson = right-hand side and back-substitution).
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -22,6 +26,9 @@
 #include <memory>
 #include <string>
 #include <vector>
+#include <thread>
+#include <random>
+#include <cmath>
 
 #include "core/io/bvh.h"
 #include "core/makehuman.h"
@@ -34,24 +41,42 @@ namespace {
 
 struct Fixture {
   std::shared_ptr<const EncodingTemplate> tmpl;
-  Eigen::MatrixX3d rest, posed_a, posed_b;
-  EncodedSet set;  // {posed_a, posed_b}
+  Eigen::MatrixX3d posed_a, posed_b;
+  EncodedSet set;        // 3 bodies × 2 poses; encodings[0] = default body in fight01
+  Encoding pose_blend;   // default body: halfway between fight01 and run01
+  Encoding body_blend;   // 0.5·(body A in fight01 + body B in run01)
+  Encoding sample;       // mean + a 2σ random combination of the set's deviations
 };
 
 const Fixture& fixture() {
   static const Fixture f = [] {
     Fixture x;
     const MakeHuman mh = MakeHuman::load();
+    MacroSettings heavy, slim;
+    heavy.gender = 1, heavy.weight = 0.85, heavy.muscle = 0.7, heavy.height = 0.7;
+    slim.gender = 0, slim.weight = 0.2, slim.height = 0.3, slim.age = 0.8;
     const MakeHuman::Body body = mh.body(MacroSettings{});
-    auto pose = [&](const std::string& name) {
-      const Pose p = bvh_frame_to_pose(read_bvh(mh.pose_file(name)), 0, body.skeleton);
-      return linear_blend_skinning(body.mesh.V, body.weights, forward_kinematics(body.skeleton, p));
-    };
-    x.rest = body.mesh.V;
     x.tmpl = std::make_shared<const EncodingTemplate>(body.mesh.V, body.mesh.F);
-    x.posed_a = pose("fight01");
-    x.posed_b = pose("run01");
-    x.set = encode_set(*x.tmpl, {x.posed_a, x.posed_b});
+    std::vector<Eigen::MatrixX3d> meshes;
+    for (const MacroSettings& s : {MacroSettings{}, heavy, slim}) {
+      const MakeHuman::Body b = mh.body(s);
+      for (const char* name : {"fight01", "run01"}) {
+        const Pose p = bvh_frame_to_pose(read_bvh(mh.pose_file(name)), 0, b.skeleton);
+        meshes.push_back(linear_blend_skinning(b.mesh.V, b.weights, forward_kinematics(b.skeleton, p)));
+      }
+    }
+    x.posed_a = meshes[0];
+    x.posed_b = meshes[1];
+    x.set = encode_set(*x.tmpl, meshes);
+    const auto& e = x.set.encodings;
+    x.pose_blend = interpolate(e[0], e[1], 0.5);
+    x.body_blend = interpolate(e[0], e[3], 0.5);
+    // Deviations from the mean are the encodings themselves (relative storage); a unit-variance
+    // combination along random directions is Σ z_i e_i / sqrt(n): scale it to 2σ.
+    std::mt19937 rng(4);
+    std::normal_distribution<double> z;
+    x.sample = 0.0 * e[0];
+    for (const Encoding& ei : e) x.sample = x.sample + (2.0 * z(rng) / std::sqrt(double(e.size()))) * ei;
     return x;
   }();
   return f;
@@ -91,48 +116,83 @@ void BM_Setup(benchmark::State& state) {
 }
 BENCHMARK(BM_Setup)->Unit(benchmark::kMillisecond)->Iterations(3);
 
-// mode: 0 encoded (CG), 1 blend (CG → Cholesky), 2 Cholesky path, 3 baseline (no reuse)
+// Cases: 0 encoded mesh (realisable), 1 pose blend, 2 body blend, 3 model sample (defaults
+// options), 4 body blend with the Cholesky path forced, 5 baseline: body blend, everything
+// analysed and factorised from scratch on every call.
+constexpr const char* kCaseNames[] = {"encoded", "pose-blend", "body-blend", "sample",
+                                      "cholesky", "baseline"};
+
+double cpu_ms_since(std::clock_t c0) { return 1000.0 * (std::clock() - c0) / CLOCKS_PER_SEC; }
+
 void BM_Decode(benchmark::State& state) {
   const Fixture& f = fixture();
   const int mode = static_cast<int>(state.range(0));
-  static const char* names[] = {"encoded", "blend", "cholesky", "baseline"};
+  const std::string name = kCaseNames[mode];
   DecoderOptions o;
-  if (mode == 2) o.rotation_solver = RotationSolver::kCholeskyRefactor;
-  if (mode == 3) {
-    o.rotation_solver = RotationSolver::kCholeskyRefactor;
-    o.reuse_factorisations = false;
-  }
+  if (mode >= 4) o.rotation_solver = RotationSolver::kCholeskyRefactor;
+  if (mode == 5) o.reuse_factorisations = false;
   RelativeRotationDecoder decoder(f.tmpl, o);
-  const Encoding e = mode == 1 ? interpolate(f.set.encodings[0], f.set.encodings[1], 0.5)
-                               : f.set.encodings[0];
-  decoder.decode(e);  // warm-up (the first fallback analyses the Cholesky pattern)
+  const Encoding& e = mode == 0 ? f.set.encodings[0]
+                      : mode == 1 ? f.pose_blend
+                      : mode == 3 ? f.sample
+                                  : f.body_blend;
+  decoder.decode(e);  // warm-up (the first Cholesky decode analyses the pattern)
   DecodeTiming sum;
   for (auto _ : state) {
-    const std::clock_t c0 = std::clock();
-    Eigen::MatrixX3d X = decoder.decode(e);
+    std::clock_t c0 = std::clock();
+    Eigen::MatrixX3d X = decoder.decode(e, {}, nullptr);
     benchmark::DoNotOptimize(X.data());
-    samples()[std::string("decode/") + names[mode] + " (process CPU)"].push_back(
-        1000.0 * (std::clock() - c0) / CLOCKS_PER_SEC);
-    const DecodeTiming& t = decoder.last_timing();
+    samples()["decode/" + name + " (process CPU)"].push_back(cpu_ms_since(c0));
+    const DecodeTiming t = decoder.last_timing();
     sum.assemble_ms += t.assemble_ms;
     sum.rotation_solve_ms += t.rotation_solve_ms;
     sum.orthonormalise_ms += t.orthonormalise_ms;
     sum.poisson_ms += t.poisson_ms;
     sum.cg_iterations = t.cg_iterations;
-    samples()[std::string("decode/") + names[mode]].push_back(t.total_ms);
-    samples()[std::string("rotation/") + names[mode]].push_back(
-        t.assemble_ms + t.rotation_solve_ms + t.orthonormalise_ms);
-    samples()[std::string("poisson/") + names[mode]].push_back(t.poisson_ms);
+    sum.rotation_path = t.rotation_path;
+    samples()["decode/" + name].push_back(t.total_ms);
+    // The same decode in its two stages, each timed in process CPU: rotation = encoding →
+    // matrices + rotation solve + orthonormalisation; Poisson = right-hand side + solve.
+    state.PauseTiming();
+    c0 = std::clock();
+    std::vector<Eigen::Matrix3d> slots, S;
+    encoding_matrices(e, slots, S);
+    const std::vector<Eigen::Matrix3d> R = decoder.solve_rotations(slots);
+    samples()["split/" + name + " rotation (process CPU)"].push_back(cpu_ms_since(c0));
+    c0 = std::clock();
+    const Eigen::MatrixX3d P = decoder.solve_positions(R, S);
+    benchmark::DoNotOptimize(P.data());
+    samples()["split/" + name + " Poisson (process CPU)"].push_back(cpu_ms_since(c0));
+    state.ResumeTiming();
   }
   const double n = static_cast<double>(state.iterations());
-  state.SetLabel(names[mode]);
+  state.SetLabel(name);
   state.counters["assemble_ms"] = sum.assemble_ms / n;
   state.counters["rotation_solve_ms"] = sum.rotation_solve_ms / n;
   state.counters["orthonormalise_ms"] = sum.orthonormalise_ms / n;
   state.counters["poisson_ms"] = sum.poisson_ms / n;
   state.counters["cg_iterations"] = sum.cg_iterations;
+  state.counters["rotation_path"] = sum.rotation_path;
 }
-BENCHMARK(BM_Decode)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond)->Iterations(10);
+BENCHMARK(BM_Decode)->DenseRange(0, 5)->Unit(benchmark::kMillisecond)->Iterations(10);
+
+// Two threads decoding different encodings on ONE decoder (issue 5 generates bodies this way):
+// wall time per body, to compare with the sequential decode/... figures.
+void BM_DecodeTwoThreads(benchmark::State& state) {
+  const Fixture& f = fixture();
+  const RelativeRotationDecoder decoder(f.tmpl);
+  const Encoding* work[] = {&f.sample, &f.body_blend};
+  decoder.decode(f.sample);
+  for (auto _ : state) {
+    const auto t0 = std::chrono::steady_clock::now();
+    std::thread other([&] { benchmark::DoNotOptimize(decoder.decode(*work[1]).data()); });
+    benchmark::DoNotOptimize(decoder.decode(*work[0]).data());
+    other.join();
+    samples()["two threads: wall per body"].push_back(
+        0.5 * std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  }
+}
+BENCHMARK(BM_DecodeTwoThreads)->Unit(benchmark::kMillisecond)->Iterations(6)->UseRealTime();
 
 }  // namespace
 }  // namespace bodymodel
@@ -146,21 +206,17 @@ int main(int argc, char** argv) {
   auto& s = bodymodel::samples();
   std::printf("\nMedians over the timed calls (ms), 13380-vertex / 26756-triangle body:\n");
   for (const auto& [name, v] : s) std::printf("  %-36s %8.1f\n", name.c_str(), median(v));
-  auto ratio = [&](const char* a, const char* b) {
+  auto ratio = [&](const std::string& a, const std::string& b) {
     const double x = median(s[a]), y = median(s[b]);
     return y > 0 ? x / y : 0.0;
   };
-  if (s.count("decode/baseline (process CPU)") && s.count("decode/encoded (process CPU)"))
-    std::printf("baseline / reuse (process CPU): encoded mesh (CG) %.1fx, Cholesky "
-                "refactorisation %.1fx, blend %.1fx\n",
-                ratio("decode/baseline (process CPU)", "decode/encoded (process CPU)"),
-                ratio("decode/baseline (process CPU)", "decode/cholesky (process CPU)"),
-                ratio("decode/baseline (process CPU)", "decode/blend (process CPU)"));
-  if (s.count("decode/baseline") && s.count("decode/encoded"))
-    std::printf("baseline / reuse (wall): encoded mesh (CG) %.1fx, Cholesky refactorisation %.1fx, "
-                "blend %.1fx\n",
-                ratio("decode/baseline", "decode/encoded"),
-                ratio("decode/baseline", "decode/cholesky"),
-                ratio("decode/baseline", "decode/blend"));
+  const std::string base = "decode/baseline (process CPU)";
+  if (s.count(base)) {
+    std::printf("baseline (refactorise everything per call) / reuse, process CPU:");
+    for (const char* c : {"encoded", "pose-blend", "body-blend", "sample", "cholesky"})
+      if (s.count(std::string("decode/") + c + " (process CPU)"))
+        std::printf("  %s %.1fx", c, ratio(base, std::string("decode/") + c + " (process CPU)"));
+    std::printf("\n");
+  }
   return 0;
 }

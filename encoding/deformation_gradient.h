@@ -25,7 +25,9 @@ std::vector<Eigen::Matrix3d> triangle_frames(const Eigen::MatrixX3d& V,
 std::vector<Eigen::Matrix3d> inverse_rest_frames(const Eigen::MatrixX3d& V_rest,
                                                  const Eigen::MatrixX3i& F);
 
-// Polar decomposition U = R · S with R a proper rotation (det R = +1) and S symmetric, by SVD
+// Polar decomposition U = R · S with R a proper rotation (det R = +1) and S symmetric. Usual
+// case (det U > 0, condition below 100): closed-form eigen-decomposition of UᵀU plus one Newton
+// polar step. Otherwise by SVD
 // U = P Σ Qᵀ: R = P Qᵀ, S = Q Σ Qᵀ. When det(P Qᵀ) < 0 (a reflection, only possible for
 // degenerate or inverted input) the singular direction of the smallest singular value is
 // flipped, so S gets one negative eigenvalue and R·S still equals U exactly. Rank-deficient U

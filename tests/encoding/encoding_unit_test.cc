@@ -53,6 +53,25 @@ TEST(PolarDecomposition, ReproducesRandomMatricesIncludingReflectionsAndRankDefi
   }
 }
 
+// The closed-form fast path (det U > 0, well conditioned) agrees with the SVD definition.
+TEST(PolarDecomposition, FastPathAgreesWithTheSvd) {
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n(0, 1);
+  int fast_cases = 0;
+  for (int trial = 0; trial < 500; ++trial) {
+    Eigen::Matrix3d U = Eigen::Matrix3d::Identity();
+    for (int i = 0; i < 9; ++i) U(i) += 0.4 * n(rng);
+    if (U.determinant() <= 0) continue;
+    ++fast_cases;
+    const PolarDecomposition p = polar_decomposition(U);
+    const Eigen::Matrix3d R_svd = closest_rotation(U);  // = polar rotation when det U > 0
+    EXPECT_LT((p.R - R_svd).norm(), 1e-10) << "trial " << trial;
+    EXPECT_LT((p.R * p.S - U).norm(), 1e-13 * U.norm());
+    EXPECT_LT((p.R.transpose() * p.R - Eigen::Matrix3d::Identity()).norm(), 1e-14);
+  }
+  EXPECT_GT(fast_cases, 400);
+}
+
 TEST(RotationVector, ExpAndLogAreInverseNearZeroAndNearPi) {
   std::mt19937 rng(3);
   std::normal_distribution<double> n(0, 1);
