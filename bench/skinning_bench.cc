@@ -1,15 +1,27 @@
-// Skinning speed: runtime evaluation throughput (vertices per second, float32 SoA evaluator) of
-// LBS, Animation Space and MWE with 4 influences on 1 and 2 threads, and the MWE fit of the horse
-// gallop (8 431 vertices, 10 evenly spaced poses; the MWE solve only, after bone recovery and the
-// SSD base). Positions only, no I/O. Report MWE/LBS as the ratio of the two throughputs.
+// Skinning speed.
+//  * Runtime: throughput (vertices per second) of the float32 SoA evaluator for LBS, Animation Space
+//    and MWE with 4 influences, 24 bones, on 1 and 2 threads, at two sizes: 13 380 vertices (the
+//    MakeHuman body: one character's rig stays in cache) and 200 000 (memory-bound). One thread is
+//    timed in CPU time (robust on a shared machine), two threads in wall time. MWE/LBS = ratio of
+//    the two throughputs of the same size and threads.
+//  * Fit: MWE of the horse gallop (8 431 vertices, 10 evenly spaced poses; the MWE solve only,
+//    after bone recovery and the SSD base), and SSD + MWE with automatic influence sets for
+//    300 000 vertices × 50 poses: points spread over the MakeHuman body's triangles (a
+//    subdivided body, each point a fixed barycentric combination of its triangle's corners),
+//    posed by the 163-bone default skeleton through 50 frames of CMU clip 02_02.
 //   ./build/skinning_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 
 #include <filesystem>
+#include <chrono>
 #include <random>
 
 #include "core/data_path.h"
+#include "core/io/bvh.h"
 #include "core/io/mesh_io.h"
+#include "core/makehuman.h"
+#include "core/retarget.h"
+#include "skinning/fit_lbs.h"
 #include "skinning/fit_mwe.h"
 #include "skinning/runtime_skinning.h"
 #include "skinning/sequence_evaluation.h"
@@ -17,20 +29,20 @@
 namespace bodymodel {
 namespace {
 
-constexpr int kVertices = 200000, kBones = 24, kInfluences = 4;
+constexpr int kBones = 24, kInfluences = 4;
 
-SkinningRig random_rig(SkinningMethod method) {
+SkinningRig random_rig(SkinningMethod method, int vertices) {
   std::mt19937 rng(1);
   std::uniform_int_distribution<int> bone(0, kBones - 1);
   std::uniform_real_distribution<double> u(0, 1);
   SkinningRig rig;
   rig.method = method;
   rig.bone_count = kBones;
-  rig.rest = Eigen::MatrixX3d::Random(kVertices, 3);
-  rig.influences.resize(kVertices, kInfluences);
+  rig.rest = Eigen::MatrixX3d::Random(vertices, 3);
+  rig.influences.resize(vertices, kInfluences);
   const int c = coefficients_per_influence(method);
-  rig.coefficients.resize(kVertices, kInfluences * c);
-  for (int i = 0; i < kVertices; ++i)
+  rig.coefficients.resize(vertices, kInfluences * c);
+  for (int i = 0; i < vertices; ++i)
     for (int k = 0; k < kInfluences; ++k) {
       rig.influences(i, k) = bone(rng);
       for (int q = 0; q < c; ++q) rig.coefficients(i, k * c + q) = u(rng) / kInfluences;
@@ -47,25 +59,38 @@ BoneTransforms random_pose() {
   return M;
 }
 
+// Args: method, threads, vertices.
 void BM_RuntimePose(benchmark::State& state) {
   const auto method = static_cast<SkinningMethod>(state.range(0));
   const int threads = static_cast<int>(state.range(1));
-  const RuntimeSkinner skinner(random_rig(method));
+  const int n = static_cast<int>(state.range(2));
+  const RuntimeSkinner skinner(random_rig(method, n));
   const BoneTransforms M = random_pose();
-  std::vector<float> x(kVertices), y(kVertices), z(kVertices);
+  std::vector<float> x(n), y(n), z(n);
   for (auto _ : state) {
     skinner.pose(M, x.data(), y.data(), z.data(), threads);
     benchmark::DoNotOptimize(x.data());
     benchmark::ClobberMemory();
   }
-  state.SetLabel(skinning_method_name(method) + ", " + std::to_string(threads) + " thread(s), " +
-                 std::to_string(kVertices) + " vertices, 4 influences");
-  state.counters["vertices_per_s"] =
-      benchmark::Counter(double(kVertices) * state.iterations(), benchmark::Counter::kIsRate);
+  state.SetLabel(skinning_method_name(method) + ", " + std::to_string(threads) + " thread(s), " + std::to_string(n) +
+                 " vertices, 4 influences, " + (threads == 1 ? "CPU time" : "see the suffix: real_time = wall, process_time = CPU of both threads"));
+  state.counters["Mvertices_per_s"] =
+      benchmark::Counter(double(n) * state.iterations() / 1e6, benchmark::Counter::kIsRate);
 }
+constexpr int kLbs = int(SkinningMethod::lbs), kAs = int(SkinningMethod::animation_space),
+              kMwe = int(SkinningMethod::mwe);
 BENCHMARK(BM_RuntimePose)
-    ->ArgsProduct({{int(SkinningMethod::lbs), int(SkinningMethod::animation_space), int(SkinningMethod::mwe)}, {1, 2}})
+    ->ArgsProduct({{kLbs, kAs, kMwe}, {1}, {13380, 200000}})
+    ->Unit(benchmark::kMicrosecond);
+// Two threads: wall time (the speed-up, meaningful only on an idle machine) and CPU time summed
+// over both threads (the per-core throughput, robust when other jobs share the cores).
+BENCHMARK(BM_RuntimePose)
+    ->ArgsProduct({{kLbs, kAs, kMwe}, {2}, {13380, 200000}})
     ->UseRealTime()
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_RuntimePose)
+    ->ArgsProduct({{kLbs, kAs, kMwe}, {2}, {13380, 200000}})
+    ->MeasureProcessCPUTime()
     ->Unit(benchmark::kMicrosecond);
 
 void BM_MweFitHorse(benchmark::State& state) {
@@ -92,6 +117,66 @@ void BM_MweFitHorse(benchmark::State& state) {
                  std::to_string(state.range(0)) + " thread(s) (TBB default)");
 }
 BENCHMARK(BM_MweFitHorse)->Arg(2)->UseRealTime()->Unit(benchmark::kMillisecond)->Iterations(3);
+
+struct LargeFitData {
+  SkinningExamples ex;
+};
+
+// 300 000 points on the MakeHuman body × 50 poses (see the header comment). Built once.
+const LargeFitData& large_fit_data() {
+  static const LargeFitData data = [] {
+    constexpr int kPoints = 300000, kPoses = 50;
+    const MakeHuman mh = MakeHuman::load();
+    const MakeHuman::Body body = mh.body(MacroSettings{});
+    const BvhMotion clip = read_bvh(data_file("makehuman/motion/cmu/02_02.bvh"));
+    const std::vector<Pose> poses = poses_from_bvh(clip, body.skeleton, data_file("makehuman"));
+    std::mt19937 rng(7);
+    std::uniform_int_distribution<int> tri(0, static_cast<int>(body.mesh.F.rows()) - 1);
+    std::uniform_real_distribution<double> u(0, 1);
+    // Each point: a fixed barycentric combination (a, b, c) of one triangle's corners.
+    std::vector<Eigen::Triplet<double>> trip;
+    for (int i = 0; i < kPoints; ++i) {
+      double r1 = u(rng), r2 = u(rng);
+      if (r1 + r2 > 1) r1 = 1 - r1, r2 = 1 - r2;
+      const int f = tri(rng);
+      trip.emplace_back(i, body.mesh.F(f, 0), 1 - r1 - r2);
+      trip.emplace_back(i, body.mesh.F(f, 1), r1);
+      trip.emplace_back(i, body.mesh.F(f, 2), r2);
+    }
+    Eigen::SparseMatrix<double, Eigen::RowMajor> S(kPoints, body.mesh.V.rows());
+    S.setFromTriplets(trip.begin(), trip.end());
+    LargeFitData d;
+    d.ex.rest = S * body.mesh.V;
+    for (int p = 0; p < kPoses; ++p) {
+      const int frame = p * (static_cast<int>(poses.size()) - 1) / (kPoses - 1);
+      const BoneTransforms M = forward_kinematics(body.skeleton, poses[static_cast<size_t>(frame)]);
+      d.ex.transforms.push_back(M);
+      d.ex.poses.push_back(S * linear_blend_skinning(body.mesh.V, body.weights, M));
+    }
+    return d;
+  }();
+  return data;
+}
+
+void BM_FitLarge(benchmark::State& state) {
+  const LargeFitData& d = large_fit_data();
+  double ssd_s = 0, mwe_s = 0;
+  for (auto _ : state) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const SkinningRig lbs = fit_lbs(d.ex);
+    const auto t1 = std::chrono::steady_clock::now();
+    const SkinningRig mwe = fit_mwe(d.ex, &lbs);
+    const auto t2 = std::chrono::steady_clock::now();
+    ssd_s = std::chrono::duration<double>(t1 - t0).count();
+    mwe_s = std::chrono::duration<double>(t2 - t1).count();
+    benchmark::DoNotOptimize(mwe.coefficients.data());
+  }
+  state.counters["ssd_fit_s"] = ssd_s;
+  state.counters["mwe_fit_s"] = mwe_s;
+  state.SetLabel("300000 points on the MakeHuman body, 50 poses (CMU 02_02), 163 bones, automatic 4-influence "
+                 "sets; SSD fit then MWE fit, TBB default threads (2 cores)");
+}
+BENCHMARK(BM_FitLarge)->UseRealTime()->Unit(benchmark::kSecond)->Iterations(1);
 
 }  // namespace
 }  // namespace bodymodel

@@ -1,5 +1,5 @@
-// Runtime rig evaluation: float32, flat arrays (outputs structure-of-arrays), multithreaded (TBB), vectorisable inner
-// loops (AVX2/FMA clone chosen at run time when the CPU has it). LBS, Animation Space and MWE with
+// Runtime rig evaluation: float32, flat arrays (outputs structure-of-arrays), multithreaded (TBB), SIMD inner
+// loops (GCC vector extensions; AVX-512, AVX2/FMA or SSE2 clone chosen at run time). LBS, Animation Space and MWE with
 // up to 8 influences per vertex; positions and, optionally, normals.
 //
 // Every method becomes one kernel: per slot k and output row j, a dot product of 4 per-vertex
@@ -13,6 +13,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <vector>
 
 #include "core/skeleton.h"
@@ -40,16 +41,19 @@ class RuntimeSkinner {
   SkinningMethod method() const { return method_; }
 
  private:
-  void pack_bones(const BoneTransforms& M, std::vector<float>* out) const;
+  // Bone matrices as floats, plus a zero bone B for unused slots: row-major 3 by 4 (12 floats,
+  // MWE and normals) or column-major padded (16 floats [c0 0 c1 0 c2 0 t 0], LBS and AS).
+  void pack_bones(const BoneTransforms& M, bool column_major, std::vector<float>* out) const;
   SkinningMethod method_;
   int n_ = 0, K_ = 0, B_ = 0;
   // Positions read vertex-major arrays (one vertex's slots contiguous: one cache line stream),
   // normals slot-major ones (structure of arrays over vertices).
-  std::vector<int> idx_;           // n by K bone per slot (B = the zero bone for unused slots)
+  std::vector<uint16_t> idx_;      // n by K bone per slot (B = the zero bone for unused slots)
   std::vector<int> nidx_;          // K by n, the same
-  std::vector<float> coef_;        // n by K·12 position coefficients (LBS: n by K weights)
+  std::vector<float> coef_;        // position coefficients, vertex-major: LBS n by K weights,
+                                   // AS n by K·4 (p_k), MWE n by K·12 (U_k = W_k ⊙ ṽ, row-major)
   std::vector<float> lcoef_;       // K by n LBS weights (normals)
-  std::vector<float> rest_;        // n by 3 (LBS only)
+  std::vector<float> rest_;        // n by 3 (LBS only), plus one float of padding
   std::vector<float> ncoef_;       // normal coefficients: K·9 by n (LBS: none, uses coef_)
   std::vector<float> nrest_;       // 3 by n rest normals (LBS/AS)
   bool has_normals_ = false;

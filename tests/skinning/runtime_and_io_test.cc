@@ -69,6 +69,47 @@ TEST(RuntimeSkinner, MatchesTheDoublePrecisionReference) {
   }
 }
 
+// Every slot count 1..8 (each has its own unrolled kernel), unused slots (−1) included, for all
+// three methods, against the double-precision reference.
+TEST(RuntimeSkinner, EverySlotCountMatchesTheReference) {
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const int n = 1001, B = 7;   // an odd count: the last block is partial
+  BoneTransforms M(B, Eigen::Affine3d::Identity());
+  for (int b = 0; b < B; ++b) {
+    M[b].linear() = Eigen::AngleAxisd(2 * u(rng), Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized()).toRotationMatrix();
+    M[b].translation() = Eigen::Vector3d(u(rng), u(rng), u(rng));
+  }
+  for (int K = 1; K <= 8; ++K)
+    for (SkinningMethod method : {SkinningMethod::lbs, SkinningMethod::animation_space, SkinningMethod::mwe}) {
+      SkinningRig rig;
+      rig.method = method;
+      rig.bone_count = B;
+      rig.rest = Eigen::MatrixX3d::Random(n, 3);
+      rig.influences.resize(n, K);
+      const int c = coefficients_per_influence(method);
+      rig.coefficients.resize(n, K * c);
+      for (int i = 0; i < n; ++i) {
+        double sum = 0;
+        for (int k = 0; k < K; ++k) {
+          rig.influences(i, k) = (k > 0 && (i + k) % 5 == 0) ? -1 : (i + 3 * k) % B;
+          for (int q = 0; q < c; ++q) {
+            rig.coefficients(i, k * c + q) = rig.influences(i, k) < 0 ? 0.0 : 0.1 + 0.9 * std::abs(u(rng));
+          }
+          sum += rig.coefficients(i, k * c);
+        }
+        if (method == SkinningMethod::lbs) rig.coefficients.row(i) /= sum;
+      }
+      const Eigen::MatrixX3d ref = evaluate_rig(rig, M);
+      const RuntimeSkinner skinner(rig);
+      for (int threads : {1, 2}) {
+        const Eigen::MatrixX3f X = skinner.pose(M, threads);
+        EXPECT_LT((X.cast<double>() - ref).cwiseAbs().maxCoeff(), 1e-5 * (1 + ref.cwiseAbs().maxCoeff()))
+            << skinning_method_name(method) << " K=" << K << " threads=" << threads;
+      }
+    }
+}
+
 TEST(RuntimeSkinner, RejectsTooManyInfluencesAndWrongBoneCounts) {
   const Rigs r = make_rigs();
   SkinningRig wide = r.lbs;
