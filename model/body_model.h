@@ -25,7 +25,9 @@
 
 namespace bodymodel {
 
-inline constexpr int kModelFormatVersion = 1;
+// 2: shape_basis and full_basis stored as float32 (version 1 stored everything as float64;
+// still read).
+inline constexpr int kModelFormatVersion = 2;
 
 // One PCA model with its labels.
 struct SubModel {

@@ -50,7 +50,9 @@ Eigen::SparseMatrix<double, Eigen::RowMajor> get_sparse(const Npz& z, const std:
 
 void put_sub_model(Npz& z, const std::string& p, const SubModel& m, bool shape) {
   z.put(p + "_mean", m.pca.mean);
-  z.put(p + "_basis", m.pca.basis);
+  // The bases are most of the file (D by K): float32 (relative precision 6e-8, far below
+  // what decoding resolves; see model_file.h).
+  z.put_float32(p + "_basis", m.pca.basis);
   z.put(p + "_eigenvalues", m.pca.eigenvalues);
   z.put(p + "_coefficients", m.pca.coefficients);
   std::vector<std::string> names, units, sem;
@@ -153,9 +155,10 @@ BodyModel model_from_npz(const Npz& z, const std::string& what) {
     throw InputError(fmt::format("{}: metadata says format '{}', expected 'bodymodel-model'", what,
                                  model.metadata.value("format", std::string("(none)"))));
   double version = z.scalar("format_version");
-  if (version != kModelFormatVersion)
-    throw InputError(fmt::format("{}: model format version {}, this program reads version {} (rebuild "
-                                 "the model with `bodymodel build`)",
+  // Version 1 (all float64) has the same keys as version 2 (bases float32): both are read.
+  if (version != kModelFormatVersion && version != 1)
+    throw InputError(fmt::format("{}: model format version {}, this program reads versions 1 to {} "
+                                 "(rebuild the model with `bodymodel build`)",
                                  what, version, kModelFormatVersion));
   Eigen::MatrixXd V = z.matrix("template_vertices");
   Eigen::MatrixXi F = z.int_matrix("template_faces");

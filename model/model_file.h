@@ -1,9 +1,13 @@
 // The model file: a NumPy .npz archive (core/io/npz.h) that `np.load` opens.
 //
-// FORMAT (format_version 1). Matrices are float64 in C order; D = 15·#F encoding values,
+// FORMAT (format_version 2). Matrices are float64 in C order except shape_basis and full_basis,
+// which are float32 (they are nearly the whole file; orthonormal columns with 7 significant
+// digits change a decoded body by far less than 0.01 mm). Version 1 files (the same keys, all
+// float64) are still read; other versions are refused with an error naming the version.
+// D = 15·#F encoding values,
 // K_s / K_f shape / full components, N_s subjects, N_f scans, L_s / L_f labels.
-//   metadata                 JSON text: {"format": "bodymodel-model", "format_version": 1, ...}
-//   format_version           scalar 1
+//   metadata                 JSON text: {"format": "bodymodel-model", "format_version": 2, ...}
+//   format_version           scalar 2
 //   template_vertices        #V by 3, mm (rest shape: mean of the standard-pose scans)
 //   template_faces           #F by 3 int (vertex indices, counter-clockwise from outside)
 //   encoding_mean            D, absolute relative-rotation-encoding mean (see

@@ -26,6 +26,10 @@ void Npz::put(const std::string& name, const Eigen::MatrixXd& m) {
       a.f64.data(), m.rows(), m.cols()) = m;
   arrays_[name] = std::move(a);
 }
+void Npz::put_float32(const std::string& name, const Eigen::MatrixXd& m) {
+  put(name, m);
+  arrays_[name].store_float32 = true;
+}
 void Npz::put(const std::string& name, const Eigen::VectorXd& v) {
   NpyArray a;
   a.shape = {v.size()};
@@ -167,6 +171,10 @@ std::string npy_bytes(const NpyArray& a) {
     descr = "<U" + std::to_string(chars);
     payload = u;
     payload.resize(chars * 4, '\0');
+  } else if (a.is_float && a.store_float32) {
+    descr = "<f4";
+    std::vector<float> f(a.f64.begin(), a.f64.end());
+    payload.assign(reinterpret_cast<const char*>(f.data()), f.size() * 4);
   } else if (a.is_float) {
     descr = "<f8";
     payload.assign(reinterpret_cast<const char*>(a.f64.data()), a.f64.size() * 8);
@@ -249,6 +257,7 @@ NpyArray parse_npy(const std::string& b, const std::string& what) {
   if (width == 0 || avail < width * static_cast<size_t>(n)) throw bad("array data truncated");
   if (kind == 'f') {
     a.f64.resize(n);
+    a.store_float32 = width == 4;
     for (int64_t i = 0; i < n; ++i) {
       if (width == 8) { double v; std::memcpy(&v, data + 8 * i, 8); a.f64[i] = v; }
       else if (width == 4) { float v; std::memcpy(&v, data + 4 * i, 4); a.f64[i] = v; }

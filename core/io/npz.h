@@ -19,6 +19,7 @@ struct NpyArray {
   std::vector<int64_t> i64;    // used when !is_float (int32/int64/uint8 are widened)
   bool is_float = true;
   std::string text;            // for string arrays (dtype '<U' or '|S'): the one string
+  bool store_float32 = false;  // float data written as '<f4' (≈ 7 significant digits, half the size)
 
   int64_t size() const;
 };
@@ -31,6 +32,8 @@ class Npz {
   void put(const std::string& name, const Eigen::MatrixXi& m);
   void put(const std::string& name, const Eigen::VectorXi& v);
   void put(const std::string& name, double scalar);
+  // The same stored as float32 ('<f4'): for large arrays whose precision needs ≈ 7 digits.
+  void put_float32(const std::string& name, const Eigen::MatrixXd& m);
   void put_text(const std::string& name, const std::string& text);   // numpy '<U' scalar
 
   // Accessors; throw InputError naming the file and the key if missing or of the wrong shape.
