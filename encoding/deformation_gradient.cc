@@ -100,10 +100,9 @@ PolarDecomposition polar_decomposition(const Eigen::Matrix3d& U) {
 }
 
 Eigen::Matrix3d closest_rotation(const Eigen::Matrix3d& A) {
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(A, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d P = svd.matrixU();
-  if ((P * svd.matrixV().transpose()).determinant() < 0) P.col(2) = -P.col(2);
-  return P * svd.matrixV().transpose();
+  // The rotation factor of the polar decomposition (the same SVD with the same sign fix, and
+  // its closed-form fast path for well-conditioned A with det A > 0).
+  return polar_decomposition(A).R;
 }
 
 Eigen::Vector3d rotation_log(const Eigen::Matrix3d& R) {

@@ -14,6 +14,7 @@
 
 #include "core/error.h"
 #include "core/geometry.h"
+#include "encoding/block_cholesky.h"
 #include "encoding/deformation_gradient.h"
 
 namespace bodymodel {
@@ -101,6 +102,11 @@ struct RelativeRotationDecoder::Impl {
   std::vector<int> degree;             // #F: diagonal of N (2 per neighbour)
   std::vector<std::pair<int, int>> tree;  // BFS order: (child, slot 3·parent + k) per non-root
   SharedCholesky dual_laplacian;       // L_s on the unknown triangles, factorised once
+  // Block Cholesky (default path c): analysed once; per edge between unknown triangles the slot
+  // 3f + k with unknown[f] > unknown[g] (its block is −(R_fg + R_gfᵀ)); diagonal per unknown.
+  std::unique_ptr<BlockCholesky3> block_solver;
+  std::vector<int> edge_slot;
+  std::vector<double> diag_value;
   // ---- Poisson (read-only after construction) ----
   SparseMatrixd K;                     // Gᵀ A G, #V by #V (full symmetric)
   SparseMatrixd D;                     // Gᵀ A, #V by 3#F
@@ -283,6 +289,19 @@ RelativeRotationDecoder::RelativeRotationDecoder(std::shared_ptr<const EncodingT
   if (options_.reuse_factorisations && m.n_unknown > 0 &&
       options_.rotation_solver == RotationSolver::kCholeskyRefactor)
     m.rotation_pool.push_back(m.analysed_rotation_solver());
+  if (options_.reuse_factorisations && m.n_unknown > 0 &&
+      options_.rotation_solver == RotationSolver::kPreconditionedCG) {
+    std::vector<std::pair<int, int>> lower;
+    for (const auto& s : m.slots) {
+      const int pf = m.unknown[s.f], pg = m.unknown[s.g];
+      if (pf < 0 || pg < 0 || pf < pg) continue;
+      lower.emplace_back(pf, pg);
+      m.edge_slot.push_back(3 * s.f + s.k);
+    }
+    m.block_solver = std::make_unique<BlockCholesky3>(m.n_unknown, lower);
+    m.diag_value.resize(m.n_unknown);
+    for (int p = 0; p < m.n_unknown; ++p) m.diag_value[p] = std::max(1.0, diag_count(p));
+  }
 
   // Reverse slots, degrees, spanning tree and the scalar dual-graph Laplacian.
   m.reverse_slot.assign(3 * static_cast<size_t>(m.nf), -1);
@@ -447,6 +466,41 @@ std::vector<Eigen::Matrix3d> RelativeRotationDecoder::rotations(
 
   // c. Cholesky: values of N and the right-hand side b (3·#unknown by 3).
   timing.rotation_path = 2;
+  if (m.block_solver) {
+    std::vector<Eigen::Matrix3d> diag(m.n_unknown), off(m.edge_slot.size());
+    for (int p = 0; p < m.n_unknown; ++p) diag[p] = m.diag_value[p] * Eigen::Matrix3d::Identity();
+    parallel_range(static_cast<int>(off.size()), [&](int e) {
+      const int slot = m.edge_slot[e], f = slot / 3, k = slot % 3, g = TT(f, k);
+      const int kk = m.reverse_slot[slot];
+      off[e] = -(slot_rotations[slot] + (kk >= 0 ? Eigen::Matrix3d(slot_rotations[3 * g + kk].transpose())
+                                                  : Eigen::Matrix3d(slot_rotations[slot])));
+    });
+    Eigen::MatrixXd b = Eigen::MatrixXd::Zero(3 * m.n_unknown, 3);
+    for (const auto& s : m.slots) {
+      const int pf = m.unknown[s.f], pg = m.unknown[s.g];
+      const Eigen::Matrix3d& Rfg = slot_rotations[3 * s.f + s.k];
+      if (pf < 0 && pg >= 0)
+        b.middleRows<3>(3 * pg) += Rfg.transpose() * R[s.f].transpose();  // f fixed: T_f = R_fᵀ
+      else if (pg < 0 && pf >= 0)
+        b.middleRows<3>(3 * pf) += Rfg * R[s.g].transpose();              // g fixed
+    }
+    timing.assemble_ms += ms_since(t0);
+    t0 = Clock::now();
+    BlockCholesky3::Factor factor;
+    if (!m.block_solver->factorize(diag, off, factor))
+      throw NumericalError("rotation system: numeric factorisation failed (not positive definite)");
+    m.block_solver->solve(factor, b);
+    X = std::move(b);
+    timing.rotation_solve_ms += ms_since(t0);
+    if (!X.allFinite()) throw NumericalError("rotation system: the solve produced NaN");
+    t0 = Clock::now();
+    parallel_range(m.nf, [&](int f) {
+      const int p = m.unknown[f];
+      if (p >= 0) R[f] = orthonormalise(X.middleRows<3>(3 * p).transpose());
+    });
+    timing.orthonormalise_ms += ms_since(t0);
+    return R;
+  }
   SparseMatrixd N = m.N_pattern;
   double* val = N.valuePtr();
   Eigen::MatrixXd b = Eigen::MatrixXd::Zero(3 * m.n_unknown, 3);

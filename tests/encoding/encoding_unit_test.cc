@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <Eigen/SVD>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -64,8 +65,10 @@ TEST(PolarDecomposition, FastPathAgreesWithTheSvd) {
     if (U.determinant() <= 0) continue;
     ++fast_cases;
     const PolarDecomposition p = polar_decomposition(U);
-    const Eigen::Matrix3d R_svd = closest_rotation(U);  // = polar rotation when det U > 0
+    Eigen::JacobiSVD<Eigen::Matrix3d> svd(U, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    const Eigen::Matrix3d R_svd = svd.matrixU() * svd.matrixV().transpose();  // det U > 0
     EXPECT_LT((p.R - R_svd).norm(), 1e-10) << "trial " << trial;
+    EXPECT_LT((closest_rotation(U) - R_svd).norm(), 1e-10) << "trial " << trial;
     EXPECT_LT((p.R * p.S - U).norm(), 1e-13 * U.norm());
     EXPECT_LT((p.R.transpose() * p.R - Eigen::Matrix3d::Identity()).norm(), 1e-14);
   }
