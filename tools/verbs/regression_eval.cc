@@ -8,10 +8,22 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <atomic>
+#include <mutex>
+
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <random>
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "core/io/npz.h"
+#include "core/makehuman.h"
+#include "core/measure.h"
+#include "model/body_model.h"
+#include "model/model_file.h"
+#include "regression/label_noise.h"
 #include "regression/line_plot.h"
 #include "regression/regression_study.h"
 #include "tools/console.h"
@@ -30,6 +42,19 @@ struct EvalRegressorsArgs {
   unsigned seed = 1;
   int jobs = 0;
   bool no_directions = false;
+  int synthetic = 0;            // > 0: build the shape model of this many synthetic subjects in-process
+  unsigned synthetic_seed = 1;
+  std::string save_model;       // with --synthetic: also write the built model here
+  std::string label_noise;      // LabelNoiseSpec text (regression/label_noise.h)
+};
+
+// What the study runs on: features, all labels, their names/units, and the subject of each row.
+struct StudyInput {
+  std::string source;            // for messages
+  Eigen::MatrixXd X, Y;
+  std::vector<std::string> names, units;
+  std::vector<int> groups;
+  std::string coef_key = "shape_coefficients";
 };
 
 // A list stored as JSON text (the model file, model/model_file.h) or comma-separated text.
@@ -63,6 +88,150 @@ std::string csv_field(const std::string& s) {
   return q + "\"";
 }
 
+
+// The shape (or full) model's coefficients and labels from a model file (model/model_file.h keys).
+StudyInput model_input(const EvalRegressorsArgs& a) {
+  const Npz z = Npz::load(a.model);
+  const bool full = a.set == "full";
+  const std::string p = full ? "full_" : "";
+  StudyInput in;
+  in.source = a.model;
+  in.coef_key = full ? "full_coefficients" : "shape_coefficients";
+  for (const std::string& key : {in.coef_key, p + "labels", p + "label_names"})
+    if (!z.has(key))
+      throw InputError("'" + a.model + "': missing array '" + key + "' (expected a model file with " +
+                       in.coef_key + ", " + p + "labels and " + p + "label_names)");
+  in.X = z.matrix(in.coef_key);
+  in.Y = z.matrix(p + "labels");
+  in.names = read_list(z, p + "label_names", a.model);
+  in.units.assign(in.names.size(), "");
+  if (z.has(p + "label_units")) in.units = read_list(z, p + "label_units", a.model);
+  if (in.Y.rows() != in.X.rows() || static_cast<size_t>(in.Y.cols()) != in.names.size() ||
+      in.units.size() != in.names.size())
+    throw InputError(fmt::format("'{}': {} is {}×{}, {}labels {}×{}, {} label names, {} units (expected "
+                                 "one label row per coefficient row and one name and unit per column)",
+                                 a.model, in.coef_key, in.X.rows(), in.X.cols(), p, in.Y.rows(), in.Y.cols(),
+                                 in.names.size(), in.units.size()));
+  // Subjects: one a row for the shape model; grouped scans for the full model.
+  const std::string id_key =
+      full ? (z.has("full_subject_ids") ? "full_subject_ids" : "full_sample_ids") : "subject_ids";
+  if (z.has(id_key)) {
+    std::vector<std::string> ids = read_list(z, id_key, a.model);
+    if (static_cast<Eigen::Index>(ids.size()) != in.X.rows())
+      throw InputError(fmt::format("'{}': {} has {} entries for {} rows", a.model, id_key, ids.size(), in.X.rows()));
+    std::map<std::string, int> index;
+    for (auto& id : ids) {
+      if (full && id_key == "full_sample_ids") {
+        const auto cut = id.rfind("_p");
+        if (cut != std::string::npos) id = id.substr(0, cut);
+      }
+      in.groups.push_back(index.emplace(id, static_cast<int>(index.size())).first->second);
+    }
+  }
+  return in;
+}
+
+// Slider values of a random subject, with the distributions of `bodymodel synth-db`
+// (tools/synth/synthetic_scans.cc): adults of both sexes, macro sliders inside [0.15, 0.85].
+MacroSettings random_synthetic_subject(std::mt19937_64& rng, bool male) {
+  std::uniform_real_distribution<double> u(0, 1);
+  auto in = [&](double lo, double hi) { return lo + (hi - lo) * u(rng); };
+  MacroSettings s;
+  s.gender = male ? in(0.85, 1.0) : in(0.0, 0.15);
+  s.age = in(0.45, 0.85);
+  s.muscle = in(0.15, 0.85);
+  s.weight = in(0.15, 0.85);
+  s.height = in(0.15, 0.85);
+  s.proportions = in(0.25, 0.75);
+  s.cup = in(0.3, 0.7);
+  s.firmness = in(0.3, 0.7);
+  std::gamma_distribution<double> g(2.0, 1.0);
+  const double x = g(rng), y = g(rng), z = g(rng), sum = x + y + z;
+  s.african = x / sum;
+  s.asian = y / sum;
+  s.caucasian = z / sum;
+  return s;
+}
+
+// The shape-only model of `a.synthetic` synthetic subjects built in-process: what
+// `synth-db --poses-per-subject 0` + `build DB/truth --shape-variance 1` give (perfect
+// registrations: the standard-pose truth meshes), without simulating the scans. Labels are those
+// of synth-db's subjects.csv, measured the same way on the standard-pose mesh.
+StudyInput synthetic_input(const EvalRegressorsArgs& a) {
+  if (a.synthetic < 2) throw InputError("--synthetic: needs at least 2 subjects");
+  if (a.set != "shape") throw InputError("--synthetic builds a shape-only model; --set full needs a model file");
+  cli::info("loading MakeHuman data");
+  const MakeHuman mh = MakeHuman::load();
+  std::mt19937_64 rng(a.synthetic_seed);
+  const int n = a.synthetic;
+  std::vector<MacroSettings> sliders;
+  for (int s = 0; s < n; ++s) sliders.push_back(random_synthetic_subject(rng, s % 2 == 1));
+  ModelBuildInput b;
+  b.meshes.resize(n);
+  const std::vector<std::pair<std::string, std::string>> label_info = {
+      {"height_cm", "cm"}, {"weight_kg", "kg"}, {"body_fat_pct", "%"}, {"muscle", "%"}, {"waist_cm", "cm"},
+      {"hips_cm", "cm"},   {"chest_cm", "cm"},  {"neck_cm", "cm"},     {"age_years", "years"}, {"sex", ""}};
+  for (const auto& [name, unit] : label_info) b.subject_labels.push_back({name, unit});
+  b.subject_label_values.resize(n, static_cast<Eigen::Index>(label_info.size()));
+  std::vector<Eigen::MatrixX3i> faces(n);
+  {
+    cli::ProgressBar bar("synthetic subjects");
+    std::atomic<int> done{0};
+    std::mutex m;
+    const ProgressCallback cb = bar.callback();
+    tbb::task_arena arena(a.jobs > 0 ? a.jobs : tbb::task_arena::automatic);
+    arena.execute([&] {
+      tbb::parallel_for(0, n, [&](int s) {
+        const MakeHuman::Body body = mh.body(sliders[s]);
+        const bool male = sliders[s].gender >= 0.5;
+        const BodyMeasurements mm = measure_body(body.mesh.V, body.mesh.F, male ? Sex::male : Sex::female);
+        b.subject_label_values.row(s) << mm.height_cm, mm.weight_kg, mm.body_fat_pct, sliders[s].muscle * 100,
+            mm.waist_cm, mm.hips_cm, mm.chest_cm, mm.neck_cm, sliders[s].age_years(), male ? 1.0 : 0.0;
+        b.meshes[s] = body.mesh.V;
+        faces[s] = body.mesh.F;
+        const int k = ++done;
+        std::lock_guard<std::mutex> lock(m);
+        report_progress(cb, static_cast<double>(k) / n, "MakeHuman bodies");
+      });
+    });
+    bar.finish(fmt::format("{} subjects", n));
+  }
+  b.F = faces[0];
+  b.pose_label_values.resize(n, 0);
+  for (int s = 0; s < n; ++s) {
+    char id[32];
+    std::snprintf(id, sizeof id, "s%03d", s);
+    b.subject_ids.push_back(id);
+    b.scan_ids.push_back(std::string(id) + "_p0");
+    b.is_standard_pose.push_back(1);
+  }
+  ModelBuildOptions o;
+  o.shape_pca.variance_threshold = 1.0;  // every component: as many as the data has (N − 1)
+  o.full_pca.max_components = 1;         // the full model is not used here
+  ModelBuildSummary summary;
+  cli::ProgressBar bar("build");
+  BodyModel model = build_body_model(b, o, &summary, bar.callback());
+  bar.finish(fmt::format("shape model: {} subjects, {} components", summary.shape_pca.samples,
+                         summary.shape_pca.components));
+  if (!a.save_model.empty()) {
+    model.metadata["source"] = {{"synthetic_subjects", n}, {"seed", a.synthetic_seed}};
+    save_model(a.save_model, model);
+    cli::info("wrote " + a.save_model);
+  }
+  StudyInput in;
+  in.source = fmt::format("synthetic shape model ({} subjects, seed {})", n, a.synthetic_seed);
+  in.X = model.shape.pca.coefficients;
+  in.Y = model.shape.labels;
+  for (const auto& l : model.shape.regression.labels) {
+    in.names.push_back(l.name);
+    in.units.push_back(l.unit);
+  }
+  if (static_cast<Eigen::Index>(in.names.size()) != in.Y.cols()) {  // labels as given to the build
+    in.names.clear(), in.units.clear();
+    for (const auto& [name, unit] : label_info) in.names.push_back(name), in.units.push_back(unit);
+  }
+  return in;
+}
 }  // namespace
 
 BODYMODEL_VERB(add_eval_regressors_verb) {
@@ -76,7 +245,17 @@ BODYMODEL_VERB(add_eval_regressors_verb) {
       "the full model's arrays are used, scans are grouped by subject (full_subject_ids, or the scan\n"
       "id up to its last '_p'), and joint-angle labels 'pose:<bone>:r?' are reported in degrees.\n"
       "Writes <out>/regressors.csv, <out>/directions.csv, <out>/filtered_components.png.");
-  cmd->add_option("model", a->model, "Model file (.npz), e.g. from `bodymodel build-model`")->required();
+  cmd->add_option("model", a->model, "Model file (.npz), e.g. from `bodymodel build` (or use --synthetic)");
+  cmd->add_option("--synthetic", a->synthetic,
+                  "Instead of a model file: build the shape-only model of this many synthetic subjects\n"
+                  "in-process (synth-db's subject distribution, standard-pose truth meshes, every PCA\n"
+                  "component kept) and evaluate on it");
+  cmd->add_option("--synthetic-seed", a->synthetic_seed, "Seed of the synthetic subjects")->capture_default_str();
+  cmd->add_option("--save-model", a->save_model, "With --synthetic: also write the built model (.npz)");
+  cmd->add_option("--label-noise", a->label_noise,
+                  "Simulated measurement noise added to the labels before cross-validation (seeded by\n"
+                  "--seed): '0.2' = 0.2 x each label's standard deviation, or 'height_cm=1,weight_kg=0.5'\n"
+                  "(sigma in the label's unit). RMSE is then against the noisy labels, as with measured ones");
   cmd->add_option("--folds", a->folds, "Cross-validation folds (subjects grouped)")->capture_default_str();
   cmd->add_option("--labels", a->labels, "Comma-separated label names; 'pose:*' = every joint angle")
       ->capture_default_str();
@@ -90,40 +269,17 @@ BODYMODEL_VERB(add_eval_regressors_verb) {
   cmd->add_option("--jobs", a->jobs, "Worker threads (0 = all cores)")->capture_default_str();
   cmd->add_flag("--no-directions", a->no_directions, "Skip the morph-direction angles (Table 2)");
   cmd->callback([a] {
-    const Npz z = Npz::load(a->model);
-    const bool full = a->set == "full";
-    const std::string p = full ? "full_" : "";
-    const std::string coef_key = full ? "full_coefficients" : "shape_coefficients";
-    for (const std::string& key : {coef_key, p + "labels", p + "label_names"})
-      if (!z.has(key))
-        throw InputError("'" + a->model + "': missing array '" + key + "' (expected a model file with " +
-                         coef_key + ", " + p + "labels and " + p + "label_names)");
-    const Eigen::MatrixXd X = z.matrix(coef_key);
-    Eigen::MatrixXd Y = z.matrix(p + "labels");
-    const std::vector<std::string> names = read_list(z, p + "label_names", a->model);
-    std::vector<std::string> units(names.size());
-    if (z.has(p + "label_units")) units = read_list(z, p + "label_units", a->model);
-    if (Y.rows() != X.rows() || static_cast<size_t>(Y.cols()) != names.size() || units.size() != names.size())
-      throw InputError(fmt::format("'{}': {} is {}×{}, {}labels {}×{}, {} label names, {} units (expected "
-                                   "one label row per coefficient row and one name and unit per column)",
-                                   a->model, coef_key, X.rows(), X.cols(), p, Y.rows(), Y.cols(),
-                                   names.size(), units.size()));
-    // Subjects: one a row for the shape model; grouped scans for the full model.
-    std::vector<int> groups;
-    const std::string id_key = full ? (z.has("full_subject_ids") ? "full_subject_ids" : "full_sample_ids") : "subject_ids";
-    if (z.has(id_key)) {
-      std::vector<std::string> ids = read_list(z, id_key, a->model);
-      if (static_cast<Eigen::Index>(ids.size()) != X.rows())
-        throw InputError(fmt::format("'{}': {} has {} entries for {} rows", a->model, id_key, ids.size(), X.rows()));
-      std::map<std::string, int> index;
-      for (auto& id : ids) {
-        if (full && id_key == "full_sample_ids") {
-          const auto cut = id.rfind("_p");
-          if (cut != std::string::npos) id = id.substr(0, cut);
-        }
-        groups.push_back(index.emplace(id, static_cast<int>(index.size())).first->second);
-      }
-    }
+    if (a->synthetic > 0 && !a->model.empty())
+      throw InputError("give either a model file or --synthetic N, not both");
+    if (a->synthetic <= 0 && a->model.empty())
+      throw InputError("no model file given (expected model.npz, or --synthetic N to build one in-process)");
+    const LabelNoiseSpec noise = parse_label_noise(a->label_noise);
+    const StudyInput in = a->synthetic > 0 ? synthetic_input(*a) : model_input(*a);
+    const Eigen::MatrixXd& X = in.X;
+    const std::vector<std::string>& names = in.names;
+    const std::vector<std::string>& units = in.units;
+    const std::vector<int>& groups = in.groups;
+    Eigen::MatrixXd Y = in.Y;
     // Requested labels.
     std::vector<std::string> wanted;
     for (const auto& l : cli::split_commas(a->labels)) {
@@ -142,7 +298,7 @@ BODYMODEL_VERB(add_eval_regressors_verb) {
       if (it == names.end()) {
         std::string known;
         for (const auto& n : names) known += (known.empty() ? "" : ", ") + n;
-        throw InputError("--labels: '" + wanted[k] + "' is not in '" + a->model + "' (it has " + known + ")");
+        throw InputError("--labels: '" + wanted[k] + "' is not in '" + in.source + "' (it has " + known + ")");
       }
       const size_t c = static_cast<size_t>(it - names.begin());
       Ysel.col(k) = Y.col(c);
@@ -153,6 +309,14 @@ BODYMODEL_VERB(add_eval_regressors_verb) {
       }
       sel_units.push_back(unit);
     }
+    if (!noise.empty()) {
+      const Eigen::VectorXd sigma = label_noise_sigma(noise, Ysel, wanted);
+      Ysel = add_label_noise(Ysel, sigma, groups, a->seed);
+      std::string list;
+      for (size_t k = 0; k < wanted.size(); ++k)
+        list += fmt::format("{}{} {:.3g} {}", k ? ", " : "", wanted[k], sigma(k), sel_units[k]);
+      cli::info("simulated label noise (sigma): " + list);
+    }
 
     RegressionStudyOptions o;
     o.regressors = cli::split_commas(a->regressors);
@@ -162,7 +326,7 @@ BODYMODEL_VERB(add_eval_regressors_verb) {
     o.jobs = a->jobs;
     o.directions = !a->no_directions;
     cli::info(fmt::format("{}: {} rows ({} subjects), {} components, {} labels, {} regressors, {}-fold",
-                          a->model, X.rows(), groups.empty() ? X.rows() : static_cast<Eigen::Index>(*std::max_element(groups.begin(), groups.end()) + 1),
+                          in.source, X.rows(), groups.empty() ? X.rows() : static_cast<Eigen::Index>(*std::max_element(groups.begin(), groups.end()) + 1),
                           X.cols(), wanted.size(), o.regressors.size(), a->folds));
     cli::ProgressBar bar("eval-regressors");
     const RegressionStudy study = run_regression_study(X, Ysel, wanted, groups, o, bar.callback());
