@@ -7,7 +7,10 @@
 #include <random>
 
 #include "core/io/atomic_write.h"
+#include "core/data_path.h"
 #include "core/io/bvh.h"
+#include "core/makehuman.h"
+#include "core/retarget.h"
 #include "core/io/mesh_io.h"
 #include "skinning/rig_io.h"
 #include "skinning/skinning_rig.h"
@@ -111,6 +114,31 @@ TEST(SkinApplyCli, ExportGltfWritesAnAnimatedGlbAndRefusesMwe) {
                     (f.dir / "mwe.glb").string(), &out), 2) << out;
   EXPECT_FALSE(std::filesystem::exists(f.dir / "mwe.glb"));
   std::filesystem::remove_all(f.dir);
+}
+
+// A rig on the MakeHuman body without stored skeleton keys: `skin apply` places the default
+// skeleton on the rig's rest mesh and poses it like our own forward kinematics + LBS.
+TEST(SkinApplyCli, MakeHumanBodyRigUsesTheDefaultSkeleton) {
+  const auto mh_dir = data_file("makehuman");
+  if (!std::filesystem::exists(mh_dir)) GTEST_SKIP() << "no MakeHuman data";
+  const MakeHuman mh = MakeHuman::load();
+  const MakeHuman::Body body = mh.body(MacroSettings{});
+  const SkinningRig rig = lbs_rig_from_weights(body.mesh.V, Eigen::MatrixXd(body.weights), 4);
+  const auto dir = std::filesystem::temp_directory_path() / ("bodymodel_skin_apply_mh" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  save_rig(dir / "body.npz", rig, body.mesh.F);
+  const auto bvh = mh.pose_file("tpose");
+  std::string out;
+  ASSERT_EQ(run(std::string(BODYMODEL_EXE) + " skin apply " + (dir / "body.npz").string() + " --bvh " + bvh.string() +
+                    " --out " + (dir / "frames").string(), &out), 0) << out;
+  EXPECT_NE(out.find("skeleton: makehuman"), std::string::npos) << out;
+  const Mesh m = read_mesh(dir / "frames" / "frame_00000.obj");
+  const Skeleton sk = mh.skeleton_from_body(rig.rest);
+  const Eigen::MatrixX3d ref = evaluate_rig(rig, forward_kinematics(sk, poses_from_bvh(read_bvh(bvh), sk, mh_dir)[0]));
+  EXPECT_LT((m.V - ref).cwiseAbs().maxCoeff(), 1e-3);                 // mm
+  EXPECT_GT((ref - body.mesh.V).rowwise().norm().maxCoeff(), 100.0);   // the T-pose lifts the arms
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace
