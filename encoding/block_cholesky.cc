@@ -1,9 +1,14 @@
 #include "encoding/block_cholesky.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <Eigen/OrderingMethods>
 #include <Eigen/Sparse>
 #include <algorithm>
+#include <atomic>
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
 
 #include "core/error.h"
 
@@ -94,6 +99,52 @@ BlockCholesky3::BlockCholesky3(int n, const std::vector<std::pair<int, int>>& lo
     const int top = ereach(k, up_rows, parent_, flag, s, path);
     for (int p = top; p < n; ++p) Li_[next[s[p]]++] = k;
   }
+
+  // Parallel schedule. Row k of L only reads and writes columns of k's descendants in the
+  // elimination tree, so disjoint subtrees can be factorised concurrently: cut the tree into
+  // subtrees of at most 1/16 of the work (estimated as Σ column count²), run those in parallel,
+  // then the rest (the separators near the roots) in order. Bit-identical to the serial order.
+  std::vector<double> work(n);
+  for (int k = 0; k < n; ++k) work[k] = static_cast<double>(count[k]) * count[k];
+  std::vector<std::vector<int>> children(n);
+  std::vector<int> roots;
+  for (int k = 0; k < n; ++k) {
+    if (parent_[k] >= 0) {
+      work[parent_[k]] += work[k];  // parent_[k] > k: accumulates bottom-up
+      children[parent_[k]].push_back(k);
+    } else {
+      roots.push_back(k);
+    }
+  }
+  double total = 0;
+  for (int r : roots) total += work[r];
+  const double limit = total / 16;
+  std::vector<int> stack(roots.begin(), roots.end());
+  std::vector<std::pair<double, int>> cuts;
+  while (!stack.empty()) {
+    const int v = stack.back();
+    stack.pop_back();
+    if (work[v] <= limit) {
+      cuts.emplace_back(work[v], v);
+    } else {
+      top_rows_.push_back(v);
+      for (int c : children[v]) stack.push_back(c);
+    }
+  }
+  std::sort(top_rows_.begin(), top_rows_.end());
+  std::sort(cuts.rbegin(), cuts.rend());  // largest first
+  for (const auto& [w, v] : cuts) {
+    std::vector<int> rows;
+    std::vector<int> todo = {v};
+    while (!todo.empty()) {
+      const int u = todo.back();
+      todo.pop_back();
+      rows.push_back(u);
+      for (int c : children[u]) todo.push_back(c);
+    }
+    std::sort(rows.begin(), rows.end());
+    subtree_rows_.push_back(std::move(rows));
+  }
 }
 
 bool BlockCholesky3::factorize(const std::vector<Eigen::Matrix3d>& diag,
@@ -102,37 +153,62 @@ bool BlockCholesky3::factorize(const std::vector<Eigen::Matrix3d>& diag,
   if (static_cast<int>(diag.size()) != n)
     throw NumericalError("block Cholesky: wrong number of diagonal blocks (internal error)");
   factor.L.resize(Lp_[n]);
+  factor.Dinv.resize(n);
   std::vector<Eigen::Matrix3d>& Lx = factor.L;
-  std::vector<Eigen::Matrix3d> x(n, Eigen::Matrix3d::Zero());
-  std::vector<int> next(Lp_.begin(), Lp_.end() - 1), flag(n, -1), s(n), path(n);
-  for (int k = 0; k < n; ++k) {
+  // next[i]: next free entry of column i (each column is only touched by one task at a time).
+  std::vector<int> next(Lp_.begin(), Lp_.end() - 1);
+  struct Workspace {
+    std::vector<Eigen::Matrix3d> x;  // dense block row, zero between rows
+    std::vector<int> flag, s, path;
+  };
+  auto make_workspace = [n] {
+    return Workspace{std::vector<Eigen::Matrix3d>(n, Eigen::Matrix3d::Zero()),
+                     std::vector<int>(n, -1), std::vector<int>(n), std::vector<int>(n)};
+  };
+  std::atomic<bool> ok{true};
+  auto row = [&](int k, Workspace& w) {
     // Scatter C(:, k) (upper part) into x, and find the pattern of row k of L.
     int top = n;
-    flag[k] = k;
+    w.flag[k] = k;
     for (const Entry& en : upper_[k]) {
-      x[en.row] = en.transposed ? Eigen::Matrix3d(off[en.off].transpose()) : off[en.off];
+      w.x[en.row] = en.transposed ? Eigen::Matrix3d(off[en.off].transpose()) : off[en.off];
       int len = 0;
-      for (int j = en.row; flag[j] != k; j = parent_[j]) {
-        path[len++] = j;
-        flag[j] = k;
+      for (int j = en.row; w.flag[j] != k; j = parent_[j]) {
+        w.path[len++] = j;
+        w.flag[j] = k;
       }
-      while (len > 0) s[--top] = path[--len];
+      while (len > 0) w.s[--top] = w.path[--len];
     }
     Eigen::Matrix3d d = diag[perm_[k]];
     for (int p = top; p < n; ++p) {
-      const int i = s[p];
+      const int i = w.s[p];
       // x_i = C(i, k) − Σ_j L(i, j) L(k, j)ᵀ;  L(k, i)ᵀ = L(i, i)⁻¹ x_i.
-      const Eigen::Matrix3d Y = Lx[Lp_[i]].triangularView<Eigen::Lower>().solve(x[i]);
-      x[i].setZero();
-      for (int q = Lp_[i] + 1; q < next[i]; ++q) x[Li_[q]].noalias() -= Lx[q] * Y;
+      const Eigen::Matrix3d Y = factor.Dinv[i] * w.x[i];
+      w.x[i].setZero();
+      for (int q = Lp_[i] + 1; q < next[i]; ++q) w.x[Li_[q]].noalias() -= Lx[q] * Y;
       d.noalias() -= Y.transpose() * Y;
       Lx[next[i]++] = Y.transpose();
     }
     const Eigen::LLT<Eigen::Matrix3d> llt(d);
-    if (llt.info() != Eigen::Success || !(d.diagonal().array() > 0).all()) return false;
+    if (llt.info() != Eigen::Success || !(d.diagonal().array() > 0).all()) {
+      ok = false;
+      Lx[next[k]++].setIdentity();
+      factor.Dinv[k].setIdentity();
+      return;
+    }
     Lx[next[k]++] = llt.matrixL();
-  }
-  return true;
+    factor.Dinv[k] = Lx[Lp_[k]].inverse();
+  };
+  tbb::enumerable_thread_specific<Workspace> workspaces(make_workspace);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, subtree_rows_.size(), 1),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                      Workspace& w = workspaces.local();
+                      for (size_t t = r.begin(); t < r.end(); ++t)
+                        for (int k : subtree_rows_[t]) row(k, w);
+                    });
+  Workspace& w = workspaces.local();
+  for (int k : top_rows_) row(k, w);
+  return ok;
 }
 
 void BlockCholesky3::solve(const Factor& factor, Eigen::MatrixXd& B) const {
@@ -147,12 +223,12 @@ void BlockCholesky3::solve(const Factor& factor, Eigen::MatrixXd& B) const {
       z[i].leftCols(w) = B.block(3 * perm_[i], c0, 3, w);
     }
     for (int j = 0; j < n; ++j) {
-      Lx[Lp_[j]].triangularView<Eigen::Lower>().solveInPlace(z[j]);
+      z[j] = factor.Dinv[j] * z[j];
       for (int q = Lp_[j] + 1; q < Lp_[j + 1]; ++q) z[Li_[q]].noalias() -= Lx[q] * z[j];
     }
     for (int j = n - 1; j >= 0; --j) {
       for (int q = Lp_[j] + 1; q < Lp_[j + 1]; ++q) z[j].noalias() -= Lx[q].transpose() * z[Li_[q]];
-      Lx[Lp_[j]].transpose().triangularView<Eigen::Upper>().solveInPlace(z[j]);
+      z[j] = factor.Dinv[j].transpose() * z[j];
     }
     for (int i = 0; i < n; ++i) B.block(3 * perm_[i], c0, 3, w) = z[i].leftCols(w);
   }

@@ -9,6 +9,9 @@
 // CHOLMOD's simplicial factorisation of the same 3·#F scalar matrix (the block form does the
 // same flops without per-entry index work).
 //
+// The numeric factorisation runs disjoint subtrees of the elimination tree in parallel (TBB);
+// the result is bit-identical to the serial order.
+//
 // Thread safety: the analysis is immutable; factorize() and solve() are const and write only
 // to the caller's Factor, so one BlockCholesky3 serves concurrent callers.
 #pragma once
@@ -25,7 +28,8 @@ class BlockCholesky3 {
   BlockCholesky3(int n, const std::vector<std::pair<int, int>>& lower);
 
   struct Factor {
-    std::vector<Eigen::Matrix3d> L;   // blocks of L in the analysis' column order
+    std::vector<Eigen::Matrix3d> L;     // blocks of L in the analysis' column order
+    std::vector<Eigen::Matrix3d> Dinv;  // inverses of the (lower triangular) diagonal blocks
   };
   // diag: n diagonal blocks; off: one block A(r, c) per entry of `lower`, same order. Returns
   // false if A is not (numerically) positive definite.
@@ -49,6 +53,8 @@ class BlockCholesky3 {
   std::vector<std::vector<Entry>> upper_;    // per permuted column k: C(i, k), i < k
   std::vector<int> parent_;                  // elimination tree
   std::vector<int> Lp_, Li_;                 // pattern of L (column pointers, row indices)
+  std::vector<std::vector<int>> subtree_rows_;  // disjoint etree subtrees (rows ascending)
+  std::vector<int> top_rows_;                   // the remaining rows, ascending, done last
 };
 
 }  // namespace bodymodel
