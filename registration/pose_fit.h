@@ -1,10 +1,9 @@
 // Skeleton-based pose estimation (Hasler et al. 2009 §2.2): the template, with its skeleton and
 // linear-blend-skinning weights, is posed onto a scan by non-linear least squares (Ceres, robust
 // loss). Unknowns: a global scale (about the root joint), the global rigid motion (root
-// rotation + translation) and an angle-axis ball joint for every free bone (a reduced set:
-// spine, neck, head, clavicles, shoulders, arms, wrists, legs, feet; fingers, toes, face,
-// spine05 and the pelvis bones
-// stay at rest). ICP loop: closest-point correspondences template→scan with the paper's
+// rotation + translation) and one rotation per body segment (default_pose_parameters: spine,
+// neck, head, shoulders, upper/lower arms and legs with their twist bones, wrists, feet;
+// fingers, toes, face, spine05 and the pelvis bones stay at rest). ICP loop: closest-point correspondences template→scan with the paper's
 // rejection (normals > 30°, distance > 50 mm), plus landmarks for global stability; solve;
 // repeat until the pose stops changing.
 #pragma once
@@ -20,11 +19,24 @@
 
 namespace bodymodel {
 
+// One fitted rotation shared by a group of bones (each bone of the group gets the same
+// rotation relative to its parent), or, with `twist`, an angle about each bone's own rest axis.
+struct PoseParameter {
+  std::vector<std::string> bones;
+  bool twist = false;
+  double prior = 1.0;  // multiplies PoseFitOptions::pose_prior for each bone of the group
+};
+
 struct PoseFitOptions {
-  // Names of the bones whose rotation is fitted (besides the root, always free). Empty: the
-  // default reduced set (default_free_bones) of the bones that exist in the skeleton.
+  // Names of the bones whose rotation is fitted, each a free ball joint (besides the root,
+  // always free). Takes precedence over `parameters`.
   std::vector<std::string> free_bones;
+  // Fitted rotations; empty (and free_bones empty): default_pose_parameters(), keeping the
+  // bones that exist in the skeleton. Named bones must exist.
+  std::vector<PoseParameter> parameters;
   bool fit_scale = true;
+  // Starting global scale; ≤ 0: from the landmarks' similarity transform (or the bounding boxes).
+  double initial_scale = 0.0;
   // §2.2 rejection thresholds. The distance threshold starts at initial_max_distance and halves
   // every ICP iteration down to max_distance (a coarse start is too far for 50 mm).
   double max_distance = 50.0;           // mm
@@ -35,6 +47,9 @@ struct PoseFitOptions {
   double robust_scale = 10.0;           // Huber loss scale, mm
   // Each sample gives a point-to-plane residual (scan normal) plus this much point-to-point.
   double point_to_point_weight = 0.3;
+  // Landmarks are used when at least half of their vertex's weight is on bones at most this
+  // many fixed bones below a fitted one (toes below the foot, the jaw below the head).
+  int landmark_rigid_depth = 3;
   double landmark_weight = 3.0;         // residual weight of a landmark relative to a sample
   // Prior towards the rest pose on free joints: residual = sqrt(prior)·angle (rad) per joint
   // (cost in mm²-equivalents, against ~sample_vertices data residuals). MakeHuman's skeleton is
@@ -43,6 +58,8 @@ struct PoseFitOptions {
   // the smallest split, weak against real data (a 10 mm landmark miss outweighs 50° of prior).
   double pose_prior = 1e4;
   int max_icp_iterations = 25;
+  // Solves with the landmarks alone (and the prior) before the ICP iterations (needs ≥ 3).
+  int landmark_iterations = 1;
   int solver_iterations = 8;            // Levenberg–Marquardt iterations per ICP step
   // Stop when no joint angle changes by more than this (degrees) and the translation by less
   // than convergence_mm between ICP iterations.
@@ -68,7 +85,9 @@ struct PoseFitResult {
   std::vector<int> free_bones;  // indices of the fitted bones (root first)
 };
 
-// The default reduced joint set (MakeHuman default skeleton names).
+// The default parameters (MakeHuman default skeleton names): one rotation per body segment.
+const std::vector<PoseParameter>& default_pose_parameters();
+// All bones named by default_pose_parameters().
 const std::vector<std::string>& default_free_bones();
 
 // Scales template and skeleton by `scale` about the root head, then poses them with LBS.

@@ -23,7 +23,16 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
     return [&progress, a, b](double f, std::string_view w) { return progress(a + (b - a) * f, w); };
   };
   RegistrationResult r;
-  r.pose = fit_pose(tpl.mesh, tpl.skeleton, tpl.weights, scan, landmarks, po, &sum.pose,
+  Mesh rest = tpl.mesh;
+  Skeleton skeleton = tpl.skeleton;
+  if (options.fit_proportions && landmarks.size() >= 3) {
+    r.proportions = estimate_proportions(tpl.mesh.V, landmarks, options.proportions);
+    apply_proportions(tpl.mesh.V, tpl.skeleton, tpl.weights, r.proportions, options.proportions,
+                      &rest.V, &skeleton);
+    if (po.initial_scale <= 0 && !r.proportions.segment.empty())
+      po.initial_scale = r.proportions.global_scale;
+  }
+  r.pose = fit_pose(rest, skeleton, tpl.weights, scan, landmarks, po, &sum.pose,
                     sub(0.0, pose_share));
   if (options.skip_nonrigid) {
     r.V = r.pose.V;

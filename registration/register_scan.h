@@ -12,6 +12,7 @@
 #include "registration/landmarks.h"
 #include "registration/nonrigid.h"
 #include "registration/pose_fit.h"
+#include "registration/proportions.h"
 #include "registration/scan.h"
 
 namespace bodymodel {
@@ -27,6 +28,10 @@ struct RegistrationOptions {
   ScanCheckOptions scan;
   PoseFitOptions pose;
   NonrigidOptions nonrigid;
+  // Stretch the template's segments to the landmarks' proportions before the pose fit
+  // (registration/proportions.h); needs ≥ 3 landmarks.
+  bool fit_proportions = true;
+  ProportionOptions proportions;
   bool skip_nonrigid = false;  // stop after the pose fit
 };
 
@@ -40,6 +45,7 @@ struct RegistrationSummary {
 struct RegistrationResult {
   Eigen::MatrixX3d V;     // #V by 3 registered template vertices (template topology, mm)
   PoseFitResult pose;     // scale, joint rotations and the posed template
+  Proportions proportions;  // segment ratios applied to the template (empty if none)
 };
 
 // Registers `scan` (modified: normals checked/estimated) with `landmarks` (template vertex →
