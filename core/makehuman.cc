@@ -384,7 +384,7 @@ BaseMesh parse_base_obj(const fs::path& path) {
 nlohmann::ordered_json parse_json_text(const std::string& text, const std::string& name) {
   try {
     return nlohmann::ordered_json::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {  // parse_error, or out_of_range (number overflow)
     throw InputError("'" + name + "' is not valid JSON: " + e.what());
   }
 }
