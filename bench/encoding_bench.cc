@@ -11,7 +11,8 @@
 //   Decode/1 pose-blend    default body, halfway between fight01 and run01
 //   Decode/2 body-blend    0.5·(default body in fight01 + heavy male in run01)
 //   Decode/3 sample        set mean + a 2σ random combination of the 6 set encodings
-//   Decode/4 cholesky      the body blend with the Cholesky path forced (same as 1–3 today)
+//   Decode/4 cholesky      the body blend with RotationSolver::kCholeskyRefactor (CHOLMOD's
+//                          scalar refactorisation instead of the default 3×3-block Cholesky)
 //   Decode/5 baseline      the body blend, both systems analysed and factorised on every call
 //   DecodeTwoThreads       one decoder, two threads decoding a sample and a blend concurrently
 // Each decode is also run in its two stages (split/...: rotation = encoding → matrices,

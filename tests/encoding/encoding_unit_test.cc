@@ -307,7 +307,11 @@ TEST(Decoder, RotationPathsAgreeWithTheCholeskySolve) {
 TEST(Decoder, ConcurrentDecodesOnOneDecoderMatchSequentialOnes) {
   const Mesh m = torus_mesh(40, 16);
   auto tmpl = std::make_shared<const EncodingTemplate>(m.V, m.F);
-  const RelativeRotationDecoder decoder(tmpl);
+  for (const RotationSolver solver : {RotationSolver::kPreconditionedCG, RotationSolver::kCholeskyRefactor}) {
+  SCOPED_TRACE(solver == RotationSolver::kCholeskyRefactor ? "CHOLMOD pool" : "default");
+  DecoderOptions options;
+  options.rotation_solver = solver;
+  const RelativeRotationDecoder decoder(tmpl, options);
   const EncodedSet set = encode_set(*tmpl, {deform(m.V, 0.5), deform(m.V, -1.2)});
   const Encoding blend = interpolate(set.encodings[0], set.encodings[1], 0.3);
   PositionConstraints c1, c2;
@@ -343,6 +347,7 @@ TEST(Decoder, ConcurrentDecodesOnOneDecoderMatchSequentialOnes) {
       EXPECT_EQ((got[i][n] - expected).cwiseAbs().maxCoeff(), 0.0)
           << "thread " << i << ", decode " << n;
     }
+  }
 }
 
 // The 3×3-block Cholesky (parallel over elimination subtrees) solves a random SPD block system
