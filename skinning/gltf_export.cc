@@ -261,22 +261,32 @@ std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i
                                           TINYGLTF_TYPE_MAT4, B, 0);
   skin.joints.resize(static_cast<size_t>(B));
   std::iota(skin.joints.begin(), skin.joints.end(), 0);
-  int roots = 0;
-  for (int b = 0; b < B; ++b) roots += skeleton.parents[static_cast<size_t>(b)] < 0;
-  if (roots == 1) skin.skeleton = 0;   // parents[b] < b: bone 0 is the root
-  model.skins.push_back(skin);
+  std::vector<int> roots;
+  for (int b = 0; b < B; ++b)
+    if (skeleton.parents[static_cast<size_t>(b)] < 0) roots.push_back(b);
 
   tinygltf::Node mesh_node;
   mesh_node.name = options.mesh_name;
   mesh_node.mesh = 0;
   mesh_node.skin = 0;
-  model.nodes.push_back(mesh_node);
+  model.nodes.push_back(mesh_node);   // node B
 
   tinygltf::Scene scene;
   scene.name = "scene";
   scene.nodes.push_back(B);
-  for (int b = 0; b < B; ++b)
-    if (skeleton.parents[static_cast<size_t>(b)] < 0) scene.nodes.push_back(b);
+  if (roots.size() == 1) {
+    skin.skeleton = roots[0];
+    scene.nodes.push_back(roots[0]);
+  } else {
+    // glTF needs one common root for the joints: an identity node above the root joints.
+    tinygltf::Node top;
+    top.name = "skeleton_root";
+    top.children = roots;
+    model.nodes.push_back(top);   // node B + 1
+    skin.skeleton = B + 1;
+    scene.nodes.push_back(B + 1);
+  }
+  model.skins.push_back(skin);
   model.scenes.push_back(scene);
   model.defaultScene = 0;
 

@@ -19,7 +19,8 @@
 // Weights: each vertex keeps its 4 largest weights (ties: lower bone index), renormalised to sum
 // to one (in float32, exactly as stored); unused slots get joint 0 and weight 0.
 // The skinned mesh node sits at the scene root without a transform (as the spec requires); the
-// joint roots are scene roots too. Bytes are written through write_atomically.
+// root joint is a scene root too, or, when the skeleton has several roots, an identity node
+// "skeleton_root" above them (glTF requires the joints to share one root). Bytes are written through write_atomically.
 #pragma once
 
 #include <Eigen/Core>

@@ -215,9 +215,13 @@ TEST(GltfExport, FlatSkeletonCarriesArbitraryRigidBoneMaps) {
   const std::string bytes = skinned_gltf_bytes(c.V, c.F, {}, flat, c.W, &anim);
   const tinygltf::Model m = load(bytes);
   ASSERT_EQ(m.animations.size(), 1u);
-  // Every flat joint is a root: 5 rotation + 5 translation channels.
+  // Every flat joint is a root: 5 rotation + 5 translation channels; one common identity root
+  // node above them (node 6, after the mesh node 5) carries the skin's skeleton.
   EXPECT_EQ(m.animations[0].channels.size(), 10u);
-  EXPECT_EQ(m.scenes.at(0).nodes.size(), 6u);
+  ASSERT_EQ(m.nodes.size(), 7u);
+  EXPECT_EQ(m.nodes[6].children, (std::vector<int>{0, 1, 2, 3, 4}));
+  EXPECT_EQ(m.skins.at(0).skeleton, 6);
+  EXPECT_EQ(m.scenes.at(0).nodes, (std::vector<int>{5, 6}));
 }
 
 TEST(GltfExport, BadInputIsRejectedWithAReason) {
@@ -261,16 +265,19 @@ TEST(GltfExport, KhronosValidatorReportsNoErrors) {
   for (int t = 0; t < 4; ++t) anim.frames.push_back(forward_kinematics(c.skeleton, random_pose(rng)));
   const auto dir = std::filesystem::temp_directory_path() / ("bodymodel_gltf_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
-  const auto file = dir / "tube.glb";
+  const auto file = dir / "tube.glb", flat = dir / "flat.glb";
   write_skinned_gltf(file, c.V, c.F, {}, c.skeleton, c.W, &anim);
+  write_skinned_gltf(flat, c.V, c.F, {}, flat_skeleton(5), c.W, &anim);   // several root joints
   const auto script = std::filesystem::path(__FILE__).parent_path() / "gltf_validate.js";
   const auto log = dir / "validator.txt";
-  const int rc = std::system((env + "node " + script.string() + " " + file.string() + " > " + log.string() + " 2>&1").c_str());
+  const int rc = std::system((env + "node " + script.string() + " " + file.string() + " " + flat.string() + " > " +
+                              log.string() + " 2>&1").c_str());
   const std::string text = read_text_file(log);
   std::filesystem::remove_all(dir);
   if (WIFEXITED(rc) && WEXITSTATUS(rc) == 2) GTEST_SKIP() << text;
   EXPECT_EQ(rc, 0) << text;
-  EXPECT_NE(text.find("errors 0 "), std::string::npos) << text;
+  EXPECT_NE(text.find("tube.glb: errors 0 "), std::string::npos) << text;
+  EXPECT_NE(text.find("flat.glb: errors 0 "), std::string::npos) << text;
   std::printf("%s", text.c_str());   // the validator's counts and first messages, for the log
 }
 
