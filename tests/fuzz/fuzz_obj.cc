@@ -1,3 +1,3 @@
-#include "core/io/mesh_io.h"
+// libFuzzer target: the "obj" reader of tests/fuzz/readers.h (run by scripts/fuzz.sh).
 #include "fuzz_common.h"
-BODYMODEL_FUZZ_TARGET(bodymodel::parse_mesh(input, "obj", "fuzz.obj"))
+BODYMODEL_FUZZ_TARGET(obj)

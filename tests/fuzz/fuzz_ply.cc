@@ -1,9 +1,3 @@
-#include "core/io/mesh_io.h"
+// libFuzzer target: the "ply" reader of tests/fuzz/readers.h (run by scripts/fuzz.sh).
 #include "fuzz_common.h"
-BODYMODEL_FUZZ_TARGET({
-  try {
-    bodymodel::parse_mesh(input, "ply", "fuzz.ply");
-  } catch (const bodymodel::InputError&) {
-  }
-  bodymodel::parse_ply_point_cloud(input, "fuzz.ply");
-})
+BODYMODEL_FUZZ_TARGET(ply)

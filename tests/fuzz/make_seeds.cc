@@ -5,8 +5,11 @@
 #include <iostream>
 
 #include "core/io/bvh.h"
+#include "core/io/libigl_formats.h"
 #include "core/io/mesh_io.h"
 #include "core/io/npz.h"
+#include "model/model_file.h"
+#include "skinning/rig_io.h"
 
 namespace fs = std::filesystem;
 using namespace bodymodel;
@@ -47,6 +50,90 @@ int main(int argc, char** argv) {
       "Zrotation Xrotation Yrotation\n\tJOINT child\n\t{\n\t\tOFFSET 0 1 0\n\t\tCHANNELS 3 "
       "Zrotation Xrotation Yrotation\n\t\tEnd Site\n\t\t{\n\t\t\tOFFSET 0 1 0\n\t\t}\n\t}\n}\n"
       "MOTION\nFrames: 2\nFrame Time: 0.0333\n0 0 0 10 20 30 1 2 3\n0 0 0 0 0 0 0 0 0\n");
+  // MakeHuman formats (the layout of the CC0 files, tiny).
+  put("fuzz_mh_target", "small.target", "# basemesh hm08\n0 0.1 -0.2 .3\n5 1 2 3\n99 -.016 0 1e-3\n");
+  const std::string mhskel =
+      R"({"name": "t", "bones": {"root": {"head": "j0", "tail": "j1"},)"
+      R"( "spine": {"parent": "root", "head": "j1", "tail": "j2"},)"
+      R"( "head": {"parent": "spine", "head": "j2", "tail": "j3"}},)"
+      R"( "joints": {"j0": [0, 1], "j1": [2], "j2": [3, 4, 5], "j3": [6]}})";
+  put("fuzz_mhskel", "small.mhskel", mhskel);
+  put("fuzz_mhw", "small.mhw",
+      R"({"name": "t", "weights": {"root": [[0, 1.0], [1, 0.5]], "spine": [[1, 0.5], [2, 0.25]],)"
+      R"( "head": [[2, 0.75], [3, 1e-5]]}})");
+  // Landmarks and label tables.
+  put("fuzz_landmarks", "small.json",
+      R"({"head_top": [0, 1700.5, 10], "chin": [1, 1500, 80], "l_knee": [-100, 500, 40]})");
+  put("fuzz_labels_csv", "subjects.csv",
+      "subject_id,sex,age_years,height_cm,weight_kg,muscle\ns1,female,31,165.2,60,50\n"
+      "s2,male,,180.5,80.5,62\n");
+  put("fuzz_labels_csv", "scans.csv", "scan_id,subject_id,pose\ns1_p0,s1,standard\ns1_p1,s1,walk\n");
+  put("fuzz_pose_csv", "small.pose.csv",
+      "bone,rx,ry,rz\n_scale,1.01,0,0\n_root_translation_mm,1,2,3\n_global_rotation,0,0.1,0\n"
+      "_global_translation_mm,5,6,7\nroot,0,0,0\nspine,0.1,0.2,0.3\nhead,-0.5,0,0\n");
+  // libigl formats.
+  put("fuzz_tgf", "small.tgf", "1 0 0 0\n2 0 1 0 0 0 0 0\n3 0 2 0\n#\n1 2 1 0 0\n2 3\n#\n");
+  Eigen::MatrixXd T(8, 3);  // two bones' stacked transforms [R^T; t^T]
+  T << 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, -1, 0, 0, 0, 0, 1, 1, 2, 3;
+  auto file_bytes = [&](const fs::path& p) {
+    return std::string(std::istreambuf_iterator<char>(std::ifstream(p, std::ios::binary).rdbuf()), {});
+  };
+  write_dmat(tmp / "a.dmat", T, true);
+  write_dmat(tmp / "b.dmat", T, false);
+  Eigen::MatrixXd anim(24, 2);  // two frames of that stack, column-major
+  anim.col(0) = Eigen::Map<const Eigen::VectorXd>(T.data(), 24);
+  anim.col(1) = anim.col(0) * 0.5;
+  write_dmat(tmp / "c.dmat", anim, true);
+  put("fuzz_dmat", "ascii.dmat", file_bytes(tmp / "a.dmat"));
+  put("fuzz_dmat", "binary.dmat", file_bytes(tmp / "b.dmat"));
+  put("fuzz_dmat", "anim.dmat", file_bytes(tmp / "c.dmat"));
+  put("fuzz_dmat", "two.Tmat", "1 0 0\n0 1 0\n0 0 1\n0 0 0\n0 1 0\n-1 0 0\n0 0 1\n1 2 3\n");
+  // A skinning rig (SSD, 4 vertices, 2 bones) with one fitted pose.
+  SkinningRig rig;
+  rig.bone_count = 2;
+  rig.rest = V;
+  rig.influences.resize(4, 2);
+  rig.influences << 0, 1, 0, -1, 1, 0, 1, -1;
+  rig.coefficients.resize(4, 2);
+  rig.coefficients << 0.5, 0.5, 1, 0, 0.75, 0.25, 1, 0;
+  BoneTransforms pose(2, Eigen::Affine3d::Identity());
+  pose[1].translate(Eigen::Vector3d(1, 2, 3));
+  save_rig(tmp / "rig.npz", rig, F, {pose});
+  put("fuzz_rig_npz", "ssd.npz", file_bytes(tmp / "rig.npz"));
+  // A model file in the real format with tiny arrays: a tetrahedron template (D = 60 encoding
+  // values), K = 2 components, 3 samples, 2 labels, a two-bone rig (made by hand: building a
+  // model needs the solver stages, which the fuzz build leaves out).
+  {
+    BodyModel m;
+    m.tmpl = std::make_shared<EncodingTemplate>(V, F);
+    const int D = m.tmpl->encoding_size(), K = 2, N = 3;
+    m.mean = EncodingMean::from_values(Eigen::VectorXd::Zero(D));
+    m.metadata = {{"format", "bodymodel-model"}, {"format_version", 1}};
+    for (SubModel* sub : {&m.shape, &m.full}) {
+      sub->pca.mean = Eigen::VectorXd::Zero(D);
+      sub->pca.basis = Eigen::MatrixXd::Identity(D, K);
+      sub->pca.eigenvalues = Eigen::Vector2d(2.0, 0.5);
+      sub->pca.coefficients = Eigen::MatrixXd::Random(N, K);
+      sub->labels = Eigen::MatrixXd::Random(N, 2);
+      sub->sample_ids = {"s0", "s1", "s2"};
+      sub->regression.labels = {{"height_cm", "cm", 170, 10, 150, 190}, {"sex", "", 0.5, 0.5, 0, 1}};
+      sub->regression.offsets = Eigen::Vector2d(170, 0.5);
+      sub->regression.gradients = Eigen::MatrixXd::Random(K, 2);
+      sub->semantic_basis.basis = Eigen::MatrixXd::Identity(K, K);
+      sub->semantic_basis.variances = Eigen::Vector2d(1, 1);
+      sub->semantic_basis.semantic_labels = {"height_cm"};
+    }
+    m.rig.bone_names = {"root", "child"};
+    m.rig.parents = {-1, 0};
+    m.rig.head_regressor.resize(2, 4);
+    m.rig.head_regressor.insert(0, 0) = 1;
+    m.rig.head_regressor.insert(1, 1) = 0.5;
+    m.rig.head_regressor.insert(1, 2) = 0.5;
+    m.rig.tail_regressor = m.rig.head_regressor;
+    m.rig.weights.resize(4, 2);
+    for (int v = 0; v < 4; ++v) m.rig.weights.insert(v, v % 2) = 1;
+    put("fuzz_model_npz", "tetra.npz", model_to_npz(m).serialize());
+  }
   fs::remove_all(tmp);
   std::cout << "seeds written to " << dir << "\n";
   return 0;

@@ -1,0 +1,167 @@
+// What each fuzz target feeds its input to, shared with the regression test
+// (tests/reliability/reader_regressions_test.cc) that replays kept inputs through the same
+// calls. A reader may reject input only with InputError or NumericalError; anything else (another
+// exception, a crash, a hang, a sanitizer report, std::abort from a failed post-condition here)
+// is a bug.
+#pragma once
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <string>
+
+#include <unistd.h>
+
+#include "core/error.h"
+#include "core/io/bvh.h"
+#include "core/io/libigl_formats.h"
+#include "core/io/mesh_io.h"
+#include "core/io/npz.h"
+#include "core/landmarks.h"
+#include "core/makehuman.h"
+#include "model/database.h"
+#include "model/model_file.h"
+#include "registration/landmarks.h"
+#include "registration/pose_io.h"
+#include "skinning/rig_io.h"
+
+namespace bodymodel::fuzz {
+
+// For readers that only take a path: the input written to one per-process file in /dev/shm
+// (memory-backed; the system temp folder when there is none), overwritten on every run.
+inline std::filesystem::path input_file(const std::string& bytes, const std::string& ext) {
+  static const std::filesystem::path dir = std::filesystem::is_directory("/dev/shm")
+                                               ? std::filesystem::path("/dev/shm")
+                                               : std::filesystem::temp_directory_path();
+  const std::filesystem::path p = dir / ("bodymodel_fuzz_" + std::to_string(::getpid()) + ext);
+  std::ofstream(p, std::ios::binary | std::ios::trunc) << bytes;
+  return p;
+}
+
+// Runs f, swallowing the rejections a reader is allowed (to go on with the next reader).
+template <typename F>
+void allowing_rejection(F&& f) {
+  try {
+    f();
+  } catch (const InputError&) {
+  } catch (const NumericalError&) {
+  }
+}
+
+inline void check(bool ok) {
+  if (!ok) std::abort();  // a post-condition of a successful read failed
+}
+
+inline void read_obj(const std::string& in) { parse_mesh(in, "obj", "fuzz.obj"); }
+
+inline void read_ply(const std::string& in) {
+  allowing_rejection([&] { parse_mesh(in, "ply", "fuzz.ply"); });
+  parse_ply_point_cloud(in, "fuzz.ply");
+}
+
+inline void read_npz(const std::string& in) {
+  Npz z = Npz::parse(in, "fuzz.npz");
+  for (auto& k : z.keys()) {
+    allowing_rejection([&] { z.matrix(k); });
+    allowing_rejection([&] { z.text(k); });
+  }
+}
+
+inline void read_bvh(const std::string& in) {
+  BvhMotion m = parse_bvh(in, "fuzz.bvh");
+  m.rest_positions();
+  for (int f = 0; f < std::min(m.frame_count(), 3); ++f)
+    for (int j = 0; j < static_cast<int>(m.joints.size()); ++j) bvh_joint_rotation(m, f, j);
+}
+
+// MakeHuman .target with a 100-vertex base mesh (so out-of-range indices are reachable).
+inline void read_mh_target(const std::string& in) { parse_makehuman_target(in, "fuzz.target", 100); }
+
+inline void read_mhskel(const std::string& in) { parse_makehuman_skeleton(in, "fuzz.mhskel"); }
+
+// .mhw for a three-bone skeleton; the weights must come out normalised and finite.
+inline void read_mhw(const std::string& in) {
+  const SkinWeights W = parse_makehuman_weights(in, "fuzz.mhw", {"root", "spine", "head"});
+  for (int v = 0; v < W.rows(); ++v) {
+    double sum = 0;
+    for (SkinWeights::InnerIterator it(W, v); it; ++it) {
+      check(std::isfinite(it.value()) && it.value() >= 0);
+      sum += it.value();
+    }
+    check(std::abs(sum - 1) < 1e-9);
+  }
+}
+
+inline void read_landmarks_json(const std::string& in) {
+  const auto l = read_landmarks(input_file(in, ".json"), body_landmarks());
+  check_landmarks(l, 13380, "fuzz landmarks");
+}
+
+// The database's label tables: subjects.csv (labels) and scans.csv.
+inline void read_labels_csv(const std::string& in) {
+  const auto path = input_file(in, ".csv");
+  allowing_rejection([&] { read_subject_table(path); });
+  read_scan_table(path);
+}
+
+// Pose label files for a three-bone skeleton; what is read must be finite.
+inline void read_pose_labels(const std::string& in) {
+  static const Skeleton skeleton = [] {
+    Skeleton s;
+    s.names = {"root", "spine", "head"};
+    s.parents = {-1, 0, 1};
+    s.heads.resize(3, 3);
+    s.heads << 0, 0, 0, 0, 100, 0, 0, 200, 0;
+    s.tails.resize(3, 3);
+    s.tails << 0, 100, 0, 0, 200, 0, 0, 300, 0;
+    return s;
+  }();
+  const PoseRecord r = read_pose_csv(input_file(in, ".pose.csv"), skeleton);
+  for (const auto& R : r.pose.rotations) check(R.allFinite());
+  check(r.global_rotation.allFinite() && r.global_translation.allFinite() &&
+        r.pose.root_translation.allFinite() && std::isfinite(r.scale));
+}
+
+inline void read_tgf_file(const std::string& in) { read_tgf(input_file(in, ".tgf")); }
+
+// The same bytes as .dmat (ASCII or binary), .Tmat and a transform animation.
+inline void read_dmat_file(const std::string& in) {
+  const auto path = input_file(in, ".dmat");
+  allowing_rejection([&] { read_dmat(path); });
+  allowing_rejection([&] { read_tmat(path); });
+  read_transform_animation(path);
+}
+
+inline void read_model_npz(const std::string& in) {
+  model_from_npz(Npz::parse(in, "fuzz.npz"), "fuzz.npz");
+}
+
+// A rig that loads must also evaluate (small rigs: the fuzzer's time is better spent parsing).
+inline void read_rig_npz(const std::string& in) {
+  Eigen::MatrixX3i faces;
+  std::vector<BoneTransforms> poses;
+  const SkinningRig rig = load_rig(input_file(in, ".npz"), &faces, &poses);
+  if (rig.bone_count <= 64 && rig.vertex_count() <= 4096) {
+    const BoneTransforms M(static_cast<size_t>(rig.bone_count), Eigen::Affine3d::Identity());
+    check(evaluate_rig(rig, M).allFinite());
+    for (const auto& P : poses) evaluate_rig(rig, P);
+  }
+}
+
+// fuzz target name (without "fuzz_") → reader.
+inline const std::map<std::string, std::function<void(const std::string&)>>& readers() {
+  static const std::map<std::string, std::function<void(const std::string&)>> table = {
+      {"obj", read_obj},           {"ply", read_ply},
+      {"npz", read_npz},           {"bvh", read_bvh},
+      {"mh_target", read_mh_target}, {"mhskel", read_mhskel},
+      {"mhw", read_mhw},           {"landmarks", read_landmarks_json},
+      {"labels_csv", read_labels_csv}, {"pose_csv", read_pose_labels},
+      {"tgf", read_tgf_file},      {"dmat", read_dmat_file},
+      {"model_npz", read_model_npz}, {"rig_npz", read_rig_npz}};
+  return table;
+}
+
+}  // namespace bodymodel::fuzz
