@@ -9,8 +9,12 @@
 //    the last quarter of the subjects is held out. Prints a table to stderr.
 #include <benchmark/benchmark.h>
 
+#include <chrono>
 #include <cstdio>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
 #include <filesystem>
+#include <numeric>
 #include <random>
 
 #include "core/geometry.h"
@@ -18,6 +22,7 @@
 #include "core/makehuman.h"
 #include "core/measure.h"
 #include "model/database.h"
+#include "model/model_file.h"
 #include "model/morph.h"
 #include "model/pca.h"
 #include "model/pose_edit.h"
@@ -57,6 +62,8 @@ std::shared_ptr<const BodyModel> bench_model() {
   return model;
 }
 
+// One body at a time; counters split the time into morphing (decodes + fast measurements),
+// the final full measurement (girths for labels.csv) and writing the OBJ.
 void BM_GenerateBodies(benchmark::State& state) {
   auto model = bench_model();
   ShapeMorpher morpher(model);
@@ -66,98 +73,161 @@ void BM_GenerateBodies(benchmark::State& state) {
             LabelCondition::range("height_cm", 160, 180)};
   auto out = std::filesystem::temp_directory_path() / "bodymodel_bench_body.obj";
   uint64_t seed = 1;
+  double morph_s = 0, generate_s = 0, write_s = 0, decodes = 0;
   for (auto _ : state) {
+    auto t0 = std::chrono::steady_clock::now();
     GeneratedBody g = generate_body(morpher, cond, seed++);
+    auto t1 = std::chrono::steady_clock::now();
     write_mesh(out, g.V, model->tmpl->faces());
+    auto t2 = std::chrono::steady_clock::now();
+    generate_s += std::chrono::duration<double>(t1 - t0).count();
+    write_s += std::chrono::duration<double>(t2 - t1).count();
+    morph_s += g.summary.seconds;
+    decodes += g.summary.decodes;
   }
-  state.counters["bodies_per_s"] = benchmark::Counter(state.iterations(), benchmark::Counter::kIsRate);
+  const double n = static_cast<double>(state.iterations());
+  state.counters["bodies_per_s"] = benchmark::Counter(n, benchmark::Counter::kIsRate);
+  state.counters["morph_ms"] = 1e3 * morph_s / n;
+  state.counters["other_generate_ms"] = 1e3 * (generate_s - morph_s) / n;
+  state.counters["write_ms"] = 1e3 * write_s / n;
+  state.counters["decodes_per_body"] = decodes / n;
   std::filesystem::remove(out);
 }
 BENCHMARK(BM_GenerateBodies)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-void BM_Generalisation(benchmark::State& state) {
+// The crowd as `bodymodel generate` makes it: bodies in parallel (TBB, one morpher per
+// thread), each written to its own OBJ. Real time per batch of 16 bodies.
+void BM_GenerateCrowdParallel(benchmark::State& state) {
+  auto model = bench_model();
+  std::vector<LabelCondition> cond = {LabelCondition::exact("sex", 0), LabelCondition::exact("weight_kg", 65),
+                                      LabelCondition::range("height_cm", 160, 180)};
+  auto dir = std::filesystem::temp_directory_path() / "bodymodel_bench_crowd";
+  std::filesystem::create_directories(dir);
+  tbb::enumerable_thread_specific<std::unique_ptr<ShapeMorpher>> morphers;
+  const int batch = 16;
+  uint64_t seed = 1;
+  for (auto _ : state) {
+    tbb::parallel_for(0, batch, [&](int i) {
+      auto& m = morphers.local();
+      if (!m) m = std::make_unique<ShapeMorpher>(model);
+      GeneratedBody g = generate_body(*m, cond, seed + i);
+      write_mesh(dir / ("body_" + std::to_string(i) + ".obj"), g.V, model->tmpl->faces());
+    });
+    seed += batch;
+  }
+  state.counters["bodies_per_s"] = benchmark::Counter(batch * state.iterations(), benchmark::Counter::kIsRate);
+  std::filesystem::remove_all(dir);
+}
+BENCHMARK(BM_GenerateCrowdParallel)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Held-out split of the synthetic database with both PCAs fitted on the training scans.
+struct GeneralisationData {
+  ModelBuildInput in;
+  std::vector<int> train, test;
+  size_t n_train_subjects = 0, n_subjects = 0;
+  Eigen::MatrixX3d rest;
+  std::shared_ptr<EncodingTemplate> tmpl;
+  std::shared_ptr<const EncodingMean> mean;
+  Pca rre, vpca;
+  std::vector<Eigen::VectorXd> test_enc;   // held-out encodings relative to `mean`
+  std::vector<Eigen::VectorXd> train_enc;  // a few training encodings (diagnosis)
+  Eigen::VectorXd flat(const Eigen::MatrixX3d& V) const {
+    Eigen::MatrixX3d A = apply(fit_rigid_motion(V, rest), V);
+    Eigen::VectorXd v(3 * A.rows());
+    for (int r = 0; r < A.rows(); ++r) v.segment<3>(3 * r) = A.row(r).transpose();
+    return v;
+  }
+};
+
+const GeneralisationData* generalisation_data(benchmark::State& state) {
   namespace fs = std::filesystem;
   const char* env = std::getenv("BODYMODEL_BENCH_DB");
   fs::path db = env ? env : "/tmp/model_db";
   if (!fs::exists(db / "scans.csv")) {
     state.SkipWithError(("no database at " + db.string() + " (set BODYMODEL_BENCH_DB)").c_str());
-    return;
+    return nullptr;
   }
+  static std::unique_ptr<GeneralisationData> data;
+  if (data) return data.get();
+  data = std::make_unique<GeneralisationData>();
+  GeneralisationData& g = *data;
+  g.in = read_registered_database(db / "truth", db);
+  const ModelBuildInput& in = g.in;
+  std::vector<std::string> subjects;
+  for (auto& s : in.subject_ids)
+    if (std::find(subjects.begin(), subjects.end(), s) == subjects.end()) subjects.push_back(s);
+  g.n_subjects = subjects.size();
+  g.n_train_subjects = subjects.size() - subjects.size() / 4;
+  for (size_t i = 0; i < in.meshes.size(); ++i) {
+    size_t si = std::find(subjects.begin(), subjects.end(), in.subject_ids[i]) - subjects.begin();
+    (si < g.n_train_subjects ? g.train : g.test).push_back(static_cast<int>(i));
+  }
+  // RRE: template = mean of the training standard-pose meshes; encodings relative to their mean.
+  const Eigen::MatrixX3d& ref = in.meshes[g.train[0]];
+  g.rest = Eigen::MatrixX3d::Zero(ref.rows(), 3);
+  int ns = 0;
+  for (int i : g.train)
+    if (in.is_standard_pose[i]) {
+      g.rest += apply(fit_rigid_motion(in.meshes[i], ref), in.meshes[i]);
+      ++ns;
+    }
+  g.rest /= ns;
+  g.tmpl = std::make_shared<EncodingTemplate>(g.rest, in.F);
+  const int D = g.tmpl->encoding_size();
+  Eigen::MatrixXd X(D, g.train.size());
+  for (size_t k = 0; k < g.train.size(); ++k) X.col(k) = encode_absolute(*g.tmpl, in.meshes[g.train[k]]);
+  g.mean = EncodingMean::from_values(X.rowwise().mean());
+  for (size_t k = 0; k < g.train.size(); ++k) {
+    Eigen::VectorXd a = X.col(k);
+    X.col(k) = relative_to(g.mean, a).values;
+  }
+  for (int k : {0, 1, 2}) g.train_enc.push_back(X.col(k));
+  g.rre = fit_pca(X, {1.0, -1});
+  X.resize(0, 0);
+  for (int i : g.test) g.test_enc.push_back(relative_to(g.mean, encode_absolute(*g.tmpl, in.meshes[i])).values);
+  // Vertex PCA of rigidly aligned meshes (aligned to the template rest shape).
+  Eigen::MatrixXd P(3 * g.rest.rows(), g.train.size());
+  for (size_t k = 0; k < g.train.size(); ++k) P.col(k) = g.flat(in.meshes[g.train[k]]);
+  g.vpca = fit_pca(P, {1.0, -1});
+  return data.get();
+}
+
+void BM_Generalisation(benchmark::State& state) {
+  const GeneralisationData* gp = generalisation_data(state);
+  if (!gp) return;
+  const GeneralisationData& g = *gp;
+  const ModelBuildInput& in = g.in;
   for (auto _ : state) {
-    ModelBuildInput in = read_registered_database(db / "truth", db);
-    std::vector<std::string> subjects;
-    for (auto& s : in.subject_ids)
-      if (std::find(subjects.begin(), subjects.end(), s) == subjects.end()) subjects.push_back(s);
-    const size_t n_train = subjects.size() - subjects.size() / 4;
-    std::vector<int> train, test;
-    for (size_t i = 0; i < in.meshes.size(); ++i) {
-      size_t si = std::find(subjects.begin(), subjects.end(), in.subject_ids[i]) - subjects.begin();
-      (si < n_train ? train : test).push_back(static_cast<int>(i));
-    }
-    // RRE: template = mean of the training standard-pose meshes; encodings relative to their mean.
-    const Eigen::MatrixX3d& ref = in.meshes[train[0]];
-    Eigen::MatrixX3d rest = Eigen::MatrixX3d::Zero(ref.rows(), 3);
-    int ns = 0;
-    for (int i : train)
-      if (in.is_standard_pose[i]) {
-        rest += apply(fit_rigid_motion(in.meshes[i], ref), in.meshes[i]);
-        ++ns;
-      }
-    rest /= ns;
-    auto tmpl = std::make_shared<EncodingTemplate>(rest, in.F);
-    const int D = tmpl->encoding_size();
-    Eigen::MatrixXd X(D, train.size());
-    for (size_t k = 0; k < train.size(); ++k) X.col(k) = encode_absolute(*tmpl, in.meshes[train[k]]);
-    auto mean = EncodingMean::from_values(X.rowwise().mean());
-    for (size_t k = 0; k < train.size(); ++k) {
-      Eigen::VectorXd a = X.col(k);
-      X.col(k) = relative_to(mean, a).values;
-    }
-    Pca rre = fit_pca(X, {1.0, -1});
-    X.resize(0, 0);
-    std::vector<Eigen::VectorXd> test_enc;
-    for (int i : test) test_enc.push_back(relative_to(mean, encode_absolute(*tmpl, in.meshes[i])).values);
-    // Vertex PCA of rigidly aligned meshes (aligned to the template rest shape).
-    Eigen::MatrixXd P(3 * rest.rows(), train.size());
-    auto flat = [&](const Eigen::MatrixX3d& V) {
-      Eigen::MatrixX3d A = apply(fit_rigid_motion(V, rest), V);
-      Eigen::VectorXd v(3 * A.rows());
-      for (int r = 0; r < A.rows(); ++r) v.segment<3>(3 * r) = A.row(r).transpose();
-      return v;
-    };
-    for (size_t k = 0; k < train.size(); ++k) P.col(k) = flat(in.meshes[train[k]]);
-    Pca vpca = fit_pca(P, {1.0, -1});
-    P.resize(0, 0);
-    RelativeRotationDecoder decoder(tmpl);
+    RelativeRotationDecoder decoder(g.tmpl);
     std::fprintf(stderr, "\nheld-out reconstruction: %zu training scans (%zu subjects), %zu held-out scans (%zu subjects)\n",
-                 train.size(), n_train, test.size(), subjects.size() - n_train);
+                 g.train.size(), g.n_train_subjects, g.test.size(), g.n_subjects - g.n_train_subjects);
     std::fprintf(stderr, "%6s  %16s %16s  %16s %16s\n", "K", "RRE all (mm)", "RRE posed (mm)", "vertex all (mm)",
                  "vertex posed (mm)");
     for (int K : {1, 2, 5, 10, 20, 40, 80, 120}) {
-      if (K > rre.component_count() || K > vpca.component_count()) break;
+      if (K > g.rre.component_count() || K > g.vpca.component_count()) break;
       double er_all = 0, er_posed = 0, ev_all = 0, ev_posed = 0;
       int n_posed = 0;
-      for (size_t t = 0; t < test.size(); ++t) {
-        const Eigen::MatrixX3d& truth = in.meshes[test[t]];
-        Eigen::VectorXd c = rre.basis.leftCols(K).transpose() * (test_enc[t] - rre.mean);
-        Eigen::VectorXd x = rre.mean + rre.basis.leftCols(K) * c;
-        Eigen::MatrixX3d Vr = decoder.decode(Encoding{x, mean});
+      for (size_t t = 0; t < g.test.size(); ++t) {
+        const Eigen::MatrixX3d& truth = in.meshes[g.test[t]];
+        Eigen::VectorXd c = g.rre.basis.leftCols(K).transpose() * (g.test_enc[t] - g.rre.mean);
+        Eigen::VectorXd x = g.rre.mean + g.rre.basis.leftCols(K) * c;
+        Eigen::MatrixX3d Vr = decoder.decode(Encoding{x, g.mean});
         double e1 = mean_vertex_error_after_rigid_fit(Vr, truth);
-        Eigen::VectorXd f = flat(truth);
-        Eigen::VectorXd cv = vpca.basis.leftCols(K).transpose() * (f - vpca.mean);
-        Eigen::VectorXd fr = vpca.mean + vpca.basis.leftCols(K) * cv;
+        Eigen::VectorXd f = g.flat(truth);
+        Eigen::VectorXd cv = g.vpca.basis.leftCols(K).transpose() * (f - g.vpca.mean);
+        Eigen::VectorXd fr = g.vpca.mean + g.vpca.basis.leftCols(K) * cv;
         Eigen::MatrixX3d Vv(truth.rows(), 3);
         for (int r = 0; r < Vv.rows(); ++r) Vv.row(r) = fr.segment<3>(3 * r).transpose();
         double e2 = mean_vertex_error_after_rigid_fit(Vv, truth);
         er_all += e1;
         ev_all += e2;
-        if (!in.is_standard_pose[test[t]]) {
+        if (!in.is_standard_pose[g.test[t]]) {
           er_posed += e1;
           ev_posed += e2;
           ++n_posed;
         }
       }
-      const double nt = static_cast<double>(test.size());
+      const double nt = static_cast<double>(g.test.size());
       std::fprintf(stderr, "%6d  %16.2f %16.2f  %16.2f %16.2f\n", K, er_all / nt, er_posed / std::max(1, n_posed),
                    ev_all / nt, ev_posed / std::max(1, n_posed));
       state.counters["rre_posed_mm_K" + std::to_string(K)] = er_posed / std::max(1, n_posed);
@@ -166,6 +236,149 @@ void BM_Generalisation(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_Generalisation)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+
+// Diagnosis of the RRE projection: (a) a TRAINING scan projected with all components must
+// decode to ~0 error, (b) a held-out scan's own encoding must decode to ~0 (decoder round
+// trip), (c) held-out projection with all components; plus which part of the encoding
+// residual (rotations or stretches) makes the vertex error.
+void BM_ProjectionDiagnosis(benchmark::State& state) {
+  const GeneralisationData* gp = generalisation_data(state);
+  if (!gp) return;
+  const GeneralisationData& g = *gp;
+  for (auto _ : state) {
+    RelativeRotationDecoder decoder(g.tmpl);
+    const int K = g.rre.component_count();
+    auto proj = [&](const Eigen::VectorXd& x, int k) {
+      Eigen::VectorXd c = g.rre.basis.leftCols(k).transpose() * (x - g.rre.mean);
+      return Eigen::VectorXd(g.rre.mean + g.rre.basis.leftCols(k) * c);
+    };
+    auto err = [&](const Eigen::VectorXd& x, const Eigen::MatrixX3d& truth) {
+      return mean_vertex_error_after_rigid_fit(decoder.decode(Encoding{x, g.mean}), truth);
+    };
+    const int D = static_cast<int>(g.rre.mean.size());
+    Eigen::VectorXd rot_mask(D), str_mask(D);
+    for (int i = 0; i < D; ++i) {
+      rot_mask(i) = (i % 15) < 9 ? 1 : 0;
+      str_mask(i) = 1 - rot_mask(i);
+    }
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::MatrixX3d& truth = g.in.meshes[g.train[k]];
+      std::fprintf(stderr, "train %d: own encoding %.3f mm, projected (K=%d) %.3f mm, encoding residual %.2e\n", k,
+                   err(g.train_enc[k], truth), K, err(proj(g.train_enc[k], K), truth),
+                   (proj(g.train_enc[k], K) - g.train_enc[k]).norm() / g.train_enc[k].norm());
+    }
+    // Projections in a weighted metric: rotation slots weighted by alpha (alpha = 1 is the
+    // orthogonal projection).
+    for (double alpha : {1.0, 10.0, 100.0}) {
+      for (int k : {20, K}) {
+        Eigen::VectorXd w = str_mask + alpha * alpha * rot_mask;
+        Eigen::MatrixXd B = g.rre.basis.leftCols(k);
+        Eigen::MatrixXd BtW = (B.array().colwise() * w.array()).matrix().transpose();
+        Eigen::MatrixXd N = BtW * B;
+        Eigen::LDLT<Eigen::MatrixXd> ldlt(N);
+        double e_posed = 0;
+        int n = 0;
+        for (size_t t = 0; t < g.test.size(); t += 3) {
+          if (g.in.is_standard_pose[g.test[t]]) continue;
+          Eigen::VectorXd c = ldlt.solve(BtW * (g.test_enc[t] - g.rre.mean));
+          e_posed += err(g.rre.mean + B * c, g.in.meshes[g.test[t]]);
+          ++n;
+        }
+        std::fprintf(stderr, "rotation weight %g, K=%d: held-out posed mean error %.2f mm (%d scans)\n", alpha, k,
+                     e_posed / n, n);
+      }
+    }
+    for (size_t t = 0; t < g.test.size(); t += 7) {
+      const Eigen::MatrixX3d& truth = g.in.meshes[g.test[t]];
+      const Eigen::VectorXd& x = g.test_enc[t];
+      Eigen::VectorXd p = proj(x, K);
+      Eigen::VectorXd r = x - p;
+      Eigen::VectorXd rot_only = x - r.cwiseProduct(rot_mask);  // residual only in rotations
+      Eigen::VectorXd str_only = x - r.cwiseProduct(str_mask);  // residual only in stretches
+      std::fprintf(stderr,
+                   "held-out %s (%s): own %.3f mm, projected %.2f mm; residual rot %.3f / %.3f, stretch %.3f / %.3f "
+                   "(norms of residual / of x); error from rot residual only %.2f mm, stretch only %.2f mm\n",
+                   g.in.scan_ids[g.test[t]].c_str(), g.in.is_standard_pose[g.test[t]] ? "standard" : "posed",
+                   err(x, truth), err(p, truth), r.cwiseProduct(rot_mask).norm(), x.cwiseProduct(rot_mask).norm(),
+                   r.cwiseProduct(str_mask).norm(), x.cwiseProduct(str_mask).norm(), err(rot_only, truth),
+                   err(str_only, truth));
+      // Slots whose absolute relative-rotation angle is large (creases where LBS folds or
+      // inverts triangles): their share of the residual and the error without their residual.
+      Eigen::VectorXd abs_x = absolute_values(Encoding{x, g.mean});
+      Eigen::VectorXd big_mask = Eigen::VectorXd::Zero(D);
+      int n_big = 0, n_inverted = 0;
+      for (int f = 0; f < D / 15; ++f) {
+        for (int k = 0; k < 3; ++k)
+          if (abs_x.segment<3>(15 * f + 3 * k).norm() > 0.5) {
+            big_mask.segment<15>(15 * f).setOnes();
+            ++n_big;
+          }
+        Eigen::Matrix3d S;
+        const double* s6 = abs_x.data() + 15 * f + 9;
+        S << s6[0], s6[1], s6[2], s6[1], s6[3], s6[4], s6[2], s6[4], s6[5];
+        if (S.determinant() <= 0) ++n_inverted;
+      }
+      Eigen::VectorXd no_big = p + r.cwiseProduct(big_mask);
+      std::fprintf(stderr, "    slots with |rotation| > 0.5 rad: %d, triangles with det S <= 0: %d, residual norm there %.3f, "
+                   "error with those triangles exact %.2f mm\n",
+                   n_big, n_inverted, r.cwiseProduct(big_mask).norm(), err(no_big, truth));
+    }
+  }
+}
+BENCHMARK(BM_ProjectionDiagnosis)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+
+// Pose morphing (§5.4) of held-out subjects: each held-out subject's standard-pose truth mesh
+// is morphed into the joint angles of each of its posed scans and compared with that scan's
+// truth mesh (mean vertex error after a rigid fit). Model: BODYMODEL_BENCH_MODEL (default
+// /tmp/model30.npz, built by `bodymodel build` from the first 30 subjects of the database);
+// subjects of the database that are not in the model are held out.
+void BM_PoseMorph(benchmark::State& state) {
+  namespace fs = std::filesystem;
+  const char* env_db = std::getenv("BODYMODEL_BENCH_DB");
+  const char* env_model = std::getenv("BODYMODEL_BENCH_MODEL");
+  fs::path db = env_db ? env_db : "/tmp/model_db";
+  fs::path model_path = env_model ? env_model : "/tmp/model30.npz";
+  if (!fs::exists(db / "scans.csv") || !fs::exists(model_path)) {
+    state.SkipWithError(("need " + (db / "scans.csv").string() + " and " + model_path.string()).c_str());
+    return;
+  }
+  const BodyModel model = load_model(model_path);
+  auto scans = read_scan_table(db / "scans.csv");
+  const auto& known = model.shape.sample_ids;
+  std::vector<std::pair<std::string, std::string>> cases;  // standard scan, posed scan
+  for (auto& r : scans) {
+    if (std::find(known.begin(), known.end(), r.subject_id) != known.end() || r.pose == "standard") continue;
+    for (auto& q : scans)
+      if (q.subject_id == r.subject_id && q.pose == "standard") cases.emplace_back(q.scan_id, r.scan_id);
+  }
+  const int neighbours = static_cast<int>(state.range(0));
+  for (auto _ : state) {
+    RelativeRotationDecoder decoder(model.tmpl);
+    PoseMorphOptions o;
+    o.transfer_neighbours = neighbours;
+    o.constrain_every_bone = state.range(1) != 0;
+    std::vector<double> errors;
+    for (auto& [st, posed] : cases) {
+      Mesh body = read_mesh(db / "truth" / (st + ".ply"));
+      Mesh truth = read_mesh(db / "truth" / (posed + ".ply"));
+      Pose pose = read_pose_csv((db / "truth" / (posed + ".pose.csv")).string(), model.rig.bone_names);
+      Eigen::MatrixX3d out = pose_morph(model, decoder, body.V, pose, o);
+      errors.push_back(mean_vertex_error_after_rigid_fit(out, truth.V));
+      // Reference: the body skinned with the model's rig (what the positional constraints use).
+      const Eigen::MatrixX3d Vc = body.V * canonical_rotation(model.rig, body.V).transpose();
+      Eigen::MatrixX3d lbs = linear_blend_skinning(Vc, model.rig.weights,
+                                                   forward_kinematics(model.rig.skeleton_for(Vc), pose));
+      std::fprintf(stderr, "%s -> %s: %.2f mm (skinned with the model's rig: %.2f mm)\n", st.c_str(), posed.c_str(),
+                   errors.back(), mean_vertex_error_after_rigid_fit(lbs, truth.V));
+    }
+    double mean = std::accumulate(errors.begin(), errors.end(), 0.0) / std::max<size_t>(1, errors.size());
+    std::fprintf(stderr, "pose morph, %d transfer neighbours, every bone constrained %d: %zu held-out posed scans, mean vertex error %.2f mm, worst %.2f mm\n",
+                 neighbours, static_cast<int>(state.range(1)), errors.size(), mean, errors.empty() ? 0.0 : *std::max_element(errors.begin(), errors.end()));
+    state.counters["mean_error_mm"] = mean;
+    state.counters["scans"] = static_cast<double>(errors.size());
+  }
+}
+BENCHMARK(BM_PoseMorph)->Args({0, 0})->Args({8, 0})->Args({8, 1})->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
 
 }  // namespace
 }  // namespace bodymodel

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include "model/format.h"
 #include <random>
 #include <set>
@@ -120,8 +121,23 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
     return x;
   };
 
-  Eigen::MatrixX3d V = decode(x0);
-  Eigen::VectorXd start = values(x0, V);
+  // The start values: measured on the decoded start body when a label must be kept (its
+  // measured value is the target); otherwise predicted by the regression (eq. 10), which saves
+  // a decode — the first iteration then decodes and measures.
+  bool any_keep = false;
+  for (auto& c : conditions) any_keep = any_keep || c.keep;
+  const bool start_measured = any_keep || m == 0 || o.max_iterations <= 0;
+  int decodes = 0;
+  Eigen::MatrixX3d V;
+  Eigen::VectorXd start(m);
+  if (start_measured) {
+    V = decode(x0);
+    ++decodes;
+    start = values(x0, V);
+  } else {
+    Eigen::VectorXd pred = reg.predict(sm.pca.project(x0));
+    for (int i = 0; i < m; ++i) start(i) = pred(idx[i]);
+  }
   Eigen::VectorXd target(m), lo(m), hi(m), tol(m);
   for (int i = 0; i < m; ++i) {
     const LabelCondition& c = conditions[i];
@@ -163,14 +179,15 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
   Eigen::VectorXd z = Eigen::VectorXd::Zero(sm.component_count());
   Eigen::VectorXd x = x0, best_x = x0, v = start, best_v = start;
   Eigen::MatrixX3d best_V = V;
-  double best_bad = badness(start);
+  double best_bad = start_measured ? badness(start) : std::numeric_limits<double>::infinity();
   int it = 0;
-  bool ok = all_ok(start);
+  bool ok = start_measured && all_ok(start);
   while (!ok && it < o.max_iterations) {
     ++it;
     z = constrained_change(S, delta, o.change);
     x = apply_change(z);
     V = decode(x);
+    ++decodes;
     v = values(x, V);
     double bad = badness(v);
     if (bad < best_bad) {
@@ -194,6 +211,7 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
                                  is_measurable_label(conditions[i].label) &&
                                      !(conditions[i].label == "body_fat_pct" && o.sex == Sex::unknown),
                                  best_v(i) >= lo(i) && best_v(i) <= hi(i)});
+    summary->decodes = decodes;
     summary->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
   if (x_out) *x_out = best_x;

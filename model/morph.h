@@ -75,6 +75,7 @@ struct MorphSummary {
   std::vector<LabelOutcome> labels;
   double change_norm = 0;  // ‖z‖, coefficient units
   double seconds = 0;
+  int decodes = 0;         // decoder calls (the cost of a morph)
   std::string report() const;  // one line per label
 };
 
@@ -114,7 +115,14 @@ struct GenerateOptions {
   // plus a random Gaussian combination of their deviations (the within-sex distribution).
   double spread = 1.0;
   int max_attempts = 4;   // fresh samples when the conditions cannot be met
-  MorphOptions morph;
+  // Morph settings; generation accepts 1 kg / 1 cm around exact targets (every decode costs,
+  // and a crowd "of 65 kg" is checked at ± 2 kg), morphing keeps the tighter 0.25.
+  MorphOptions morph = [] {
+    MorphOptions m;
+    m.tolerance_kg = 1.0;
+    m.tolerance_cm = 1.0;
+    return m;
+  }();
 };
 
 struct GeneratedBody {

@@ -1,6 +1,9 @@
 #include "model/pose_edit.h"
 
 #include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
 #include <numeric>
 
 #include "core/error.h"
@@ -102,6 +105,97 @@ Eigen::MatrixX3d edit_with_handles(const BodyModel& model, RelativeRotationDecod
   return out;
 }
 
+Eigen::Matrix3d canonical_rotation(const ModelRig& rig, const Eigen::MatrixX3d& V) {
+  Skeleton sk = rig.skeleton_for(V);
+  int l = sk.find("upperleg01.L"), r = sk.find("upperleg01.R");
+  if (l < 0 || r < 0) {
+    l = sk.find("pelvis.L");
+    r = sk.find("pelvis.R");
+  }
+  if (l < 0 || r < 0) return Eigen::Matrix3d::Identity();
+  // Left–right axis from the hip joints (exactly along x in the symmetric rest skeleton), up
+  // as close to +y as is orthogonal to it.
+  Eigen::Vector3d x = (sk.heads.row(l) - sk.heads.row(r)).transpose();
+  if (x.norm() < 1e-9) return Eigen::Matrix3d::Identity();
+  x.normalize();
+  Eigen::Vector3d y = Eigen::Vector3d::UnitY() - x.y() * x;
+  if (y.norm() < 1e-6) return Eigen::Matrix3d::Identity();
+  y.normalize();
+  Eigen::Matrix3d B;  // columns: the body's x, y, z axes in world coordinates
+  B.col(0) = x;
+  B.col(1) = y;
+  B.col(2) = x.cross(y);
+  return B.transpose();  // maps the body's axes onto world x, y, z
+}
+
+PoseTransfer pose_transfer_from_examples(const SubModel& fm, const Eigen::VectorXd& target, int neighbours) {
+  PoseTransfer out;
+  const SemanticRegression& reg = fm.regression;
+  const int N = static_cast<int>(fm.labels.rows());
+  const int L = reg.label_count();
+  out.pose_labels = Eigen::VectorXd::Zero(L);
+  out.coefficient_change = Eigen::VectorXd::Zero(fm.component_count());
+  if (N == 0 || fm.pca.coefficients.rows() != N || fm.labels.cols() != L) return out;
+  std::vector<int> pose_cols, subject_cols;
+  for (int l = 0; l < L; ++l) (reg.labels[l].name.rfind("pose:", 0) == 0 ? pose_cols : subject_cols).push_back(l);
+  if (pose_cols.empty()) return out;
+  // Each sample's subject: the samples with identical subject labels; its standard-pose sample
+  // is the one with all joint angles (near) zero.
+  auto pose_norm = [&](int i) {
+    double s = 0;
+    for (int l : pose_cols) s += std::isfinite(fm.labels(i, l)) ? fm.labels(i, l) * fm.labels(i, l) : 1e6;
+    return std::sqrt(s);
+  };
+  auto same_subject = [&](int a, int b) {
+    for (int l : subject_cols) {
+      double u = fm.labels(a, l), v = fm.labels(b, l);
+      if (std::isfinite(u) != std::isfinite(v) || (std::isfinite(u) && std::abs(u - v) > 1e-9 * (1 + std::abs(u))))
+        return false;
+    }
+    return true;
+  };
+  std::vector<int> standard;
+  for (int i = 0; i < N; ++i)
+    if (pose_norm(i) < 1e-6) standard.push_back(i);
+  struct Example {
+    int sample, standard;
+    double distance;
+  };
+  std::vector<Example> ex;
+  for (int i = 0; i < N; ++i) {
+    double pn = pose_norm(i);
+    if (pn < 1e-6 || pn >= 1e3) continue;  // standard pose, or unknown joint angles
+    int st = -1;
+    for (int j : standard)
+      if (same_subject(i, j)) {
+        st = j;
+        break;
+      }
+    if (st < 0) continue;
+    double dist = 0;
+    for (int l : pose_cols) dist += (fm.labels(i, l) - target(l)) * (fm.labels(i, l) - target(l));
+    ex.push_back({i, st, std::sqrt(dist)});
+  }
+  if (ex.empty()) return out;
+  const int k = std::min<int>(neighbours, ex.size());
+  std::partial_sort(ex.begin(), ex.begin() + k, ex.end(),
+                    [](const Example& a, const Example& b) { return a.distance < b.distance; });
+  // Gaussian weights with a width set by the nearest example (at least 0.1 rad over all angles).
+  const double sigma = std::max(0.1, 1.5 * ex[0].distance);
+  double wsum = 0;
+  for (int e = 0; e < k; ++e) {
+    double w = std::exp(-0.5 * (ex[e].distance * ex[e].distance - ex[0].distance * ex[0].distance) / (sigma * sigma));
+    out.coefficient_change += w * (fm.pca.coefficients.row(ex[e].sample) - fm.pca.coefficients.row(ex[e].standard)).transpose();
+    for (int l : pose_cols) out.pose_labels(l) += w * fm.labels(ex[e].sample, l);
+    wsum += w;
+  }
+  out.coefficient_change /= wsum;
+  out.pose_labels /= wsum;
+  out.examples = k;
+  out.nearest_distance = ex[0].distance;
+  return out;
+}
+
 Eigen::MatrixX3d pose_morph(const BodyModel& model, RelativeRotationDecoder& decoder, const Eigen::MatrixX3d& V,
                             const Pose& pose, const PoseMorphOptions& o, PoseMorphSummary* summary) {
   if (model.rig.empty()) throw InputError("pose: the model has no skeleton (rebuild it without --no-rig)");
@@ -114,6 +208,17 @@ Eigen::MatrixX3d pose_morph(const BodyModel& model, RelativeRotationDecoder& dec
   Eigen::VectorXd c0 = fm.pca.project(x);
   Eigen::VectorXd pred = reg.predict(c0);
   Eigen::VectorXd target = pose_label_values(reg.labels, model.rig.bone_names, pose);
+
+  // 1. Example-based transfer: pose changes of training subjects in poses near the target.
+  PoseTransfer transfer;
+  transfer.coefficient_change = Eigen::VectorXd::Zero(fm.component_count());
+  transfer.pose_labels = Eigen::VectorXd::Zero(reg.label_count());
+  if (o.transfer_neighbours > 0) transfer = pose_transfer_from_examples(fm, target, o.transfer_neighbours);
+  Eigen::VectorXd c1 = c0 + transfer.coefficient_change;
+  Eigen::VectorXd pred1 = reg.predict(c1);
+
+  // 2. Linear correction (eq. 11): the joint angles the transfer missed, the other labels back
+  //    to their values before the transfer.
   std::vector<int> cols;
   std::vector<double> delta;
   int npose = 0, nkeep = 0;
@@ -121,12 +226,12 @@ Eigen::MatrixX3d pose_morph(const BodyModel& model, RelativeRotationDecoder& dec
     const std::string& n = reg.labels[l].name;
     if (n.rfind("pose:", 0) == 0) {
       cols.push_back(l);
-      delta.push_back(target(l) - pred(l));
+      delta.push_back(transfer.examples > 0 ? target(l) - transfer.pose_labels(l) : target(l) - pred(l));
       ++npose;
     } else if (o.keep_labels.empty() ||
                std::find(o.keep_labels.begin(), o.keep_labels.end(), n) != o.keep_labels.end()) {
       cols.push_back(l);
-      delta.push_back(0.0);
+      delta.push_back(pred(l) - pred1(l));
       ++nkeep;
     }
   }
@@ -140,13 +245,17 @@ Eigen::MatrixX3d pose_morph(const BodyModel& model, RelativeRotationDecoder& dec
   }
   ConstrainedChangeOptions co;
   co.damping = o.damping;
-  Eigen::VectorXd z = constrained_change(S, d, co);
+  Eigen::VectorXd z = transfer.coefficient_change + constrained_change(S, d, co);
   Eigen::VectorXd xp = x + fm.pca.basis * z;
 
   PositionConstraints pc;
   if (o.use_tip_constraints) {
-    Skeleton sk = model.rig.skeleton_for(V);
-    Eigen::MatrixX3d posed = linear_blend_skinning(V, model.rig.weights, forward_kinematics(sk, pose));
+    // Joint rotations are about world-aligned axes of the skeleton's rest frame (+y up, facing
+    // +z, left–right along x): skin the body turned into that frame, then turn the targets back.
+    const Eigen::Matrix3d G = o.canonical_frame ? canonical_rotation(model.rig, V) : Eigen::Matrix3d::Identity();
+    const Eigen::MatrixX3d Vc = V * G.transpose();
+    Skeleton sk = model.rig.skeleton_for(Vc);
+    Eigen::MatrixX3d posed = linear_blend_skinning(Vc, model.rig.weights, forward_kinematics(sk, pose)) * G;
     // Tip vertex sets: weight of the tip bone and its descendants.
     std::vector<int> verts;
     std::vector<std::string> tips = o.tip_bones;
@@ -169,6 +278,26 @@ Eigen::MatrixX3d pose_morph(const BodyModel& model, RelativeRotationDecoder& dec
       for (int i = 0; i < k; ++i)
         if (w(idx[i]) > 0.5) verts.push_back(idx[i]);
     }
+    if (o.constrain_every_bone) {
+      // Per-region handling: the vertices each bone carries nearly alone (weight ≥ 0.9), a
+      // few per bone, placed by skinning like the tips.
+      std::vector<char> used(V.rows(), 0);
+      for (int v : verts) used[v] = 1;
+      Eigen::SparseMatrix<double, Eigen::ColMajor> W = model.rig.weights;  // #V by #B
+      for (int b = 0; b < W.outerSize(); ++b) {
+        std::vector<std::pair<double, int>> cand;
+        for (Eigen::SparseMatrix<double, Eigen::ColMajor>::InnerIterator it(W, b); it; ++it)
+          if (it.value() >= 0.9 && !used[it.row()]) cand.emplace_back(it.value(), static_cast<int>(it.row()));
+        if (cand.empty()) continue;
+        // Evenly spread over the bone's region (every n-th of them in index order).
+        std::sort(cand.begin(), cand.end(), [](auto& a, auto& c) { return a.second < c.second; });
+        const int step = std::max<int>(1, static_cast<int>(cand.size()) / o.vertices_per_bone);
+        for (size_t i = 0; i < cand.size(); i += step) {
+          verts.push_back(cand[i].second);
+          used[cand[i].second] = 1;
+        }
+      }
+    }
     pc.vertices.resize(verts.size());
     pc.targets.resize(verts.size(), 3);
     for (size_t i = 0; i < verts.size(); ++i) {
@@ -181,9 +310,41 @@ Eigen::MatrixX3d pose_morph(const BodyModel& model, RelativeRotationDecoder& dec
     summary->kept_labels = nkeep;
     summary->tip_vertices = static_cast<int>(pc.vertices.size());
     summary->change_norm = z.norm();
+    summary->transfer_examples = transfer.examples;
+    summary->transfer_pose_distance = transfer.nearest_distance;
   }
   if (pc.vertices.size() >= 3) return decoder.decode(model.encoding_of(xp), pc);
   return decoder.decode(model.encoding_of(xp));
+}
+
+Pose read_pose_csv(const std::string& path, const std::vector<std::string>& bones) {
+  std::ifstream f(path);
+  if (!f) throw InputError("cannot open '" + path + "'");
+  Pose p = Pose::rest(static_cast<int>(bones.size()));
+  std::string line;
+  int ln = 0;
+  auto number = [&](const std::string& t) {
+    char* end = nullptr;
+    double v = std::strtod(t.c_str(), &end);
+    if (t.empty() || !end || *end != '\0' || !std::isfinite(v))
+      throw InputError(fmt::format("'{}' line {}: expected a number, found '{}'", path, ln, t));
+    return v;
+  };
+  while (std::getline(f, line)) {
+    ++ln;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (ln == 1 || line.empty() || line[0] == '_') continue;
+    std::stringstream ss(line);
+    std::string name, a, b, c;
+    std::getline(ss, name, ',');
+    std::getline(ss, a, ',');
+    std::getline(ss, b, ',');
+    std::getline(ss, c, ',');
+    auto it = std::find(bones.begin(), bones.end(), name);
+    if (it == bones.end()) continue;
+    p.rotations[it - bones.begin()] = rotation_from_vector(Eigen::Vector3d(number(a), number(b), number(c)));
+  }
+  return p;
 }
 
 }  // namespace bodymodel

@@ -1,9 +1,6 @@
 // bodymodel pose model.npz --in body.ply --bvh pose.bvh [--frame k] --out out.obj
 #include <fmt/format.h>
 
-#include <fstream>
-#include <sstream>
-
 #include "core/data_path.h"
 #include "core/io/bvh.h"
 #include "core/io/mesh_io.h"
@@ -20,33 +17,8 @@ struct PoseArgs {
   int frame = 0;
   bool no_tips = false, no_joints = false;
   double damping = 1e-3;
+  int transfer_neighbours = 8;
 };
-
-// A DB/truth/<scan>.pose.csv (bone,rx,ry,rz rotation vectors) as a Pose of `bones`.
-Pose pose_from_csv(const std::string& path, const std::vector<std::string>& bones) {
-  std::ifstream f(path);
-  if (!f) throw InputError("cannot open '" + path + "'");
-  Pose p = Pose::rest(static_cast<int>(bones.size()));
-  std::string line;
-  int ln = 0;
-  while (std::getline(f, line)) {
-    ++ln;
-    if (ln == 1 || line.empty() || line[0] == '_') continue;
-    std::stringstream ss(line);
-    std::string name, a, b, c;
-    std::getline(ss, name, ',');
-    std::getline(ss, a, ',');
-    std::getline(ss, b, ',');
-    std::getline(ss, c, ',');
-    auto it = std::find(bones.begin(), bones.end(), name);
-    if (it == bones.end()) continue;
-    Eigen::Vector3d w(model_cli::parse_number(a, path + " line " + std::to_string(ln)),
-                      model_cli::parse_number(b, path + " line " + std::to_string(ln)),
-                      model_cli::parse_number(c, path + " line " + std::to_string(ln)));
-    p.rotations[it - bones.begin()] = rotation_from_vector(w);
-  }
-  return p;
-}
 
 }  // namespace
 
@@ -67,6 +39,10 @@ BODYMODEL_VERB(add_model_pose_verb) {
   cmd->add_flag("--tips-only", a->no_joints,
                 "Constrain only hands, feet and head (the paper), not also elbows and knees");
   cmd->add_option("--damping", a->damping, "Damping of the joint-angle constraints (relative)")->capture_default_str();
+  cmd->add_option("--transfer-neighbours", a->transfer_neighbours,
+                  "Training scans whose pose change is transferred before the linear correction (0 = the "
+                  "paper's linear regression only)")
+      ->capture_default_str();
   cmd->add_option("--out", a->out, "Output mesh (OBJ/PLY)")->required();
   cmd->callback([a] {
     if (a->bvh.empty() == a->pose_csv.empty()) throw InputError("pose: give exactly one of --bvh and --pose-csv");
@@ -83,13 +59,14 @@ BODYMODEL_VERB(add_model_pose_verb) {
       std::vector<Pose> poses = poses_from_bvh(clip, sk, data_file("makehuman"), false);
       pose = poses[a->frame];
     } else {
-      pose = pose_from_csv(a->pose_csv, model.rig.bone_names);
+      pose = read_pose_csv(a->pose_csv, model.rig.bone_names);
     }
     RelativeRotationDecoder decoder(model.tmpl);
     PoseMorphOptions o;
     o.use_tip_constraints = !a->no_tips;
     o.constrain_elbows_and_knees = !a->no_joints;
     o.damping = a->damping;
+    o.transfer_neighbours = std::max(0, a->transfer_neighbours);
     PoseMorphSummary s;
     Eigen::MatrixX3d out = pose_morph(model, decoder, body.V, pose, o, &s);
     write_mesh(a->out, out, body.F);
