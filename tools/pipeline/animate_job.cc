@@ -11,7 +11,9 @@
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
 #include "core/retarget.h"
+#include "skinning/gltf_export.h"
 #include "skinning/runtime_skinning.h"
+#include "tools/pipeline/character.h"
 #include "tools/render/render.h"
 
 namespace bodymodel {
@@ -111,9 +113,15 @@ AnimateResult animate_character(const CharacterRigFile& ch, const ClipPoses& cli
   auto t0 = std::chrono::steady_clock::now();
   double skin_seconds = 0;
   for (int i = 0; i < res.frames; ++i) {
-    const BoneTransforms M = forward_kinematics(ch.skeleton, clip.poses[res.source_frames[i]]);
+    // Undriven bones follow their parent; skin in the root's frame, then place (see
+    // relative_to_root: MWE is not invariant to a global rigid motion).
+    const BoneTransforms M =
+        forward_kinematics(ch.skeleton, restrict_pose(clip.poses[res.source_frames[i]], ch.driven));
+    Eigen::Affine3d G;
+    const BoneTransforms L = relative_to_root(M, ch.skeleton, &G);
     auto ts = std::chrono::steady_clock::now();
-    const Eigen::MatrixX3d X = skinner.pose(M).cast<double>();
+    const Eigen::MatrixX3d XL = skinner.pose(L).cast<double>();
+    const Eigen::MatrixX3d X = ((XL * G.linear().transpose()).rowwise() + G.translation().transpose()).eval();
     skin_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
     if (!X.allFinite())
       throw NumericalError(fmt::format("frame {} of the clip gave non-finite vertices", res.source_frames[i]));
@@ -140,6 +148,16 @@ AnimateResult animate_character(const CharacterRigFile& ch, const ClipPoses& cli
     render_row(sheet, ch.F, {}, 200, 400).save_png(dir / "frames.png");
   }
   (void)skin_seconds;
+  if (o.write_glb && res.frames > 0) {
+    GltfAnimation anim;
+    anim.name = "clip";
+    anim.frame_time = res.frame_time;
+    anim.frames = transforms;
+    GltfExportOptions go;
+    go.mesh_name = "character";
+    write_skinned_gltf(dir / "animated.glb", ch.lbs.rest, ch.F, {}, ch.skeleton, skin_weights_of(ch.lbs), &anim, go);
+    res.wrote_glb = true;
+  }
   return res;
 }
 

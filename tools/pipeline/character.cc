@@ -36,6 +36,53 @@ Pose slerp_pose(const Pose& a, const Pose& b, double t) {
 
 }  // namespace
 
+std::vector<char> driven_bones(const BodyModel& model, const Skeleton& skeleton) {
+  std::vector<char> d(skeleton.bone_count(), 0);
+  for (int b = 0; b < skeleton.bone_count(); ++b)
+    if (skeleton.parents[b] < 0) d[b] = 1;
+  for (const auto& l : model.full.regression.labels) {
+    if (l.name.rfind("pose:", 0) != 0) continue;
+    const auto colon = l.name.rfind(':');
+    const int b = skeleton.find(l.name.substr(5, colon - 5));
+    if (b >= 0) d[b] = 1;
+  }
+  return d;
+}
+
+Pose restrict_pose(const Pose& pose, const std::vector<char>& driven) {
+  Pose p = pose;
+  for (size_t b = 0; b < p.rotations.size() && b < driven.size(); ++b)
+    if (!driven[b]) p.rotations[b].setIdentity();
+  return p;
+}
+
+Eigen::MatrixXd merge_undriven_weights(const Eigen::MatrixXd& W, const Skeleton& skeleton,
+                                       const std::vector<char>& driven) {
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(W.rows(), W.cols());
+  for (int b = 0; b < skeleton.bone_count(); ++b) {
+    int a = b;
+    while (a >= 0 && !driven[a]) a = skeleton.parents[a];
+    if (a < 0) a = b;
+    out.col(a) += W.col(b);
+  }
+  return out;
+}
+
+BoneTransforms relative_to_root(const BoneTransforms& M, const Skeleton& skeleton, Eigen::Affine3d* root) {
+  int r = 0;
+  for (int b = 0; b < skeleton.bone_count(); ++b)
+    if (skeleton.parents[b] < 0) {
+      r = b;
+      break;
+    }
+  const Eigen::Affine3d G = M[r];
+  const Eigen::Affine3d Gi = G.inverse(Eigen::Isometry);
+  BoneTransforms out(M.size());
+  for (size_t b = 0; b < M.size(); ++b) out[b] = Gi * M[b];
+  if (root) *root = G;
+  return out;
+}
+
 std::vector<RangeOfMotionPose> range_of_motion(const Skeleton& skeleton, const fs::path& makehuman_dir,
                                                const RangeOfMotionOptions& o) {
   std::vector<RangeOfMotionPose> out;
@@ -114,7 +161,9 @@ CharacterExamples make_character_examples(const BodyModel& model, const Eigen::M
   ex.F = model.tmpl->faces();
   ex.skeleton = model.rig.skeleton_for(V);
   ex.template_weights = model.rig.weights;
+  ex.driven = driven_bones(model, ex.skeleton);
   ex.poses = range_of_motion(ex.skeleton, makehuman_dir, o.range_of_motion);
+  for (auto& p : ex.poses) p.pose = restrict_pose(p.pose, ex.driven);
   const int P = static_cast<int>(ex.poses.size());
   ex.transforms.resize(P);
   ex.meshes.resize(P);
@@ -169,6 +218,13 @@ CharacterExamples make_character_examples(const BodyModel& model, const Eigen::M
     });
   });
   if (cancelled) throw Cancelled{};
+  // Into the root's frame.
+  for (int p = 0; p < P; ++p) {
+    Eigen::Affine3d G;
+    ex.transforms[p] = relative_to_root(ex.transforms[p], ex.skeleton, &G);
+    const Eigen::Affine3d Gi = G.inverse(Eigen::Isometry);
+    ex.meshes[p] = ((ex.meshes[p] * Gi.linear().transpose()).rowwise() + Gi.translation().transpose()).eval();
+  }
   for (int p = 0; p < P; ++p)
     if (!ex.meshes[p].allFinite())
       throw NumericalError("pose morph '" + ex.poses[p].name + "' produced non-finite vertices");
@@ -195,7 +251,8 @@ CharacterRigs fit_character_rigs(const CharacterExamples& ex, const CharacterOpt
                                  const ProgressCallback& progress) {
   CharacterRigs r;
   const SkinningExamples s = training_examples(ex);
-  r.template_lbs = lbs_rig_from_weights(ex.rest, Eigen::MatrixXd(ex.template_weights), o.max_influences);
+  r.template_lbs = lbs_rig_from_weights(
+      ex.rest, merge_undriven_weights(Eigen::MatrixXd(ex.template_weights), ex.skeleton, ex.driven), o.max_influences);
   auto sub = [&](double a, double b) -> ProgressCallback {
     if (!progress) return {};
     return [=](double f, std::string_view w) { return progress(a + (b - a) * f, w); };

@@ -55,6 +55,22 @@ std::vector<RangeOfMotionPose> range_of_motion(const Skeleton& skeleton,
                                                const std::filesystem::path& makehuman_dir,
                                                const RangeOfMotionOptions& options = {});
 
+// Bones the model can pose: the full model has joint-angle labels for them ("pose:<bone>:r*"),
+// plus the root (global orientation and travel). #B flags. A pose morph cannot move the others
+// (fingers, toes, face, ...), so a rig must not learn weights for them: their rotations are
+// set to identity (they follow their parent) in training and in animation.
+std::vector<char> driven_bones(const BodyModel& model, const Skeleton& skeleton);
+// `pose` with every undriven bone's rotation set to identity (root translation kept).
+Pose restrict_pose(const Pose& pose, const std::vector<char>& driven);
+// Dense weights W (#V by #B) with each undriven bone's weight moved to its nearest driven
+// ancestor (same deformation for restricted poses, identifiable fits).
+Eigen::MatrixXd merge_undriven_weights(const Eigen::MatrixXd& W, const Skeleton& skeleton,
+                                       const std::vector<char>& driven);
+// Bone maps relative to the root bone's: G⁻¹ M_b with G = M_root (the first root). Skinning in
+// this frame and applying G afterwards makes MWE and Animation Space (not invariant to a
+// global rigid motion, unlike SSD) independent of where the character walks.
+BoneTransforms relative_to_root(const BoneTransforms& M, const Skeleton& skeleton, Eigen::Affine3d* root = nullptr);
+
 struct CharacterOptions {
   RangeOfMotionOptions range_of_motion;
   PoseMorphOptions pose_morph;
@@ -71,8 +87,10 @@ struct CharacterExamples {
   Eigen::MatrixX3i F;                     // #F by 3
   Skeleton skeleton;                      // template skeleton placed in the body
   SkinWeights template_weights;           // #V by #B, the model's (MakeHuman's) weights
+  std::vector<char> driven;               // #B, see driven_bones
   std::vector<RangeOfMotionPose> poses;   // #P (the rest pose first)
-  std::vector<BoneTransforms> transforms; // #P forward kinematics of each pose
+  // Both in the root's frame (relative_to_root): the root bone's map is the identity.
+  std::vector<BoneTransforms> transforms; // #P forward kinematics of each (restricted) pose
   std::vector<Eigen::MatrixX3d> meshes;   // #P pose morphs, #V by 3, mm
   double seconds = 0;
 };

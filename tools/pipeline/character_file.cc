@@ -27,6 +27,9 @@ void save_character_rig(const fs::path& path, const CharacterRigFile& c) {
   Eigen::VectorXi parents(s.bone_count());
   for (int b = 0; b < s.bone_count(); ++b) parents(b) = s.parents[b];
   z.put("skeleton_parents", parents);
+  Eigen::VectorXi driven(s.bone_count());
+  for (int b = 0; b < s.bone_count(); ++b) driven(b) = b < static_cast<int>(c.driven.size()) ? c.driven[b] : 1;
+  z.put("skeleton_driven", driven);
   z.put("skeleton_heads", Eigen::MatrixXd(s.heads));
   z.put("skeleton_tails", Eigen::MatrixXd(s.tails));
   z.put("lbs_influences", c.lbs.influences);
@@ -57,6 +60,11 @@ CharacterRigFile load_character_rig(const fs::path& path) {
   if (c.skeleton.bone_count() != c.rig.bone_count)
     throw InputError(path.string() + ": the skeleton has " + std::to_string(c.skeleton.bone_count()) +
                      " bones, the rig " + std::to_string(c.rig.bone_count));
+  Eigen::VectorXi driven = z.int_vector("skeleton_driven");
+  if (driven.size() != c.skeleton.bone_count())
+    throw InputError(path.string() + ": 'skeleton_driven' has " + std::to_string(driven.size()) + " entries for " +
+                     std::to_string(c.skeleton.bone_count()) + " bones");
+  c.driven.assign(driven.data(), driven.data() + driven.size());
   auto lbs = [&](const char* inf, const char* coef) {
     SkinningRig r;
     r.method = SkinningMethod::lbs;

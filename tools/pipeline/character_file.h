@@ -5,6 +5,8 @@
 //   skeleton_names       JSON text: #B bone names
 //   skeleton_parents     #B int, −1 for the root
 //   skeleton_heads/tails #B by 3, mm
+//   skeleton_driven      #B int, 1 = the rig was trained with this bone moving; animation sets
+//                        the others' rotations to identity (tools/pipeline/character.h)
 //   lbs_influences, lbs_coefficients            #V by K, the SSD rig fitted to the examples
 //   template_influences, template_coefficients  #V by K, the model's weights (largest K)
 //   character            JSON text: how the body was made, measured labels, fit errors
@@ -25,6 +27,7 @@ struct CharacterRigFile {
   SkinningRig template_lbs;   // the model's weights
   Eigen::MatrixX3i F;         // #F by 3
   Skeleton skeleton;
+  std::vector<char> driven;   // #B
   std::vector<BoneTransforms> training_transforms;
   nlohmann::json character;
 };

@@ -9,6 +9,8 @@
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
 #include "core/measure.h"
+#include "skinning/gltf_export.h"
+#include "tools/pipeline/animate_job.h"
 #include "tools/pipeline/character_file.h"
 #include "tools/render/render.h"
 
@@ -100,12 +102,20 @@ CharacterJobResult write_character(const BodyModel& model, const Eigen::MatrixX3
   f.template_lbs = rigs.template_lbs;
   f.F = ex.F;
   f.skeleton = ex.skeleton;
+  f.driven = ex.driven;
   for (size_t p = 0; p < ex.poses.size(); ++p)
     if (!ex.poses[p].held_out) f.training_transforms.push_back(ex.transforms[p]);
   f.character = res.character;
   save_character_rig(dir / "rig.npz", f);
   if (o.write_pictures) write_error_picture(ex, rigs, o.error_scale_mm, dir / "skinning_error.png");
-  res.glb_note = "the glTF writer (skinning/gltf_export.h) is not in this build";
+  if (o.write_glb) {
+    GltfExportOptions go;
+    go.mesh_name = "character";
+    write_skinned_gltf(dir / "character.glb", V, ex.F, {}, ex.skeleton, skin_weights_of(rigs.lbs), nullptr, go);
+    res.wrote_glb = true;
+  } else {
+    res.glb_note = "not asked for";
+  }
   report_progress(progress, 1.0, "done");
   return res;
 }

@@ -1,0 +1,197 @@
+// bodymodel crowd model.npz --count 20 --bvh clip.bvh --out crowd/ [--where ...] [--seed N]
+#include <fmt/format.h>
+
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "core/data_path.h"
+#include "core/error.h"
+#include "core/io/atomic_write.h"
+#include "core/io/bvh.h"
+#include "core/io/mesh_io.h"
+#include "model/model_file.h"
+#include "model/morph.h"
+#include "tools/console.h"
+#include "tools/pipeline/animate_job.h"
+#include "tools/pipeline/character_job.h"
+#include "tools/pipeline/conditions.h"
+#include "tools/pipeline/output_folder.h"
+#include "tools/render/render.h"
+#include "tools/verb.h"
+
+namespace bodymodel {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CrowdArgs {
+  std::string model, bvh, out, frames_format = "none";
+  std::vector<std::string> where;
+  int count = 20;
+  uint64_t seed = 1;
+  bool force = false, quick = false;
+  double fps = 30;
+  int max_frames = 0;
+};
+
+// A smaller range of motion (2 CMU frames per clip, 4 in-betweens, 1 + 2 held out): about
+// half the pose morphs.
+void make_quick(CharacterOptions& o) {
+  o.range_of_motion.training_frames_per_clip = 2;
+  o.range_of_motion.held_out_frames_per_clip = 1;
+  o.range_of_motion.training_blends = 4;
+  o.range_of_motion.held_out_blends = 2;
+}
+
+}  // namespace
+
+BODYMODEL_VERB(add_crowd_verb) {
+  auto a = std::make_shared<CrowdArgs>();
+  auto* cmd = app.add_subcommand(
+      "crowd",
+      "A crowd of rigged, animated characters: COUNT bodies generated from the model (--where\n"
+      "conditions, seeded), each made a character (as `bodymodel character`) and animated with the\n"
+      "clip (as `bodymodel animate`): OUT/char_NNN/ {body.obj, rig.npz, fit.csv, character.glb,\n"
+      "anim/animated.glb, anim/animation.csv, anim/frames.png}, OUT/crowd.csv, OUT/crowd.png.\n"
+      "A rerun with the same settings skips the characters already finished.");
+  cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`, with its skeleton)")->required();
+  cmd->add_option("--count", a->count, "Characters")->capture_default_str()->check(CLI::Range(1, 10000));
+  cmd->add_option("--bvh", a->bvh, "Motion clip (BVH) every character performs")->required();
+  cmd->add_option("--where", a->where, "LABEL=VALUE or LABEL=LO..HI, repeatable");
+  cmd->add_option("--seed", a->seed, "Random seed (character i uses seed·1000003 + i)")->capture_default_str();
+  cmd->add_option("--out", a->out, "Output folder")->required();
+  cmd->add_flag("--quick", a->quick, "Smaller range of motion (about half the pose morphs)");
+  cmd->add_option("--fps", a->fps, "Animation frame rate")->capture_default_str();
+  cmd->add_option("--max-frames", a->max_frames, "At most this many animation frames (0 = all)")->capture_default_str();
+  cmd->add_option("--frames-format", a->frames_format, "Per-frame meshes: none, ply or obj")->capture_default_str();
+  cmd->add_flag("--force", a->force, "Replace an existing output folder made with other settings");
+  cmd->callback([a] {
+    const fs::path out = a->out;
+    nlohmann::json settings = {{"model", fs::absolute(a->model).lexically_normal().string()},
+                               {"bvh", fs::absolute(a->bvh).lexically_normal().string()},
+                               {"where", a->where}, {"seed", a->seed}, {"quick", a->quick},
+                               {"fps", a->fps}, {"max_frames", a->max_frames}, {"frames_format", a->frames_format}};
+    std::error_code ec;
+    if (fs::exists(out, ec)) {
+      nlohmann::json old;
+      try {
+        old = nlohmann::json::parse(read_text_file(out / "crowd.json"));
+      } catch (const std::exception&) {
+      }
+      if (old.value("settings", nlohmann::json()) != settings) {
+        if (!a->force)
+          throw InputError("output folder '" + out.string() + "' exists and was not made by this crowd command "
+                           "(other settings or not a crowd; use --force to replace it)");
+        fs::remove_all(out, ec);
+        if (ec) throw InputError("cannot remove '" + out.string() + "': " + ec.message());
+      } else {
+        cli::info("resuming the crowd in " + out.string() + " (finished characters are skipped)");
+      }
+    }
+    ensure_directory(out);
+    write_text_file(out / "crowd.json", nlohmann::json({{"settings", settings}, {"count", a->count}}).dump(2));
+    auto model = std::make_shared<const BodyModel>(load_model(a->model));
+    if (model->rig.empty())
+      throw InputError("'" + a->model + "' has no skeleton: rebuild it without --no-rig (a crowd needs one)");
+    const std::vector<LabelCondition> cond = parse_conditions(model->shape.regression, a->where);
+    const BvhMotion clip = read_bvh(a->bvh);
+    CharacterJobOptions co;
+    if (a->quick) make_quick(co.character);
+    AnimateOptions ao;
+    ao.fps = a->fps;
+    ao.max_frames = a->max_frames;
+    ao.format = a->frames_format;
+    ShapeMorpher morpher(model);
+    GenerateOptions go;
+    go.morph.sex = sex_of(cond);
+    cli::ProgressBar bar("crowd");
+    int skipped = 0;
+    auto t0 = std::chrono::steady_clock::now();
+    for (int i = 0; i < a->count; ++i) {
+      const fs::path final_dir = out / fmt::format("char_{:03d}", i);
+      if (fs::exists(final_dir / "rig.npz", ec)) {
+        ++skipped;
+        continue;
+      }
+      auto sub = [&, i](double lo, double hi) -> ProgressCallback {
+        ProgressCallback cb = bar.callback();
+        return [=](double f, std::string_view w) {
+          return cb((i + lo + (hi - lo) * f) / a->count, fmt::format("character {}: {}", i, w));
+        };
+      };
+      StagedFolder dir(final_dir, true);
+      const uint64_t seed = a->seed * 1000003ull + static_cast<uint64_t>(i);
+      GeneratedBody g = generate_body(morpher, cond, seed, go);
+      nlohmann::json desc = {{"model", a->model}, {"seed", seed}, {"where", a->where}, {"crowd_index", i}};
+      write_character(*model, g.V, dir.path(), desc, co, sub(0, 0.9));
+      CharacterRigFile ch = load_character_rig(dir / "rig.npz");
+      ClipPoses poses = retarget_clip(clip, ch.skeleton, data_file("makehuman"), true, a->bvh);
+      ensure_directory(dir / "anim");
+      animate_character(ch, poses, dir / "anim", ao, sub(0.9, 1.0));
+      dir.commit();
+    }
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    bar.finish(fmt::format("{} characters ({} already done) in {:.0f} s", a->count, skipped, secs));
+    // The crowd table and picture from the finished folders (also those of earlier runs).
+    std::string csv = "character,height_cm,weight_kg,lbs_held_out_mean_mm,mwe_held_out_mean_mm,mwe_held_out_max_mm,"
+                      "max_edge_ratio,max_flipped\n";
+    std::vector<Eigen::MatrixX3d> bodies;
+    Eigen::MatrixX3i F;
+    int mwe_better = 0;
+    double worst_ratio = 0;
+    for (int i = 0; i < a->count; ++i) {
+      const fs::path d = out / fmt::format("char_{:03d}", i);
+      CharacterRigFile ch = load_character_rig(d / "rig.npz");
+      const auto& c = ch.character;
+      double lbs_mean = 0, mwe_mean = 0, mwe_max = 0;
+      for (auto& r : c.value("fit_errors", nlohmann::json::array()))
+        if (r.value("split", "") == "held_out") {
+          if (r.value("method", "") == "lbs") lbs_mean = r.value("mean_mm", 0.0);
+          if (r.value("method", "") == "mwe") mwe_mean = r.value("mean_mm", 0.0), mwe_max = r.value("max_mm", 0.0);
+        }
+      mwe_better += mwe_mean < lbs_mean;
+      // Worst edge ratio and flips of the rig over the animation.
+      double ratio = 0;
+      int flipped = 0;
+      {
+        std::istringstream in(read_text_file(d / "anim" / "animation.csv"));
+        std::string line;
+        std::getline(in, line);
+        while (std::getline(in, line)) {
+          std::vector<std::string> f;
+          std::stringstream ss(line);
+          std::string x;
+          while (std::getline(ss, x, ',')) f.push_back(x);
+          if (f.size() >= 6) ratio = std::max(ratio, std::stod(f[3])), flipped = std::max(flipped, std::stoi(f[5]));
+        }
+      }
+      worst_ratio = std::max(worst_ratio, ratio);
+      const auto& m = c.value("measured", nlohmann::json::object());
+      csv += fmt::format("char_{:03d},{:.1f},{:.1f},{:.2f},{:.2f},{:.2f},{:.3f},{}\n", i, m.value("height_cm", 0.0),
+                         m.value("weight_kg", 0.0), lbs_mean, mwe_mean, mwe_max, ratio, flipped);
+      bodies.push_back(ch.rig.rest);
+      F = ch.F;
+    }
+    write_text_file(out / "crowd.csv", csv);
+    // Grid: up to 10 bodies a row, common scale.
+    const int per_row = std::min(10, a->count), rows = (a->count + per_row - 1) / per_row;
+    const int cw = 120, ch = 280;
+    Image grid(per_row * cw, rows * ch);
+    for (int r = 0; r < rows; ++r) {
+      std::vector<Eigen::MatrixX3d> row(bodies.begin() + r * per_row,
+                                        bodies.begin() + std::min<int>(a->count, (r + 1) * per_row));
+      grid.paste(render_row(row, F, {}, cw, ch), 0, r * ch);
+    }
+    grid.save_png(out / "crowd.png");
+    fmt::print("characters                 {} ({} made now, {} from an earlier run)\n", a->count, a->count - skipped,
+               skipped);
+    fmt::print("MWE better than SSD        {} of {} (held-out mean vertex error)\n", mwe_better, a->count);
+    fmt::print("worst edge ratio to rest   {:.2f} over all characters and frames\n", worst_ratio);
+    cli::info("wrote " + out.string() + "/crowd.csv, crowd.png");
+  });
+}
+
+}  // namespace bodymodel

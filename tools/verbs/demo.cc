@@ -1,0 +1,347 @@
+// bodymodel demo --out out/ : the main job. Every stage runs as a subprocess of this executable
+// (its log in OUT/logs/), then the pictures and OUT/report.html are made here.
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <sstream>
+#include <thread>
+
+#include "core/data_path.h"
+#include "core/error.h"
+#include "core/io/atomic_write.h"
+#include "core/io/mesh_io.h"
+#include "tools/console.h"
+#include "tools/pipeline/output_folder.h"
+#include "tools/render/render.h"
+#include "tools/report/html.h"
+#include "tools/verb.h"
+
+namespace bodymodel {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct DemoArgs {
+  std::string out = "out";
+  bool force = false;
+  int crowd = 4;
+};
+
+struct StageResult {
+  std::string name;
+  double seconds = 0;
+  int exit_code = 0;
+  std::string log;
+};
+
+std::string last_line(const fs::path& log) {
+  std::ifstream in(log);
+  std::string line, last;
+  while (std::getline(in, line)) {
+    // Progress bars redraw with \r: keep the text after the last one.
+    auto cr = line.find_last_of('\r');
+    if (cr != std::string::npos) line = line.substr(cr + 1);
+    if (!line.empty()) last = line;
+  }
+  return last;
+}
+
+// Runs this executable with `args`, stdout and stderr to `log`; shows the stage's last log line
+// while it runs (on a terminal).
+StageResult run_stage(int index, int total, const std::string& name, const std::vector<std::string>& args,
+                      const fs::path& log) {
+  StageResult r{name, 0, 0, log.string()};
+  const bool tty = isatty(STDERR_FILENO);
+  const std::string head = fmt::format("[{:2d}/{}] {:<34}", index, total, name);
+  if (!tty) fmt::print(stderr, "{} ...\n", head);
+  auto t0 = std::chrono::steady_clock::now();
+  pid_t pid = fork();
+  if (pid < 0) throw InputError("demo: cannot start a stage (fork failed)");
+  if (pid == 0) {
+    int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd >= 0) {
+      dup2(fd, STDOUT_FILENO);
+      dup2(fd, STDERR_FILENO);
+      ::close(fd);
+    }
+    std::vector<std::string> full{"bodymodel"};
+    full.insert(full.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (auto& s : full) argv.push_back(s.data());
+    argv.push_back(nullptr);
+    execv("/proc/self/exe", argv.data());
+    _exit(127);
+  }
+  int status = 0;
+  while (true) {
+    pid_t w = waitpid(pid, &status, WNOHANG);
+    if (w == pid) break;
+    if (tty) {
+      const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      std::string l = last_line(log);
+      if (l.size() > 60) l = l.substr(0, 60);
+      fmt::print(stderr, "\r\033[K{} {:5.0f} s  {}", head, s, l);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  }
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  if (tty) fmt::print(stderr, "\r\033[K");
+  fmt::print(stderr, "{} {:5.0f} s  {}\n", head, r.seconds,
+             r.exit_code == 0 ? "ok" : fmt::format("FAILED (exit {}): {}", r.exit_code, last_line(log)));
+  return r;
+}
+
+// Per-vertex registration error (registered vs truth, same vertex order) on the truth body.
+void registration_pictures(const fs::path& out, const std::vector<std::string>& ids, double scale_mm) {
+  std::vector<Eigen::MatrixX3d> meshes, colors;
+  Eigen::MatrixX3i F;
+  for (auto& id : ids) {
+    const fs::path reg = out / "reg" / (id + ".ply"), truth = out / "db" / "truth" / (id + ".ply");
+    std::error_code ec;
+    if (!fs::exists(reg, ec) || !fs::exists(truth, ec)) continue;
+    Mesh r = read_mesh(reg), t = read_mesh(truth);
+    if (r.V.rows() != t.V.rows()) continue;
+    meshes.push_back(t.V);
+    colors.push_back(heat_colors((r.V - t.V).rowwise().norm(), 0, scale_mm));
+    F = t.F;
+  }
+  if (meshes.empty()) return;
+  Image row = render_row(meshes, F, colors, 220, 440);
+  Image img(row.width, 440 + 24);
+  img.paste(row, 0, 0);
+  img.paste(heat_colorbar(row.width - 40, 12), 20, 446);
+  img.save_png(out / "pictures" / "registration_error.png");
+}
+
+void row_picture(const std::vector<fs::path>& files, const fs::path& png) {
+  std::vector<Eigen::MatrixX3d> meshes;
+  Eigen::MatrixX3i F;
+  for (auto& f : files) {
+    std::error_code ec;
+    if (!fs::exists(f, ec)) continue;
+    Mesh m = read_mesh(f);
+    meshes.push_back(m.V);
+    F = m.F;
+  }
+  if (!meshes.empty()) render_row(meshes, F, {}, 160, 400).save_png(png);
+}
+
+std::vector<std::vector<std::string>> read_csv(const fs::path& p) {
+  std::vector<std::vector<std::string>> rows;
+  std::ifstream in(p);
+  std::string line;
+  while (std::getline(in, line)) {
+    std::vector<std::string> r;
+    std::stringstream ss(line);
+    std::string c;
+    while (std::getline(ss, c, ',')) r.push_back(c);
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+}  // namespace
+
+BODYMODEL_VERB(add_demo_verb) {
+  auto a = std::make_shared<DemoArgs>();
+  auto* cmd = app.add_subcommand(
+      "demo",
+      "The whole pipeline on the bundled data: synthetic scan database → registration of two scans\n"
+      "+ evaluation → model → regressor table → height and weight sweeps → a crowd of rigged,\n"
+      "animated characters → one character animated with every CMU clip → OUT/report.html.\n"
+      "Each stage runs as a subprocess (log in OUT/logs/); a failed stage is reported and the\n"
+      "stages that need its output are skipped.");
+  cmd->add_option("--out", a->out, "Output folder (must not exist unless --force)")->capture_default_str();
+  cmd->add_option("--crowd", a->crowd, "Characters in the crowd")->capture_default_str()->check(CLI::Range(1, 100));
+  cmd->add_flag("--force", a->force, "Replace an existing output folder");
+  cmd->callback([a] {
+    const fs::path out = fs::path(a->out).filename().empty() ? fs::path(a->out).parent_path() : fs::path(a->out);
+    std::error_code ec;
+    refuse_existing_output(out, a->force);
+    if (fs::exists(out, ec)) {
+      fs::remove_all(out, ec);
+      if (ec) throw InputError("cannot remove '" + out.string() + "': " + ec.message());
+    }
+    ensure_directory(out);
+    ensure_directory(out / "logs");
+    ensure_directory(out / "pictures");
+    const fs::path mh = data_file("makehuman");
+    const fs::path cmu = mh / "motion" / "cmu";
+    auto p = [&](const fs::path& x) { return (out / x).string(); };
+    const std::vector<std::string> reg_ids = {"s000_p0", "s001_p1"};
+    const std::vector<std::string> clips = {"02_02", "03_03", "12_03"};
+    const std::vector<int> heights = {155, 165, 175, 185, 195};
+    const std::vector<int> weights = {50, 65, 80, 95, 110};
+    struct Stage {
+      std::string name;
+      std::vector<std::string> args;
+      std::vector<std::string> needs;  // stage names whose success this one needs
+    };
+    std::vector<Stage> stages;
+    stages.push_back({"synthetic scan database", {"synth-db", "--subjects", "24", "--poses-per-subject", "2", "--seed",
+                                                  "1", "--out", p("db"), "--force"}, {}});
+    for (auto& id : reg_ids)
+      stages.push_back({"register scan " + id, {"register", p("db"), "--out", p("reg"), "--scan", id, "--jobs", "1"},
+                        {"synthetic scan database"}});
+    stages.push_back({"evaluate registration", {"eval-registration", p("db"), p("reg"), "--csv", p("registration.csv")},
+                      {"register scan " + reg_ids[0]}});
+    stages.push_back({"build model", {"build", p("db/truth"), "--db", p("db"), "--out", p("model.npz")},
+                      {"synthetic scan database"}});
+    stages.push_back({"regressor table", {"eval-regressors", p("model.npz"), "--folds", "6", "--out", p("regressors")},
+                      {"build model"}});
+    for (int h : heights)
+      stages.push_back({fmt::format("height sweep {} cm", h),
+                        {"morph", p("model.npz"), "--in", p("db/truth/s000_p0.ply"), "--set", fmt::format("height_cm={}", h),
+                         "--keep", "weight_kg", "--sex", "female", "--out", p(fmt::format("sweeps/height_{}.obj", h))},
+                        {"build model"}});
+    for (int w : weights)
+      stages.push_back({fmt::format("weight sweep {} kg", w),
+                        {"morph", p("model.npz"), "--in", p("db/truth/s000_p0.ply"), "--set", fmt::format("weight_kg={}", w),
+                         "--keep", "height_cm", "--sex", "female", "--out", p(fmt::format("sweeps/weight_{}.obj", w))},
+                        {"build model"}});
+    stages.push_back({fmt::format("crowd of {} characters", a->crowd),
+                      {"crowd", p("model.npz"), "--count", std::to_string(a->crowd), "--quick", "--bvh",
+                       (cmu / "12_03.bvh").string(), "--max-frames", "90", "--seed", "5", "--out", p("crowd")},
+                      {"build model"}});
+    stages.push_back({"character (MWE rig)", {"character", p("model.npz"), "--where", "sex=male", "--where",
+                                             "height_cm=185", "--seed", "3", "--out", p("character")},
+                      {"build model"}});
+    for (auto& c : clips)
+      stages.push_back({"animate " + c, {"animate", p("character/rig.npz"), "--bvh", (cmu / (c + ".bvh")).string(),
+                                         "--out", p("animation/" + c), "--format", "none"},
+                        {"character (MWE rig)"}});
+    ensure_directory(out / "sweeps");
+    ensure_directory(out / "animation");
+
+    auto t0 = std::chrono::steady_clock::now();
+    std::vector<StageResult> results;
+    std::map<std::string, int> status;
+    const int total = static_cast<int>(stages.size()) + 1;
+    for (size_t i = 0; i < stages.size(); ++i) {
+      const Stage& s = stages[i];
+      bool ok = true;
+      for (auto& n : s.needs) ok = ok && status.count(n) && status[n] == 0;
+      if (!ok) {
+        fmt::print(stderr, "[{:2d}/{}] {:<34}     -  skipped (an earlier stage failed)\n", int(i + 1), total, s.name);
+        results.push_back({s.name, 0, -1, ""});
+        status[s.name] = -1;
+        continue;
+      }
+      std::string logname = s.name;
+      for (char& c : logname)
+        if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+      StageResult r = run_stage(int(i + 1), total, s.name, s.args, out / "logs" / (logname + ".log"));
+      status[s.name] = r.exit_code;
+      results.push_back(r);
+    }
+
+    // Pictures and the report (in this process).
+    auto tr = std::chrono::steady_clock::now();
+    fmt::print(stderr, "[{:2d}/{}] {:<34} ...\n", total, total, "pictures and report");
+    const fs::path pic = out / "pictures";
+    try {
+      registration_pictures(out, reg_ids, 30);
+      std::vector<fs::path> hs, ws;
+      for (int h : heights) hs.push_back(out / "sweeps" / fmt::format("height_{}.obj", h));
+      for (int w : weights) ws.push_back(out / "sweeps" / fmt::format("weight_{}.obj", w));
+      row_picture(hs, pic / "height_sweep.png");
+      row_picture(ws, pic / "weight_sweep.png");
+    } catch (const std::exception& e) {
+      cli::warn(std::string("pictures: ") + e.what());
+    }
+    // Animation table from the per-frame checks.
+    std::string anim_csv =
+        "clip,frames,rig_max_edge_ratio,ssd_max_edge_ratio,template_max_edge_ratio,rig_max_flipped,template_max_flipped\n";
+    for (auto& c : clips) {
+      auto rows = read_csv(out / "animation" / c / "animation.csv");
+      if (rows.size() < 2) continue;
+      double r = 0, l = 0, t = 0;
+      int fr = 0, ft = 0;
+      for (size_t k = 1; k < rows.size(); ++k) {
+        if (rows[k].size() < 10) continue;
+        r = std::max(r, std::stod(rows[k][3]));
+        fr = std::max(fr, std::stoi(rows[k][5]));
+        l = std::max(l, std::stod(rows[k][6]));
+        t = std::max(t, std::stod(rows[k][8]));
+        ft = std::max(ft, std::stoi(rows[k][9]));
+      }
+      anim_csv += fmt::format("{},{},{:.3f},{:.3f},{:.3f},{},{}\n", c, rows.size() - 1, r, l, t, fr, ft);
+    }
+    write_text_file(out / "animation.csv", anim_csv);
+    const double report_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
+    const double total_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::string tim = "stage,seconds,status,log\n";
+    int failed = 0;
+    for (auto& r : results) {
+      failed += r.exit_code != 0;
+      tim += fmt::format("{},{:.1f},{},{}\n", r.name, r.seconds,
+                         r.exit_code == 0 ? "ok" : r.exit_code < 0 ? "skipped" : fmt::format("failed (exit {})", r.exit_code),
+                         r.log.empty() ? "" : fs::relative(r.log, out).string());
+    }
+    tim += fmt::format("pictures and report,{:.1f},ok,\ntotal,{:.1f},{},\n", report_seconds, total_seconds,
+                       failed ? fmt::format("{} stages failed or skipped", failed) : "ok");
+    write_text_file(out / "timings.csv", tim);
+
+    std::string b;
+    b += "<p>The whole pipeline on the bundled MakeHuman data, made by <code>bodymodel demo</code> in " +
+         fmt::format("{:.0f}", total_seconds) + " s. Every number comes from the CSV linked under its table; the "
+         "logs of every stage are in <a href=\"logs/\">logs/</a>.</p>\n";
+    b += "<h2>1. Registration (synthetic scans, ground truth known)</h2>\n";
+    b += html_figure(pic / "registration_error.png", "pictures/registration_error.png",
+                     "Correspondence error of the registered template against the true body, per vertex "
+                     "(scans " + reg_ids[0] + ", " + reg_ids[1] + "), blue 0 → red ≥ 30 mm.");
+    b += html_table_from_csv(out / "registration.csv", "registration.csv");
+    b += "<h2>2. Semantic morphs</h2>\n";
+    b += html_figure(pic / "height_sweep.png", "pictures/height_sweep.png",
+                     "Height sweep 155, 165, 175, 185, 195 cm at constant weight (subject s000).");
+    b += html_figure(pic / "weight_sweep.png", "pictures/weight_sweep.png",
+                     "Weight sweep 50, 65, 80, 95, 110 kg at constant height (subject s000).");
+    b += "<h2>3. Regressors (cross-validated RMSE)</h2>\n";
+    b += html_table_from_csv(out / "regressors" / "regressors.csv", "regressors/regressors.csv");
+    b += "<h2>4. A crowd of rigged, animated characters</h2>\n";
+    b += html_figure(out / "crowd" / "crowd.png", "crowd/crowd.png", "The generated crowd (rest pose).");
+    b += html_table_from_csv(out / "crowd" / "crowd.csv", "crowd/crowd.csv");
+    b += "<p>Each character folder holds <code>character.glb</code> (SSD rig) and <code>anim/animated.glb</code> "
+         "(with the clip), viewable in any glTF viewer.</p>\n";
+    b += "<h2>5. Skinning: SSD vs Animation Space vs MWE on the character</h2>\n";
+    b += html_figure(out / "character" / "skinning_error.png", "character/skinning_error.png",
+                     "Held-out pose with the largest SSD error: the model's pose morph (grey), then SSD, Animation "
+                     "Space and MWE coloured by vertex error, fixed scale blue 0 → red ≥ 60 mm.");
+    b += html_table_from_csv(out / "character" / "fit.csv", "character/fit.csv");
+    b += "<p>Vertex error (mm) against the model's own pose morphs; <code>template_lbs</code> = MakeHuman's "
+         "weights as they are, <code>lbs</code> = SSD weights fitted to the training poses.</p>\n";
+    b += "<h2>6. Animation (CMU clips retargeted to the template skeleton)</h2>\n";
+    for (auto& c : clips)
+      b += html_figure(out / "animation" / c / "frames.png", "animation/" + c + "/frames.png",
+                       "Clip " + c + ": six frames of the MWE-skinned character.");
+    b += html_table_from_csv(out / "animation.csv", "animation.csv");
+    b += "<p>Largest edge-length ratio to rest over all frames, and flipped triangles (normal against the "
+         "rotation of the triangle's main bone), for the MWE rig, its SSD base and the template weights.</p>\n";
+    b += "<h2>7. Timings</h2>\n" + html_table_from_csv(out / "timings.csv", "timings.csv", 100);
+    write_text_file(out / "report.html", html_page("bodymodel: scans to animated characters", b));
+
+    fmt::print("\n{:<36} {:>8}  {}\n", "stage", "seconds", "status");
+    for (auto& r : results)
+      fmt::print("{:<36} {:>8.1f}  {}\n", r.name, r.seconds,
+                 r.exit_code == 0 ? "ok" : r.exit_code < 0 ? "skipped" : "FAILED, see " + r.log);
+    fmt::print("{:<36} {:>8.1f}\n", "total", total_seconds);
+    auto fit = read_csv(out / "character" / "fit.csv");
+    for (auto& row : fit)
+      if (row.size() >= 5 && row[1] == "held_out" && (row[0] == "lbs" || row[0] == "mwe"))
+        fmt::print("character held-out vertex error {:<4} mean {} mm, max {} mm\n", row[0], row[3], row[4]);
+    fmt::print("report: {}\n", (out / "report.html").string());
+    if (failed) throw InputError(fmt::format("demo: {} stages failed or were skipped (see {})", failed,
+                                             (out / "timings.csv").string()));
+  });
+}
+
+}  // namespace bodymodel
