@@ -68,6 +68,10 @@ InverseCorrespondences inverse_correspondences(const Eigen::MatrixX3d& V,
     const int i = vertex_index.nearest(p, &d2);
     if (i < 0 || d2 > d2max) return;
     if (has_n && !normals_ok(scan.N.row(j).transpose(), VN.row(i).transpose())) return;
+    if (o.inverse_max_tangential_offset > 0) {
+      const Eigen::Vector3d d = p - V.row(i).transpose(), nv = VN.row(i).transpose();
+      if ((d - d.dot(nv) * nv).norm() > o.inverse_max_tangential_offset) return;
+    }
     match[j] = i;
   });
   // Bucket the scan points per vertex (counting sort).
@@ -228,6 +232,12 @@ Eigen::MatrixX3d NonrigidRegistration::fit(const Eigen::MatrixX3d& V_init,
 
   PointIndex scan_index(scan.P);
   if (o.max_tangential_offset <= 0) o.max_tangential_offset = 2.0 * median_point_spacing(scan_index);
+  if (o.inverse_max_tangential_offset <= 0 && o.inverse_tangential_factor > 0) {
+    double len = 0;
+    for (int k = 0; k < I.F.rows(); ++k)
+      for (int e = 0; e < 3; ++e) len += (V_init.row(I.F(k, e)) - V_init.row(I.F(k, (e + 1) % 3))).norm();
+    o.inverse_max_tangential_offset = o.inverse_tangential_factor * len / (3.0 * I.F.rows());
+  }
   const std::vector<double> betas = nonrigid_schedule(o);
   Eigen::MatrixX3d V = V_init;
   NonrigidSummary sum;

@@ -57,6 +57,10 @@ struct PoseFitOptions {
   // consecutive bones counter-rotate by tens of degrees at no data cost. Strong enough to pick
   // the smallest split, weak against real data (a 10 mm landmark miss outweighs 50° of prior).
   double pose_prior = 1e4;
+  // The prior starts this many times stronger and halves every ICP iteration down to
+  // pose_prior (coarse to fine: joints move first where the data insists most). 100 gave
+  // 21.0 vs 22.1 mm posed-template error on six scans, joint error unchanged: off by default.
+  double initial_prior_factor = 1.0;
   int max_icp_iterations = 25;
   // Solves with the landmarks alone (and the prior) before the ICP iterations (needs ≥ 3).
   int landmark_iterations = 1;

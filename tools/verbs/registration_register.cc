@@ -37,7 +37,7 @@ struct RegisterArgs {
   double fast_k_end = NonrigidOptions{}.fast_k_end;
   double transform_length = NonrigidOptions{}.normalization_length;
   double scan_unit_mm = 1.0;
-  bool force = false, pose_only = false;
+  bool force = false, pose_only = false, no_proportions = false;
 };
 
 std::vector<std::string> read_scan_ids(const fs::path& csv) {
@@ -117,6 +117,9 @@ BODYMODEL_VERB(add_register_verb) {
                   "Millimetres per scan unit (1000 for scans in metres)")
       ->capture_default_str();
   cmd->add_flag("--pose-only", a->pose_only, "Stop after the skeleton pose fit");
+  cmd->add_flag("--no-proportions", a->no_proportions,
+                "Keep the template's limb proportions (global scale only) instead of stretching "
+                "its segments to the landmark distances");
   cmd->add_flag("--force", a->force, "Register again scans that are already done");
   cmd->callback([a] {
     const fs::path db = a->db, out = a->out;
@@ -169,6 +172,7 @@ BODYMODEL_VERB(add_register_verb) {
     options.nonrigid.fast_k_end = a->fast_k_end;
     options.nonrigid.normalization_length = a->transform_length;
     options.skip_nonrigid = a->pose_only;
+    options.fit_proportions = !a->no_proportions;
 
     cli::ProgressBar bar(fmt::format("register {} scans", todo.size()));
     std::mutex mutex;
