@@ -18,6 +18,7 @@ struct PoseArgs {
   bool no_tips = false, no_joints = false;
   double damping = 1e-3;
   int transfer_neighbours = 8;
+  bool every_bone = false;
 };
 
 }  // namespace
@@ -43,6 +44,8 @@ BODYMODEL_VERB(add_model_pose_verb) {
                   "Training scans whose pose change is transferred before the linear correction (0 = the "
                   "paper's linear regression only)")
       ->capture_default_str();
+  cmd->add_flag("--every-bone", a->every_bone,
+                "Also constrain a few vertices on every bone, placed by skinning (beyond the paper)");
   cmd->add_option("--out", a->out, "Output mesh (OBJ/PLY)")->required();
   cmd->callback([a] {
     if (a->bvh.empty() == a->pose_csv.empty()) throw InputError("pose: give exactly one of --bvh and --pose-csv");
@@ -67,6 +70,7 @@ BODYMODEL_VERB(add_model_pose_verb) {
     o.constrain_elbows_and_knees = !a->no_joints;
     o.damping = a->damping;
     o.transfer_neighbours = std::max(0, a->transfer_neighbours);
+    o.constrain_every_bone = a->every_bone;
     PoseMorphSummary s;
     Eigen::MatrixX3d out = pose_morph(model, decoder, body.V, pose, o, &s);
     write_mesh(a->out, out, body.F);
