@@ -4,7 +4,8 @@
 // outside the timing. Two feature sets: clean bodies, and bodies with 3 mm vertex noise (a
 // stand-in for scan/registration noise, which is what makes filtering matter in the paper).
 // Prints the Table-1-style RMSE matrix beside Hasler et al.'s figures, and the Table-2 angles.
-// Run: build/bench/regression_bench --benchmark_min_time=1x   (BODYMODEL_BENCH_JOBS=2 by default)
+// Run: build/bench/regression_bench   (one iteration each; BODYMODEL_BENCH_JOBS=2 by default). The
+// table on the model itself: `bodymodel eval-regressors --synthetic 100 --folds 10 --out report`.
 #define FMT_HEADER_ONLY  // the bench targets do not link libfmt
 #include <fmt/format.h>
 #include <benchmark/benchmark.h>
