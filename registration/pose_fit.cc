@@ -492,7 +492,8 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     }
     // Prior per bone: a tied group of g bones costs g times its shared rotation.
     for (int k = 0; k < nfree; ++k) {
-      const double anneal = std::max(1.0, o.initial_prior_factor * std::pow(0.5, std::max(0, data_iter)));
+      const double anneal =
+          data ? std::max(1.0, o.initial_prior_factor * std::pow(0.5, data_iter)) : 1.0;
       const double w = std::sqrt(anneal * o.pose_prior * params[k].prior * double(params[k].bones.size()));
       if (params[k].twist)
         problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual1, 1, 1>(
