@@ -72,11 +72,13 @@ void BM_GenerateBodies(benchmark::State& state) {
     cond = {LabelCondition::exact("sex", 0), LabelCondition::exact("weight_kg", 65),
             LabelCondition::range("height_cm", 160, 180)};
   auto out = std::filesystem::temp_directory_path() / "bodymodel_bench_body.obj";
+  GenerateOptions go;
+  go.measure_girths = state.range(1) != 0;
   uint64_t seed = 1;
   double morph_s = 0, generate_s = 0, write_s = 0, decodes = 0;
   for (auto _ : state) {
     auto t0 = std::chrono::steady_clock::now();
-    GeneratedBody g = generate_body(morpher, cond, seed++);
+    GeneratedBody g = generate_body(morpher, cond, seed++, go);
     auto t1 = std::chrono::steady_clock::now();
     write_mesh(out, g.V, model->tmpl->faces());
     auto t2 = std::chrono::steady_clock::now();
@@ -93,7 +95,7 @@ void BM_GenerateBodies(benchmark::State& state) {
   state.counters["decodes_per_body"] = decodes / n;
   std::filesystem::remove(out);
 }
-BENCHMARK(BM_GenerateBodies)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_GenerateBodies)->Args({0, 1})->Args({1, 1})->Args({1, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // The crowd as `bodymodel generate` makes it: bodies in parallel (TBB, one morpher per
 // thread), each written to its own OBJ. Real time per batch of 16 bodies.
@@ -104,13 +106,15 @@ void BM_GenerateCrowdParallel(benchmark::State& state) {
   auto dir = std::filesystem::temp_directory_path() / "bodymodel_bench_crowd";
   std::filesystem::create_directories(dir);
   tbb::enumerable_thread_specific<std::unique_ptr<ShapeMorpher>> morphers;
+  GenerateOptions go;
+  go.measure_girths = state.range(0) != 0;
   const int batch = 16;
   uint64_t seed = 1;
   for (auto _ : state) {
     tbb::parallel_for(0, batch, [&](int i) {
       auto& m = morphers.local();
       if (!m) m = std::make_unique<ShapeMorpher>(model);
-      GeneratedBody g = generate_body(*m, cond, seed + i);
+      GeneratedBody g = generate_body(*m, cond, seed + i, go);
       write_mesh(dir / ("body_" + std::to_string(i) + ".obj"), g.V, model->tmpl->faces());
     });
     seed += batch;
@@ -118,7 +122,7 @@ void BM_GenerateCrowdParallel(benchmark::State& state) {
   state.counters["bodies_per_s"] = benchmark::Counter(batch * state.iterations(), benchmark::Counter::kIsRate);
   std::filesystem::remove_all(dir);
 }
-BENCHMARK(BM_GenerateCrowdParallel)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_GenerateCrowdParallel)->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // Held-out split of the synthetic database with both PCAs fitted on the training scans.
 struct GeneralisationData {

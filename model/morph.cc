@@ -99,12 +99,7 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
     if (any_measured && only_extent_and_volume) {
       // Fast path, the same definitions as measure_body (core/measure.h) without the girth
       // sections: height = extent along +y, weight = enclosed volume × density.
-      BodyMeasurements b;
-      b.height_cm = (V.col(1).maxCoeff() - V.col(1).minCoeff()) / 10.0;
-      b.volume_l = signed_volume(V, model_->tmpl->faces()) * 1e-6;
-      b.weight_kg = b.volume_l * MeasureOptions{}.density_kg_per_l;
-      b.body_fat_pct = std::numeric_limits<double>::quiet_NaN();
-      meas = b;
+      meas = measure_height_and_weight(V, model_->tmpl->faces());
     } else if (any_measured) {
       meas = measure(V, o.sex);
     }
@@ -283,8 +278,19 @@ GeneratedBody generate_body(ShapeMorpher& morpher, const std::vector<LabelCondit
     }
     if (best.satisfied) break;
   }
-  best.measured = morpher.measure(best.V, mo.sex);
+  best.measured = o.measure_girths ? morpher.measure(best.V, mo.sex)
+                                   : measure_height_and_weight(best.V, model.tmpl->faces());
   return best;
+}
+
+BodyMeasurements measure_height_and_weight(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F) {
+  BodyMeasurements b;
+  b.height_cm = (V.col(1).maxCoeff() - V.col(1).minCoeff()) / 10.0;
+  b.volume_l = signed_volume(V, F) * 1e-6;
+  b.weight_kg = b.volume_l * MeasureOptions{}.density_kg_per_l;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  b.waist_cm = b.hips_cm = b.chest_cm = b.neck_cm = b.body_fat_pct = nan;
+  return b;
 }
 
 int flipped_triangle_count(const BodyModel& model, const Eigen::MatrixX3d& V) {

@@ -115,6 +115,9 @@ struct GenerateOptions {
   // plus a random Gaussian combination of their deviations (the within-sex distribution).
   double spread = 1.0;
   int max_attempts = 4;   // fresh samples when the conditions cannot be met
+  // GeneratedBody::measured with the girths (measure_body, convex-hull sections: about a third
+  // of a body's time); false = height, volume and weight only (the rest NaN).
+  bool measure_girths = true;
   // Morph settings; generation accepts 1 kg / 1 cm around exact targets (every decode costs,
   // and a crowd "of 65 kg" is checked at ± 2 kg), morphing keeps the tighter 0.25.
   MorphOptions morph = [] {
@@ -137,6 +140,11 @@ struct GeneratedBody {
 // One body; `seed` makes it reproducible. Conditions may use "sex" with 0 = female, 1 = male.
 GeneratedBody generate_body(ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
                             uint64_t seed, const GenerateOptions& options = {});
+
+// The cheap part of core/measure.h's measure_body, with its definitions: height = extent
+// along +y (cm), volume (L), weight = volume × density (kg); girths and body fat NaN.
+//   V #V by 3 (mm), F #F by 3.
+BodyMeasurements measure_height_and_weight(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F);
 
 // Plausibility of a decoded body: triangles whose normal points against the template's
 // (after a rigid fit of V onto the template), and the relative encoding residual
