@@ -1,12 +1,20 @@
 // Statistical model benchmarks (issue 5):
-//  * BM_GenerateBodies: bodies per second of `generate`, including writing the OBJ, without and
-//    with label conditions (weight = 65 kg, height 160..180 cm, female), on a model built from
-//    30 MakeHuman bodies.
+//  * BM_GenerateBodies/<conditions>/<girths>: bodies per second of `generate` one at a time,
+//    including writing the OBJ, with the time split into morphing (decodes), the final
+//    measurement and writing; conditions = weight 65 kg, height 160..180 cm, female; girths 0 =
+//    `--no-girths`. Model built in-process from 30 MakeHuman bodies.
+//  * BM_GenerateCrowdParallel/<girths>: 16 bodies per batch in parallel (TBB, one morpher per
+//    thread), as the generate verb runs them.
 //  * BM_Generalisation: reconstruction error of HELD-OUT subjects (all their scans, posed ones
 //    included) vs the number of components, for the RRE model and for plain vertex-position
 //    PCA of the same (rigidly aligned) meshes. Needs a synthetic database: BODYMODEL_BENCH_DB
 //    (default /tmp/model_db, made by `bodymodel synth-db --subjects 40 --poses-per-subject 4`);
 //    the last quarter of the subjects is held out. Prints a table to stderr.
+//  * BM_ProjectionDiagnosis: why the RRE numbers above are what they are (training scans
+//    reconstruct exactly, where the held-out residual sits, weighted projections).
+//  * BM_PoseMorph/<transfer neighbours>/<every bone>: pose morphing of the held-out subjects of
+//    BODYMODEL_BENCH_MODEL (default /tmp/model30.npz: `bodymodel build REG30 --db DB --out
+//    model30.npz` with REG30 = DB/truth meshes of the first 30 subjects) against DB/truth.
 #include <benchmark/benchmark.h>
 
 #include <chrono>
