@@ -31,7 +31,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct RegisterArgs {
-  std::string db, out, schedule = "fast", shard, scan;
+  std::string db, out, schedule = "fast", shard, scan, pose_joints = "segment";
   int jobs = 1;
   int fast_steps = NonrigidOptions{}.fast_steps;
   double fast_k_end = NonrigidOptions{}.fast_k_end;
@@ -117,6 +117,12 @@ BODYMODEL_VERB(add_register_verb) {
                   "Millimetres per scan unit (1000 for scans in metres)")
       ->capture_default_str();
   cmd->add_flag("--pose-only", a->pose_only, "Stop after the skeleton pose fit");
+  cmd->add_option("--pose-joints", a->pose_joints,
+                  "Pose-fit joints: 'segment' (one rotation per body segment, twist bones, "
+                  "finger grasp) or 'bone' (every spine, neck, arm and leg bone a free ball "
+                  "joint, fingers at rest)")
+      ->check(CLI::IsMember({"segment", "bone"}))
+      ->capture_default_str();
   cmd->add_flag("--no-proportions", a->no_proportions,
                 "Keep the template's limb proportions (global scale only) instead of stretching "
                 "its segments to the landmark distances");
@@ -173,6 +179,9 @@ BODYMODEL_VERB(add_register_verb) {
     options.nonrigid.normalization_length = a->transform_length;
     options.skip_nonrigid = a->pose_only;
     options.fit_proportions = !a->no_proportions;
+    if (a->pose_joints == "bone")
+      for (const auto& b : default_free_bones())
+        if (b.rfind("finger", 0) != 0) options.pose.free_bones.push_back(b);
 
     cli::ProgressBar bar(fmt::format("register {} scans", todo.size()));
     std::mutex mutex;
