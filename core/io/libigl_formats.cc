@@ -155,6 +155,9 @@ Eigen::MatrixXd read_dmat(const std::filesystem::path& path) {
     cols = parse_int(t2[0], path, 2, "column count");
     rows = parse_int(t2[1], path, 2, "row count");
     if (cols < 0 || rows < 0) throw InputError(where(path, 2) + ": negative matrix size");
+    if (rows != 0 && cols > static_cast<long>(bytes.size() / 8) / rows)
+      throw InputError(path.string() + ": binary DMAT of " + std::to_string(cols) + " columns × " +
+                       std::to_string(rows) + " rows is larger than the file");
     const size_t expected = static_cast<size_t>(cols) * static_cast<size_t>(rows) * 8;
     if (bytes.size() - pos != expected)
       throw InputError(path.string() + ": binary DMAT of " + std::to_string(cols) + " columns × " +
@@ -169,6 +172,11 @@ Eigen::MatrixXd read_dmat(const std::filesystem::path& path) {
                          std::to_string(i / std::max<long>(rows, 1)) + " is not finite");
     return M;
   }
+  // Every ASCII value takes at least two bytes (digit and separator): a header promising more
+  // than the file can hold is rejected before allocating (and before rows·cols can overflow).
+  if (rows != 0 && cols > static_cast<long>(bytes.size() / 2 + 1) / rows)
+    throw InputError(where(path, 1) + ": DMAT header promises " + std::to_string(cols) +
+                     " columns × " + std::to_string(rows) + " rows, more values than the file holds");
   Eigen::MatrixXd M(rows, cols);
   const long total = rows * cols;
   long k = 0;
