@@ -258,8 +258,9 @@ CharacterRigs fit_character_rigs(const CharacterExamples& ex, const CharacterOpt
     return [=](double f, std::string_view w) { return progress(a + (b - a) * f, w); };
   };
   r.lbs = fit_lbs(s, r.template_lbs.influences, o.lbs, &r.lbs_summary, sub(0.0, 0.3));
-  r.as = fit_animation_space(s, &r.lbs, o.animation_space, &r.as_summary, sub(0.3, 0.5));
-  r.mwe = fit_mwe(s, &r.lbs, o.mwe, &r.mwe_summary, sub(0.5, 1.0));
+  const SkinningRig& base = o.base_on_template_weights ? r.template_lbs : r.lbs;
+  r.as = fit_animation_space(s, &base, o.animation_space, &r.as_summary, sub(0.3, 0.5));
+  r.mwe = fit_mwe(s, &base, o.mwe, &r.mwe_summary, sub(0.5, 1.0));
   return r;
 }
 

@@ -22,6 +22,8 @@ struct CharacterArgs {
   uint64_t seed = 1;
   bool force = false;
   int threads = 0;
+  double mwe_s = CharacterOptions{}.mwe.ridge_scale;
+  int mwe_components = MweFitOptions{}.components;
 };
 
 void print_fit_table(const std::vector<RigErrorRow>& rows) {
@@ -48,6 +50,10 @@ BODYMODEL_VERB(add_character_verb) {
   cmd->add_option("--in", a->in, "Use this body (model topology, standard pose, mm) instead of generating one");
   cmd->add_option("--out", a->out, "Output folder (must not exist unless --force)")->required();
   cmd->add_flag("--force", a->force, "Replace an existing output folder");
+  cmd->add_option("--mwe-s", a->mwe_s, "MWE ridge scale s, relative (λ_h = s·d⁴/σ²(c_h), skinning/fit_mwe.h)")
+      ->capture_default_str();
+  cmd->add_option("--mwe-components", a->mwe_components, "MWE principal components kept (0 = all with variance)")
+      ->capture_default_str();
   cmd->add_option("--threads", a->threads, "Threads for the pose morphs (0 = all cores)")->capture_default_str();
   cmd->callback([a] {
     if (!a->in.empty() && !a->where.empty()) throw InputError("character: give --where or --in, not both");
@@ -77,6 +83,8 @@ BODYMODEL_VERB(add_character_verb) {
     }
     CharacterJobOptions o;
     o.character.threads = a->threads;
+    o.character.mwe.ridge_scale = a->mwe_s;
+    o.character.mwe.components = a->mwe_components;
     cli::ProgressBar bar("character");
     CharacterJobResult r = write_character(*model, V, out.path(), desc, o, bar.callback());
     bar.finish(fmt::format("{} training + {} held-out poses; examples {:.0f} s, fits {:.0f} s", r.training_poses,
