@@ -57,6 +57,7 @@ std::string html_page(const std::string& title, const std::string& body) {
          "table{border-collapse:collapse;margin:.5em 0;font-size:90%}td,th{border:1px solid #bbb;padding:2px 8px;"
          "text-align:right}th{background:#eee}\nfigure{display:inline-block;margin:.5em;vertical-align:top}"
          "img{max-width:100%;border:1px solid #ddd}\nfigcaption{font-size:90%;max-width:600px}"
+         ".pair{display:flex;gap:1em}.pair figure{flex:1;margin:.5em 0}\n"
          ".missing{color:#b00;font-weight:bold}.src{font-size:85%}\n</style></head><body>\n<h1>" +
          html_escape(title) + "</h1>\n" + body + "</body></html>\n";
 }

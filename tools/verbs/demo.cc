@@ -301,10 +301,12 @@ BODYMODEL_VERB(add_demo_verb) {
                      "(scans " + reg_ids[0] + ", " + reg_ids[1] + "), blue 0 → red ≥ 30 mm.");
     b += html_table_from_csv(out / "registration.csv", "registration.csv");
     b += "<h2>2. Semantic morphs</h2>\n";
+    b += "<div class=\"pair\">\n";
     b += html_figure(pic / "height_sweep.png", "pictures/height_sweep.png",
                      "Height sweep 155, 165, 175, 185, 195 cm at constant weight (subject s000).");
     b += html_figure(pic / "weight_sweep.png", "pictures/weight_sweep.png",
                      "Weight sweep 50, 65, 80, 95, 110 kg at constant height (subject s000).");
+    b += "</div>\n";
     b += "<h2>3. Regressors (cross-validated RMSE)</h2>\n";
     b += html_table_from_csv(out / "regressors" / "regressors.csv", "regressors/regressors.csv");
     b += "<h2>4. A crowd of rigged, animated characters</h2>\n";
