@@ -120,7 +120,7 @@ BODYMODEL_VERB(add_register_verb) {
   cmd->add_option("--pose-joints", a->pose_joints,
                   "Pose-fit joints: 'segment' (one rotation per body segment, twist bones, "
                   "finger grasp) or 'bone' (every spine, neck, arm and leg bone a free ball "
-                  "joint, fingers at rest)")
+                  "joint; finger grasp as in 'segment')")
       ->check(CLI::IsMember({"segment", "bone"}))
       ->capture_default_str();
   cmd->add_flag("--no-proportions", a->no_proportions,
@@ -180,8 +180,13 @@ BODYMODEL_VERB(add_register_verb) {
     options.skip_nonrigid = a->pose_only;
     options.fit_proportions = !a->no_proportions;
     if (a->pose_joints == "bone")
-      for (const auto& b : default_free_bones())
-        if (b.rfind("finger", 0) != 0) options.pose.free_bones.push_back(b);
+      for (const auto& p : default_pose_parameters()) {
+        if (p.bones[0].rfind("finger", 0) == 0) {  // keep the grasp groups
+          options.pose.parameters.push_back(p);
+          continue;
+        }
+        for (const auto& b : p.bones) options.pose.parameters.push_back({{b}, false});
+      }
 
     cli::ProgressBar bar(fmt::format("register {} scans", todo.size()));
     std::mutex mutex;
