@@ -31,7 +31,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct RegisterArgs {
-  std::string db, out, schedule = "fast", shard, scan, pose_joints = "segment";
+  std::string db, out, schedule = "fast", shard, scan, pose_joints = "bone";
   int jobs = 1;
   int fast_steps = NonrigidOptions{}.fast_steps;
   double fast_k_end = NonrigidOptions{}.fast_k_end;
