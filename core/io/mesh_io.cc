@@ -309,7 +309,11 @@ PlyContents parse_ply(const std::string& data, const std::string& path) {
       for (size_t i = 0; i < e.count; ++i) {
         for (size_t k = 0; k < e.props.size(); ++k) {
           if (e.props[k].is_list) {
-            size_t n = static_cast<size_t>(reader.read(e.props[k].count_type));
+            const double nd = reader.read(e.props[k].count_type);
+            if (!(nd >= 0 && nd <= 1000))  // also NaN (a float count type)
+              throw InputError("'" + path + "': vertex " + std::to_string(i) +
+                               " has an implausible list length " + std::to_string(nd));
+            size_t n = static_cast<size_t>(nd);
             for (size_t j = 0; j < n; ++j) reader.read(e.props[k].type);
           } else {
             vals[k] = reader.read(e.props[k].type);
@@ -325,14 +329,14 @@ PlyContents parse_ply(const std::string& data, const std::string& path) {
         for (auto& p : e.props) {
           if (p.is_list) {
             double nd = reader.read(p.count_type);
-            if (nd < 0 || nd > 1000)
+            if (!(nd >= 0 && nd <= 1000))  // also NaN (a float count type)
               throw InputError("'" + path + "': " + e.name + " " + std::to_string(i) +
                                " has an implausible list length " + std::to_string(nd));
             size_t n = static_cast<size_t>(nd);
             std::vector<int> poly(n);
             for (size_t j = 0; j < n; ++j) {
               double v = reader.read(p.type);
-              if (is_face && (v < 0 || v >= static_cast<double>(out.V.rows())))
+              if (is_face && !(v >= 0 && v < static_cast<double>(out.V.rows())))
                 throw InputError("'" + path + "': face " + std::to_string(i) +
                                  " refers to vertex " + std::to_string(static_cast<long long>(v)) +
                                  " but the file has " + std::to_string(out.V.rows()) +
