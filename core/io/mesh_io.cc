@@ -341,7 +341,7 @@ PlyContents parse_ply(const std::string& data, const std::string& path) {
                                  " refers to vertex " + std::to_string(static_cast<long long>(v)) +
                                  " but the file has " + std::to_string(out.V.rows()) +
                                  " vertices");
-              poly[j] = static_cast<int>(v);
+              poly[j] = is_face ? static_cast<int>(v) : 0;  // checked above; other lists unused
             }
             if (is_face && (p.name == "vertex_indices" || p.name == "vertex_index")) {
               if (n < 3)
