@@ -374,6 +374,9 @@ Npz Npz::parse(const std::string& z, const std::string& what) {
     size_t data_start = local + 30 + u16(local + 26) + u16(local + 28);
     if (data_start + csize > z.size()) throw bad("member '" + fname + "' is truncated");
     if (usize > (1ull << 34)) throw bad("member '" + fname + "' is implausibly large");
+    if (method == 8 && usize > 1032 * csize + 1024)  // deflate expands at most 1032:1
+      throw bad("member '" + fname + "' claims " + std::to_string(usize) + " bytes from " +
+                std::to_string(csize) + " compressed bytes, more than deflate can produce");
     std::string data;
     if (method == 0) {
       data = z.substr(data_start, csize);
