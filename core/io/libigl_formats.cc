@@ -164,7 +164,7 @@ Eigen::MatrixXd read_dmat(const std::filesystem::path& path) {
                        std::to_string(rows) + " rows needs " + std::to_string(expected) +
                        " data bytes, found " + std::to_string(bytes.size() - pos));
     Eigen::MatrixXd M(rows, cols);   // column-major, like the file
-    std::memcpy(M.data(), bytes.data() + pos, expected);
+    if (expected > 0) std::memcpy(M.data(), bytes.data() + pos, expected);  // empty: data() is null
     for (Eigen::Index i = 0; i < M.size(); ++i)
       if (!std::isfinite(M.data()[i]))
         throw InputError(path.string() + ": binary DMAT value at row " +
