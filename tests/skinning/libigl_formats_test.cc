@@ -53,7 +53,7 @@ TEST(LibiglFormats, DmatBadInputNamesFileAndLine) {
   write_text_file(d / "nan.dmat", "1 1\nnan\n");
   EXPECT_NE(error_of([&] { read_dmat(d / "nan.dmat"); }).find("not finite"), std::string::npos);
   write_text_file(d / "trunc.dmat", std::string("0 0\n2 2\n") + std::string(20, '\0'));
-  EXPECT_NE(error_of([&] { read_dmat(d / "trunc.dmat"); }).find("32 data bytes"), std::string::npos);
+  EXPECT_NE(error_of([&] { read_dmat(d / "trunc.dmat"); }).find("rows is larger than the file"), std::string::npos);
 }
 
 TEST(LibiglFormats, TgfReadsJointsAndEdgesAndRejectsBadIndices) {
