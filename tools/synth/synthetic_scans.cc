@@ -124,7 +124,10 @@ const std::vector<std::string>& perturbed_bones() {
   return bones;
 }
 
-MacroSettings random_subject(std::mt19937_64& rng, bool male) {
+
+}  // namespace
+
+MacroSettings random_synthetic_subject(std::mt19937_64& rng, bool male) {
   std::uniform_real_distribution<double> u(0, 1);
   auto in = [&](double a, double b) { return a + (b - a) * u(rng); };
   MacroSettings s;
@@ -143,8 +146,6 @@ MacroSettings random_subject(std::mt19937_64& rng, bool male) {
   s.caucasian = c / sum;
   return s;
 }
-
-}  // namespace
 
 PointCloud simulate_scan(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
                          const ScannerOptions& o, std::mt19937_64& rng) {
@@ -291,7 +292,7 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
     std::snprintf(id, sizeof id, "s%03d", s);
     subj.id = id;
     bool male = (s % 2) == 1;
-    subj.sliders = random_subject(rng, male);
+    subj.sliders = random_synthetic_subject(rng, male);
     subj.sex = subj.sliders.gender >= 0.5 ? "male" : "female";
     subj.age_years = subj.sliders.age_years();
     subj.muscle = subj.sliders.muscle * 100;

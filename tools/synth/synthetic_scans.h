@@ -75,4 +75,9 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& makehuman,
                                                      const SyntheticDatabaseOptions& options,
                                                      const ProgressCallback& progress = {});
 
+// Slider values of one random adult subject, as `synth-db` draws them: sex by `male`, macro
+// sliders inside [0.15, 0.85], ethnic mix from normalised Gamma(2) draws. Also used by
+// `eval-regressors --synthetic`, so both see the same population.
+MacroSettings random_synthetic_subject(std::mt19937_64& rng, bool male);
+
 }  // namespace bodymodel

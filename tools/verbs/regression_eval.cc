@@ -27,6 +27,7 @@
 #include "regression/line_plot.h"
 #include "regression/regression_study.h"
 #include "tools/console.h"
+#include "tools/synth/synthetic_scans.h"
 #include "tools/verb.h"
 
 namespace bodymodel {
@@ -129,28 +130,6 @@ StudyInput model_input(const EvalRegressorsArgs& a) {
     }
   }
   return in;
-}
-
-// Slider values of a random subject, with the distributions of `bodymodel synth-db`
-// (tools/synth/synthetic_scans.cc): adults of both sexes, macro sliders inside [0.15, 0.85].
-MacroSettings random_synthetic_subject(std::mt19937_64& rng, bool male) {
-  std::uniform_real_distribution<double> u(0, 1);
-  auto in = [&](double lo, double hi) { return lo + (hi - lo) * u(rng); };
-  MacroSettings s;
-  s.gender = male ? in(0.85, 1.0) : in(0.0, 0.15);
-  s.age = in(0.45, 0.85);
-  s.muscle = in(0.15, 0.85);
-  s.weight = in(0.15, 0.85);
-  s.height = in(0.15, 0.85);
-  s.proportions = in(0.25, 0.75);
-  s.cup = in(0.3, 0.7);
-  s.firmness = in(0.3, 0.7);
-  std::gamma_distribution<double> g(2.0, 1.0);
-  const double x = g(rng), y = g(rng), z = g(rng), sum = x + y + z;
-  s.african = x / sum;
-  s.asian = y / sum;
-  s.caucasian = z / sum;
-  return s;
 }
 
 // The shape-only model of `a.synthetic` synthetic subjects built in-process: what
