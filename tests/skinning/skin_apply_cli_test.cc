@@ -15,18 +15,12 @@
 #include "skinning/rig_io.h"
 #include "skinning/skinning_rig.h"
 #include "synthetic_tube.h"
+#include "support/run_cli.h"
 
 namespace bodymodel {
 namespace {
 
-int run(const std::string& cmd, std::string* output) {
-  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
-  char buf[4096];
-  output->clear();
-  while (p && std::fgets(buf, sizeof buf, p)) *output += buf;
-  const int status = p ? ::pclose(p) : -1;
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
+using fixtures::run_cli;
 
 Skeleton tube_skeleton() {
   Skeleton s;
@@ -69,9 +63,8 @@ Fixture make_fixture(const std::string& tag) {
 
 TEST(SkinApplyCli, PosesEveryFrameResumesAndRejectsARigWithoutSkeleton) {
   const Fixture f = make_fixture("a");
-  const std::string exe = BODYMODEL_EXE;
   std::string out;
-  ASSERT_EQ(run(exe + " skin apply " + (f.dir / "rig.npz").string() + " --bvh " + (f.dir / "clip.bvh").string() +
+  ASSERT_EQ(run_cli("skin apply " + (f.dir / "rig.npz").string() + " --bvh " + (f.dir / "clip.bvh").string() +
                     " --out " + (f.dir / "frames").string(), &out), 0) << out;
   for (int k = 0; k < 5; ++k) {
     char name[32];
@@ -81,17 +74,19 @@ TEST(SkinApplyCli, PosesEveryFrameResumesAndRejectsARigWithoutSkeleton) {
     ASSERT_EQ(m.V.rows(), ref.rows());
     EXPECT_LT((m.V - ref).cwiseAbs().maxCoeff(), 1e-4) << name;   // BVH degrees (6 decimals), OBJ text
     EXPECT_EQ(m.F, f.t.F);
-    if (k > 0) EXPECT_GT((ref - f.t.V).cwiseAbs().maxCoeff(), 0.1);   // the pose moves the tube
+    if (k > 0) {
+      EXPECT_GT((ref - f.t.V).cwiseAbs().maxCoeff(), 0.1);   // the pose moves the tube
+    }
   }
   // Rerun after removing one frame: only that one is written.
   std::filesystem::remove(f.dir / "frames" / "frame_00003.obj");
-  ASSERT_EQ(run(exe + " skin apply " + (f.dir / "rig.npz").string() + " --bvh " + (f.dir / "clip.bvh").string() +
+  ASSERT_EQ(run_cli("skin apply " + (f.dir / "rig.npz").string() + " --bvh " + (f.dir / "clip.bvh").string() +
                     " --out " + (f.dir / "frames").string(), &out), 0) << out;
   EXPECT_NE(out.find("1 written, 4 already there"), std::string::npos) << out;
   EXPECT_TRUE(std::filesystem::exists(f.dir / "frames" / "frame_00003.obj"));
   // A rig without a skeleton (not on the MakeHuman body): one line, exit 2, nothing written.
   save_rig(f.dir / "bare.npz", f.rig, f.t.F);
-  EXPECT_EQ(run(exe + " skin apply " + (f.dir / "bare.npz").string() + " --bvh " + (f.dir / "clip.bvh").string() +
+  EXPECT_EQ(run_cli("skin apply " + (f.dir / "bare.npz").string() + " --bvh " + (f.dir / "clip.bvh").string() +
                     " --out " + (f.dir / "bare_frames").string(), &out), 2) << out;
   EXPECT_NE(out.find("no skeleton"), std::string::npos) << out;
   EXPECT_FALSE(std::filesystem::exists(f.dir / "bare_frames"));
@@ -100,9 +95,8 @@ TEST(SkinApplyCli, PosesEveryFrameResumesAndRejectsARigWithoutSkeleton) {
 
 TEST(SkinApplyCli, ExportGltfWritesAnAnimatedGlbAndRefusesMwe) {
   const Fixture f = make_fixture("g");
-  const std::string exe = BODYMODEL_EXE;
   std::string out;
-  ASSERT_EQ(run(exe + " skin export-gltf --rig " + (f.dir / "rig.npz").string() + " --bvh " +
+  ASSERT_EQ(run_cli("skin export-gltf --rig " + (f.dir / "rig.npz").string() + " --bvh " +
                     (f.dir / "clip.bvh").string() + " --scale 1 --out " + (f.dir / "tube.glb").string(), &out), 0) << out;
   const std::string bytes = read_text_file(f.dir / "tube.glb");
   EXPECT_EQ(bytes.substr(0, 4), "glTF");
@@ -110,7 +104,7 @@ TEST(SkinApplyCli, ExportGltfWritesAnAnimatedGlbAndRefusesMwe) {
   // An MWE rig has no glTF form (and no SSD weights beside it).
   SkinningRig mwe = lbs_as_mwe(f.rig);
   save_rig(f.dir / "mwe.npz", mwe, f.t.F, {}, &f.skeleton);
-  EXPECT_EQ(run(exe + " skin export-gltf --rig " + (f.dir / "mwe.npz").string() + " --out " +
+  EXPECT_EQ(run_cli("skin export-gltf --rig " + (f.dir / "mwe.npz").string() + " --out " +
                     (f.dir / "mwe.glb").string(), &out), 2) << out;
   EXPECT_FALSE(std::filesystem::exists(f.dir / "mwe.glb"));
   std::filesystem::remove_all(f.dir);
@@ -130,7 +124,7 @@ TEST(SkinApplyCli, MakeHumanBodyRigUsesTheDefaultSkeleton) {
   save_rig(dir / "body.npz", rig, body.mesh.F);
   const auto bvh = mh.pose_file("tpose");
   std::string out;
-  ASSERT_EQ(run(std::string(BODYMODEL_EXE) + " skin apply " + (dir / "body.npz").string() + " --bvh " + bvh.string() +
+  ASSERT_EQ(run_cli("skin apply " + (dir / "body.npz").string() + " --bvh " + bvh.string() +
                     " --out " + (dir / "frames").string(), &out), 0) << out;
   EXPECT_NE(out.find("skeleton: makehuman"), std::string::npos) << out;
   const Mesh m = read_mesh(dir / "frames" / "frame_00000.obj");

@@ -10,18 +10,12 @@
 #include "core/io/mesh_io.h"
 #include "skinning/skinning_rig.h"
 #include "synthetic_tube.h"
+#include "support/run_cli.h"
 
 namespace bodymodel {
 namespace {
 
-int run(const std::string& cmd, std::string* output) {
-  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
-  char buf[4096];
-  output->clear();
-  while (p && std::fgets(buf, sizeof buf, p)) *output += buf;
-  const int status = p ? ::pclose(p) : -1;
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
+using fixtures::run_cli;
 
 TEST(SkinCli, EvalWritesTheJackaTableAndRejectsMismatchedFrames) {
   const auto dir = std::filesystem::temp_directory_path() / ("bodymodel_skin_cli_" + std::to_string(::getpid()));
@@ -38,7 +32,7 @@ TEST(SkinCli, EvalWritesTheJackaTableAndRejectsMismatchedFrames) {
     write_mesh(dir / "seq" / name, evaluate_rig(truth, M), t.F);
   }
   std::string out;
-  ASSERT_EQ(run(std::string(BODYMODEL_EXE) + " skin eval " + (dir / "seq").string() +
+  ASSERT_EQ(run_cli("skin eval " + (dir / "seq").string() +
                     " --train-count 4 --bones 3 --out " + (dir / "report").string(), &out), 0) << out;
   std::ifstream csv(dir / "report" / "skinning.csv");
   std::string header, line;
@@ -59,7 +53,7 @@ TEST(SkinCli, EvalWritesTheJackaTableAndRejectsMismatchedFrames) {
   EXPECT_TRUE(std::filesystem::exists(dir / "report" / "unseen_error_mwe.ply"));
   // A frame with a different vertex count: one clear error line, exit code 2.
   write_mesh(dir / "seq" / "frame_99.obj", t.V.topRows(t.V.rows() - 2), Eigen::MatrixX3i(t.F.topRows(10)));
-  EXPECT_EQ(run(std::string(BODYMODEL_EXE) + " skin eval " + (dir / "seq").string() + " --out " +
+  EXPECT_EQ(run_cli("skin eval " + (dir / "seq").string() + " --out " +
                     (dir / "report2").string(), &out), 2);
   EXPECT_NE(out.find("frame_99.obj"), std::string::npos) << out;
   EXPECT_NE(out.find("vertices"), std::string::npos) << out;

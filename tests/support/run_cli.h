@@ -29,4 +29,11 @@ inline CliResult run_cli(const std::string& args, const std::string& env = "") {
   return r;
 }
 
+// The same, for tests written as `EXPECT_EQ(run_cli(args, &output), 0)`.
+inline int run_cli(const std::string& args, std::string* output) {
+  CliResult r = run_cli(args);
+  *output = std::move(r.output);
+  return r.exit_code;
+}
+
 }  // namespace bodymodel::fixtures
