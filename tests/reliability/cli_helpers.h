@@ -10,6 +10,7 @@
 #include <chrono>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -92,6 +93,26 @@ inline std::vector<fs::path> temporaries_under(const fs::path& dir) {
     if (n.size() > 1 && n[0] == '.' && n.find(".tmp") != std::string::npos) out.push_back(p);
   }
   return out;
+}
+
+// Every regular file under `dir` (relative path → bytes): two folders are identical when these are.
+inline std::map<std::string, std::string> folder_contents(const fs::path& dir) {
+  std::map<std::string, std::string> out;
+  for (const auto& p : files_under(dir)) out[fs::relative(p, dir).string()] = read_text_file(p);
+  return out;
+}
+
+// "" when `a` and `b` hold the same files with the same bytes; otherwise the first difference.
+inline std::string folder_difference(const fs::path& a, const fs::path& b) {
+  const auto fa = folder_contents(a), fb = folder_contents(b);
+  for (const auto& [name, bytes] : fa) {
+    auto it = fb.find(name);
+    if (it == fb.end()) return name + " only in " + a.string();
+    if (it->second != bytes) return name + " differs";
+  }
+  for (const auto& [name, bytes] : fb)
+    if (!fa.count(name)) return name + " only in " + b.string();
+  return "";
 }
 
 // Lines of `text` that start with "bodymodel: error:".

@@ -2,6 +2,7 @@
 // no temporaries (core/io/interrupt_cleanup.h), and a rerun completes, skipping finished items.
 #include <gtest/gtest.h>
 
+#include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "core/io/atomic_write.h"
@@ -78,14 +79,91 @@ void expect_complete(const fs::path& dir) {
   }
 }
 
+// The small database of these tests, made once by an uninterrupted run: what every resumed run
+// must end identical to, byte for byte.
+const std::vector<std::string>& synth_args() {
+  static const std::vector<std::string> args = {"synth-db", "--subjects", "2", "--poses-per-subject",
+                                                "1", "--seed", "11", "--jobs", "1"};
+  return args;
+}
+std::vector<std::string> synth_into(const fs::path& out) {
+  std::vector<std::string> a = synth_args();
+  a.push_back("--out");
+  a.push_back(out.string());
+  return a;
+}
+const fs::path& clean_database() {
+  static fixtures::TempDir dir;
+  static const fs::path db = [] {
+    std::string out;
+    EXPECT_EQ(run_bodymodel(synth_into(dir / "db"), dir / "log.txt", &out), 0) << out;
+    return dir / "db";
+  }();
+  return db;
+}
+
+// "skipped N existing" from synth-db's output, -1 when absent.
+int skipped_count(const std::string& out) {
+  const size_t at = out.find("skipped ");
+  if (at == std::string::npos) return -1;
+  return std::atoi(out.c_str() + at + 8);
+}
+
+// A resumed synth-db keeps every complete scan, makes again every scan with a file missing or
+// unreadable (all four files), rebuilds the tables, removes temporaries of killed runs, and
+// ends byte-identical to a clean run.
+TEST(ResumableSynthDb, DamagedDatabaseIsCompletedIdenticalToACleanRun) {
+  const fs::path& clean = clean_database();
+  fixtures::TempDir dir;
+  const fs::path db = dir / "db", log = dir / "log.txt";
+  fs::copy(clean, db, fs::copy_options::recursive);
+  ASSERT_EQ(folder_difference(clean, db), "");
+  const auto kept_time = fs::last_write_time(db / "scans" / "s000_p0.ply");
+  fs::remove(db / "truth" / "s001_p0.ply");            // a scan with one file missing
+  {                                                    // a scan with a truncated file
+    const std::string bytes = read_text_file(db / "scans" / "s000_p1.ply");
+    std::ofstream(db / "scans" / "s000_p1.ply", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  }
+  fs::remove(db / "scans" / "s001_p1.landmarks.json");  // another scan, another file
+  fs::remove(db / "scans.csv");                         // a table
+  std::ofstream(db / "truth" / ".s001_p1.ply.tmp999999_0") << "half a file";  // SIGKILL leftover
+  ASSERT_NE(folder_difference(clean, db), "");
+
+  std::string out;
+  ASSERT_EQ(run_bodymodel(synth_into(db), log, &out), 0) << out;  // no --force needed
+  EXPECT_EQ(skipped_count(out), 1) << out;  // only s000_p0 was complete
+  EXPECT_NE(out.find("resuming"), std::string::npos) << out;
+  EXPECT_EQ(folder_difference(clean, db), "") << out;
+  EXPECT_EQ(fs::last_write_time(db / "scans" / "s000_p0.ply"), kept_time);  // kept, not redone
+  EXPECT_TRUE(temporaries_under(db).empty());
+
+  // A finished database: everything is kept, nothing changes.
+  ASSERT_EQ(run_bodymodel(synth_into(db), log, &out), 0) << out;
+  EXPECT_EQ(skipped_count(out), 4) << out;
+  EXPECT_EQ(folder_difference(clean, db), "") << out;
+
+  // Other settings into the same folder: refused without --force (naming the difference), and
+  // nothing is touched; with --force every scan is made again, none kept.
+  std::vector<std::string> other = synth_into(db);
+  other[6] = "12";  // --seed
+  EXPECT_EQ(run_bodymodel(other, log, &out), 2) << out;
+  ASSERT_EQ(error_lines(out).size(), 1u) << out;
+  EXPECT_NE(error_lines(out)[0].find("seed 11, not 12"), std::string::npos) << out;
+  EXPECT_EQ(folder_difference(clean, db), "");
+  other.push_back("--force");
+  ASSERT_EQ(run_bodymodel(other, log, &out), 0) << out;
+  EXPECT_EQ(skipped_count(out), 0) << out;
+  EXPECT_NE(read_text_file(db / "scans" / "s000_p0.landmarks.json"),
+            read_text_file(clean / "scans" / "s000_p0.landmarks.json"));
+}
+
 TEST(InterruptCleanup, KilledBatchVerbsLeaveCompleteFilesAndRerunsFinish) {
   fixtures::TempDir dir;
   const fs::path db = dir / "db", reg = dir / "reg", log = dir / "log.txt";
-  const std::vector<std::string> synth = {"synth-db", "--subjects", "2", "--poses-per-subject", "1",
-                                          "--seed", "11", "--jobs", "1", "--out", db.string()};
-  // synth-db, Ctrl-C as soon as the first scan file is complete (its next files are being written).
+  const std::vector<std::string> synth = synth_into(db);
+  // synth-db, Ctrl-C as soon as the first scan is complete (the next one is being written).
   Child c = spawn_bodymodel(synth, log);
-  ASSERT_TRUE(wait_until([&] { return fs::exists(db / "scans" / "s000_p0.ply"); }, 300))
+  ASSERT_TRUE(wait_until([&] { return fs::exists(db / "truth" / "s000_p0.pose.csv"); }, 300))
       << read_text_file(log);
   ::kill(c.pid, SIGINT);
   EXPECT_TRUE(c.ended_by(SIGINT)) << read_text_file(log);
@@ -93,12 +171,16 @@ TEST(InterruptCleanup, KilledBatchVerbsLeaveCompleteFilesAndRerunsFinish) {
   EXPECT_FALSE(fs::exists(db / "scans.csv"));  // the tables are written last
   expect_complete(db);
 
+  // The rerun keeps the finished scan(s) and ends identical to the uninterrupted run.
   std::string out;
   std::vector<std::string> again = synth;
   again.push_back("--force");
   ASSERT_EQ(run_bodymodel(again, log, &out), 0) << out;
+  EXPECT_GE(skipped_count(out), 1) << out;
+  EXPECT_LE(skipped_count(out), 3) << out;
   EXPECT_TRUE(fs::exists(db / "scans.csv"));
   expect_complete(db);
+  EXPECT_EQ(folder_difference(clean_database(), db), "");
 
   // register (pose fit only, one scan at a time), SIGTERM after the first registered scan.
   const std::vector<std::string> reg_args = {"register", db.string(), "--out", reg.string(),

@@ -3,7 +3,13 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <signal.h>
+#include <unistd.h>
+
 #include <Eigen/Dense>
+#include <array>
+#include <cctype>
+#include <cerrno>
 #include <atomic>
 #include <cmath>
 #include <fstream>
@@ -18,6 +24,7 @@
 #include "core/geometry.h"
 #include "core/io/atomic_write.h"
 #include "core/io/bvh.h"
+#include "core/io/interrupt_cleanup.h"
 #include "core/io/mesh_io.h"
 #include "core/landmarks.h"
 #include "core/measure.h"
@@ -230,6 +237,175 @@ PointCloud simulate_scan(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
   return cloud;
 }
 
+namespace {
+
+// The pose pool: MakeHuman's static poses, plus frames of the CMU clips (retargeted to the
+// MakeHuman skeleton of each subject), four evenly spaced frames per clip.
+struct PoolPose {
+  std::string name;
+  const BvhMotion* motion;
+  int frame;
+  const RetargetMap* map;  // null: the file uses the skeleton's own bone names
+};
+
+struct PosePool {
+  std::vector<std::unique_ptr<BvhMotion>> motions;
+  std::vector<std::unique_ptr<RetargetMap>> maps;
+  std::vector<PoolPose> poses;
+
+  // with_maps = false: names only (the retarget maps are not built).
+  PosePool(const MakeHuman& mh, bool with_maps) {
+    for (auto& name : static_pose_pool(mh)) {
+      motions.push_back(std::make_unique<BvhMotion>(read_bvh(mh.pose_file(name))));
+      poses.push_back({name, motions.back().get(), 0, nullptr});
+    }
+    const fs::path cmu_dir = mh.directory() / "motion" / "cmu";
+    std::error_code ec;
+    if (!fs::is_directory(cmu_dir, ec)) return;
+    std::vector<fs::path> clips;
+    for (auto& e : fs::directory_iterator(cmu_dir))
+      if (e.path().extension() == ".bvh") clips.push_back(e.path());
+    std::sort(clips.begin(), clips.end());
+    for (auto& clip : clips) {
+      motions.push_back(std::make_unique<BvhMotion>(read_bvh(clip)));
+      const RetargetMap* map = nullptr;
+      if (with_maps) {
+        maps.push_back(std::make_unique<RetargetMap>(RetargetMap::for_clip(*motions.back(), mh.directory())));
+        map = maps.back().get();
+      }
+      const int n = motions.back()->frame_count();
+      for (int k = 0; k < 4; ++k) {
+        int frame = static_cast<int>((k + 0.5) * n / 4);
+        poses.push_back({"cmu" + clip.stem().string() + "-f" + std::to_string(frame),
+                         motions.back().get(), frame, map});
+      }
+    }
+  }
+
+  std::vector<std::string> names() const {
+    std::vector<std::string> out;
+    for (auto& p : poses) out.push_back(p.name);
+    return out;
+  }
+};
+
+std::string description_json(const SyntheticDatabaseOptions& o, const std::vector<std::string>& pool) {
+  const ScannerOptions& sc = o.scanner;
+  nlohmann::ordered_json meta = {
+      {"generator", "bodymodel synth-db"},
+      {"seed", o.seed},
+      {"subjects", o.subjects},
+      {"poses_per_subject", o.poses_per_subject},
+      {"units", "millimetres, +y up, bodies face +z"},
+      {"noise_sigma_mm", sc.noise_sigma_mm},
+      {"landmark_sigma_mm", o.landmark_sigma_mm},
+      {"pillars", sc.pillars},
+      {"perturbation_deg", o.perturbation_deg},
+      {"pose_pool", pool},
+      {"density_kg_per_l", MeasureOptions{}.density_kg_per_l},
+      {"max_yaw_deg", o.max_yaw_deg},
+      {"max_shift_mm", o.max_shift_mm},
+      {"scanner", {{"pillar_distance_mm", sc.pillar_distance_mm},
+                   {"max_incidence_deg", sc.max_incidence_deg},
+                   {"min_points", sc.min_points},
+                   {"pixel_mm", sc.pixel_mm},
+                   {"normal_neighbours", sc.normal_neighbours}}},
+      {"note", "truth/ is for evaluation only: nothing in the pipeline may read it"}};
+  return meta.dump(2) + "\n";
+}
+
+// Compares an existing database.json with the expected description; "" when they agree.
+std::string description_difference(const fs::path& file, const std::string& expected) {
+  std::error_code ec;
+  if (!fs::is_regular_file(file, ec)) return "no " + file.filename().string();
+  nlohmann::json old, now = nlohmann::json::parse(expected);
+  try {
+    old = nlohmann::json::parse(read_text_file(file));
+  } catch (const std::exception&) {
+    return file.filename().string() + " does not parse";
+  }
+  if (!old.is_object()) return file.filename().string() + " is not a JSON object";
+  for (auto& [key, value] : now.items()) {
+    if (!old.contains(key)) return key + " not recorded";
+    if (old[key] != value) {
+      if (value.is_array() || value.is_object()) return "other " + key;
+      return key + " " + old[key].dump() + ", not " + value.dump();
+    }
+  }
+  for (auto& [key, value] : old.items())
+    if (!now.contains(key)) return "unknown entry " + key;
+  return "";
+}
+
+// The process id in a write_atomically temporary name ".<name>.tmp<pid>_<n>", or -1.
+long temporary_owner(const std::string& n) {
+  if (n.size() < 2 || n[0] != '.') return -1;
+  const size_t t = n.rfind(".tmp");
+  if (t == std::string::npos || t == 0) return -1;
+  size_t i = t + 4, j = i;
+  while (j < n.size() && std::isdigit(static_cast<unsigned char>(n[j]))) ++j;
+  if (j == i || j - i > 9 || j >= n.size() || n[j] != '_') return -1;
+  const long pid = std::stol(n.substr(i, j - i));
+  return is_atomic_write_temporary(n.c_str(), pid) ? pid : -1;
+}
+
+// Removes the write_atomically temporaries in `dir` whose writer no longer runs (a run killed
+// by SIGKILL or a power cut cannot remove its own); returns how many.
+int remove_stale_temporaries(const fs::path& dir) {
+  int removed = 0;
+  std::error_code ec;
+  for (auto it = fs::directory_iterator(dir, ec); !ec && it != fs::end(it); it.increment(ec)) {
+    const long pid = temporary_owner(it->path().filename().string());
+    if (pid <= 0 || pid == static_cast<long>(::getpid())) continue;
+    if (::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;  // still running
+    std::error_code rm;
+    if (fs::remove(it->path(), rm)) ++removed;
+  }
+  return removed;
+}
+
+// The four files of one scan.
+std::array<fs::path, 4> scan_files(const fs::path& dir, const std::string& id) {
+  return {dir / "scans" / (id + ".ply"), dir / "scans" / (id + ".landmarks.json"),
+          dir / "truth" / (id + ".ply"), dir / "truth" / (id + ".pose.csv")};
+}
+
+// Point count of a scan written by an earlier run when all four of its files exist and parse;
+// -1 otherwise (the scan is then made again).
+int finished_scan_points(const fs::path& dir, const std::string& id) {
+  const auto files = scan_files(dir, id);
+  std::error_code ec;
+  for (auto& f : files)
+    if (!fs::is_regular_file(f, ec)) return -1;
+  try {
+    const PointCloud scan = read_point_cloud(files[0]);
+    if (scan.P.rows() == 0 || !scan.has_normals()) return -1;
+    const nlohmann::json lm = nlohmann::json::parse(read_text_file(files[1]));
+    if (!lm.is_object() || lm.size() != body_landmarks().size()) return -1;
+    const Mesh truth = read_mesh(files[2]);
+    if (truth.V.rows() == 0 || truth.F.rows() == 0) return -1;
+    const std::string pose = read_text_file(files[3]);
+    if (pose.rfind("bone,rx,ry,rz\n_global_rotation,", 0) != 0 || pose.back() != '\n') return -1;
+    return static_cast<int>(scan.P.rows());
+  } catch (const std::exception&) {
+    return -1;
+  }
+}
+
+}  // namespace
+
+std::string synthetic_database_description(const MakeHuman& mh, const SyntheticDatabaseOptions& o) {
+  return description_json(o, PosePool(mh, false).names());
+}
+
+bool is_same_synthetic_database(const MakeHuman& mh, const std::string& out,
+                                const SyntheticDatabaseOptions& o, std::string* difference) {
+  const std::string d =
+      description_difference(fs::path(out) / "database.json", synthetic_database_description(mh, o));
+  if (difference) *difference = d;
+  return d.empty();
+}
+
 SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const std::string& out,
                                                      const SyntheticDatabaseOptions& o,
                                                      const ProgressCallback& progress) {
@@ -241,43 +417,12 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
   ensure_directory(dir / "truth");
 
   SyntheticDatabaseSummary summary;
-  // The pose pool: MakeHuman's static poses, plus frames of the CMU clips (retargeted to the
-  // MakeHuman skeleton of each subject), four evenly spaced frames per clip.
-  struct PoolPose {
-    std::string name;
-    const BvhMotion* motion;
-    int frame;
-    const RetargetMap* map;  // null: the file uses the skeleton's own bone names
-  };
-  std::vector<std::unique_ptr<BvhMotion>> motions;
-  std::vector<std::unique_ptr<RetargetMap>> maps;
-  std::vector<PoolPose> pool;
-  for (auto& name : static_pose_pool(mh)) {
-    motions.push_back(std::make_unique<BvhMotion>(read_bvh(mh.pose_file(name))));
-    pool.push_back({name, motions.back().get(), 0, nullptr});
-  }
-  const fs::path cmu_dir = mh.directory() / "motion" / "cmu";
-  std::error_code ec;
-  if (fs::is_directory(cmu_dir, ec)) {
-    std::vector<fs::path> clips;
-    for (auto& e : fs::directory_iterator(cmu_dir))
-      if (e.path().extension() == ".bvh") clips.push_back(e.path());
-    std::sort(clips.begin(), clips.end());
-    for (auto& clip : clips) {
-      motions.push_back(std::make_unique<BvhMotion>(read_bvh(clip)));
-      maps.push_back(std::make_unique<RetargetMap>(RetargetMap::for_clip(*motions.back(), mh.directory())));
-      const int n = motions.back()->frame_count();
-      for (int k = 0; k < 4; ++k) {
-        int frame = static_cast<int>((k + 0.5) * n / 4);
-        pool.push_back({"cmu" + clip.stem().string() + "-f" + std::to_string(frame),
-                        motions.back().get(), frame, maps.back().get()});
-      }
-    }
-  }
-  for (auto& p : pool) summary.pose_pool.push_back(p.name);
+  const PosePool pose_pool(mh, true);
+  const std::vector<PoolPose>& pool = pose_pool.poses;
+  summary.pose_pool = pose_pool.names();
 
   // Subjects and their scan list are drawn up front from the seed, so the database does not
-  // depend on thread scheduling.
+  // depend on thread scheduling (nor on which scans an earlier run already made).
   std::mt19937_64 rng(o.seed);
   struct Job {
     int subject;
@@ -305,8 +450,25 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
       jobs.push_back({s, p + 1, order[p % order.size()], rng()});
   }
   summary.scans.resize(jobs.size());
+  auto scan_id = [&](const Job& job) {
+    return summary.subjects[job.subject].id + "_p" + std::to_string(job.index);
+  };
 
-  std::atomic<int> done{0};
+  // The description goes first: a resume trusts the scan files only under the same description,
+  // so files of another database are removed before it is written.
+  const std::string description = description_json(o, summary.pose_pool);
+  const bool resume = o.resume && description_difference(dir / "database.json", description).empty();
+  for (const fs::path& d : {dir, dir / "scans", dir / "truth"})
+    summary.removed_temporaries += remove_stale_temporaries(d);
+  if (!resume) {
+    std::error_code ec;
+    for (auto& job : jobs)
+      for (auto& f : scan_files(dir, scan_id(job))) fs::remove(f, ec);
+    for (const char* table : {"scans.csv", "subjects.csv"}) fs::remove(dir / table, ec);
+    write_text_file(dir / "database.json", description);
+  }
+
+  std::atomic<int> done{0}, skipped{0};
   std::mutex progress_mutex;
   std::atomic<bool> cancelled{false};
   tbb::task_arena arena(o.threads > 0 ? o.threads : tbb::task_arena::automatic);
@@ -315,83 +477,93 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
       if (cancelled) return;
       const Job& job = jobs[j];
       SyntheticSubject& subj = summary.subjects[job.subject];
-      std::mt19937_64 r(job.seed);
-      MakeHuman::Body body = mh.body(subj.sliders);
-      Pose pose = Pose::rest(body.skeleton.bone_count());
-      std::string pose_name = "standard";
-      if (job.pose >= 0) {
-        const PoolPose& pp = pool[job.pose];
-        pose_name = pp.name;
-        pose = pp.map ? Retargeter(*pp.motion, body.skeleton, *pp.map).pose(pp.frame)
-                      : bvh_frame_to_pose(*pp.motion, pp.frame, body.skeleton);
-        pose.root_translation.setZero();  // the subject stands on the platform
-        for (auto& bone : perturbed_bones()) {
-          int b = body.skeleton.find(bone);
-          if (b >= 0)
-            pose.rotations[b] = pose.rotations[b] * random_rotation(r, o.perturbation_deg * M_PI / 180);
-        }
-      }
-      Eigen::MatrixX3d posed =
-          linear_blend_skinning(body.mesh.V, body.weights, forward_kinematics(body.skeleton, pose));
-      if (job.index == 0) {
-        // Labels are measured on the standard-pose mesh (what `bodymodel measure` sees).
-        BodyMeasurements m = measure_body(posed, body.mesh.F,
-                                          subj.sex == "male" ? Sex::male : Sex::female);
-        subj.height_cm = m.height_cm;
-        subj.weight_kg = m.weight_kg;
-        subj.body_fat_pct = m.body_fat_pct;
-        subj.waist_cm = m.waist_cm;
-        subj.hips_cm = m.hips_cm;
-        subj.chest_cm = m.chest_cm;
-        subj.neck_cm = m.neck_cm;
-      }
-      // Placement on the scanner platform: a turn about +y and a horizontal shift.
-      std::uniform_real_distribution<double> u(-1, 1);
-      RigidMotion place;
-      place.R = Eigen::AngleAxisd(u(r) * o.max_yaw_deg * M_PI / 180, Eigen::Vector3d::UnitY())
-                    .toRotationMatrix();
-      place.t = Eigen::Vector3d(u(r) * o.max_shift_mm, 0, u(r) * o.max_shift_mm);
-      Eigen::MatrixX3d truth = apply(place, posed);
-      PointCloud scan = simulate_scan(truth, body.mesh.F, o.scanner, r);
-
-      const std::string id = subj.id + "_p" + std::to_string(job.index);
-      write_point_cloud(dir / "scans" / (id + ".ply"), scan);
-      nlohmann::ordered_json lm;
-      std::normal_distribution<double> ln(0.0, o.landmark_sigma_mm);
-      for (auto& [name, v] : body_landmarks()) {
-        Eigen::Vector3d p = truth.row(v).transpose() + Eigen::Vector3d(ln(r), ln(r), ln(r));
-        lm[name] = {p.x(), p.y(), p.z()};
-      }
-      write_text_file(dir / "scans" / (id + ".landmarks.json"), lm.dump(1) + "\n");
-      write_mesh(dir / "truth" / (id + ".ply"), truth, body.mesh.F);
-      std::string pose_csv = "bone,rx,ry,rz\n";
-      Eigen::Vector3d g = rotation_vector(place.R);
-      pose_csv += "_global_rotation," + fmt_double(g.x(), 9) + "," + fmt_double(g.y(), 9) + "," +
-                  fmt_double(g.z(), 9) + "\n";
-      pose_csv += "_global_translation_mm," + fmt_double(place.t.x(), 4) + "," +
-                  fmt_double(place.t.y(), 4) + "," + fmt_double(place.t.z(), 4) + "\n";
-      for (int b = 0; b < body.skeleton.bone_count(); ++b) {
-        Eigen::Vector3d w = rotation_vector(pose.rotations[b]);
-        pose_csv += body.skeleton.names[b] + "," + fmt_double(w.x(), 9) + "," +
-                    fmt_double(w.y(), 9) + "," + fmt_double(w.z(), 9) + "\n";
-      }
-      write_text_file(dir / "truth" / (id + ".pose.csv"), pose_csv);
-
+      const std::string id = scan_id(job);
       SyntheticScanInfo& info = summary.scans[j];
       info.id = id;
       info.subject_id = subj.id;
-      info.pose = pose_name;
-      info.points = static_cast<int>(scan.P.rows());
+      info.pose = job.pose >= 0 ? pool[job.pose].name : "standard";
+      const int kept_points = resume ? finished_scan_points(dir, id) : -1;
+      // A kept standard-pose scan still needs its subject's labels (below); a kept posed scan
+      // needs nothing more.
+      const bool keep = kept_points >= 0;
+      if (!keep || job.index == 0) {
+        std::mt19937_64 r(job.seed);
+        MakeHuman::Body body = mh.body(subj.sliders);
+        Pose pose = Pose::rest(body.skeleton.bone_count());
+        if (job.pose >= 0) {
+          const PoolPose& pp = pool[job.pose];
+          pose = pp.map ? Retargeter(*pp.motion, body.skeleton, *pp.map).pose(pp.frame)
+                        : bvh_frame_to_pose(*pp.motion, pp.frame, body.skeleton);
+          pose.root_translation.setZero();  // the subject stands on the platform
+          for (auto& bone : perturbed_bones()) {
+            int b = body.skeleton.find(bone);
+            if (b >= 0)
+              pose.rotations[b] = pose.rotations[b] * random_rotation(r, o.perturbation_deg * M_PI / 180);
+          }
+        }
+        Eigen::MatrixX3d posed =
+            linear_blend_skinning(body.mesh.V, body.weights, forward_kinematics(body.skeleton, pose));
+        if (job.index == 0) {
+          // Labels are measured on the standard-pose mesh (what `bodymodel measure` sees).
+          BodyMeasurements m = measure_body(posed, body.mesh.F,
+                                            subj.sex == "male" ? Sex::male : Sex::female);
+          subj.height_cm = m.height_cm;
+          subj.weight_kg = m.weight_kg;
+          subj.body_fat_pct = m.body_fat_pct;
+          subj.waist_cm = m.waist_cm;
+          subj.hips_cm = m.hips_cm;
+          subj.chest_cm = m.chest_cm;
+          subj.neck_cm = m.neck_cm;
+        }
+        if (!keep) {
+          // Placement on the scanner platform: a turn about +y and a horizontal shift.
+          std::uniform_real_distribution<double> u(-1, 1);
+          RigidMotion place;
+          place.R = Eigen::AngleAxisd(u(r) * o.max_yaw_deg * M_PI / 180, Eigen::Vector3d::UnitY())
+                        .toRotationMatrix();
+          place.t = Eigen::Vector3d(u(r) * o.max_shift_mm, 0, u(r) * o.max_shift_mm);
+          Eigen::MatrixX3d truth = apply(place, posed);
+          PointCloud scan = simulate_scan(truth, body.mesh.F, o.scanner, r);
+
+          write_point_cloud(dir / "scans" / (id + ".ply"), scan);
+          nlohmann::ordered_json lm;
+          std::normal_distribution<double> ln(0.0, o.landmark_sigma_mm);
+          for (auto& [name, v] : body_landmarks()) {
+            Eigen::Vector3d p = truth.row(v).transpose() + Eigen::Vector3d(ln(r), ln(r), ln(r));
+            lm[name] = {p.x(), p.y(), p.z()};
+          }
+          write_text_file(dir / "scans" / (id + ".landmarks.json"), lm.dump(1) + "\n");
+          write_mesh(dir / "truth" / (id + ".ply"), truth, body.mesh.F);
+          std::string pose_csv = "bone,rx,ry,rz\n";
+          Eigen::Vector3d g = rotation_vector(place.R);
+          pose_csv += "_global_rotation," + fmt_double(g.x(), 9) + "," + fmt_double(g.y(), 9) + "," +
+                      fmt_double(g.z(), 9) + "\n";
+          pose_csv += "_global_translation_mm," + fmt_double(place.t.x(), 4) + "," +
+                      fmt_double(place.t.y(), 4) + "," + fmt_double(place.t.z(), 4) + "\n";
+          for (int b = 0; b < body.skeleton.bone_count(); ++b) {
+            Eigen::Vector3d w = rotation_vector(pose.rotations[b]);
+            pose_csv += body.skeleton.names[b] + "," + fmt_double(w.x(), 9) + "," +
+                        fmt_double(w.y(), 9) + "," + fmt_double(w.z(), 9) + "\n";
+          }
+          write_text_file(dir / "truth" / (id + ".pose.csv"), pose_csv);
+          info.points = static_cast<int>(scan.P.rows());
+        }
+      }
+      if (keep) {
+        info.points = kept_points;
+        ++skipped;
+      }
       int finished = ++done;
       std::lock_guard<std::mutex> lock(progress_mutex);
       try {
-        report_progress(progress, double(finished) / jobs.size(), id);
+        report_progress(progress, double(finished) / jobs.size(), keep ? id + " (kept)" : id);
       } catch (const Cancelled&) {
         cancelled = true;
       }
     });
   });
   if (cancelled) throw Cancelled{};
+  summary.skipped = skipped;
 
   std::string scans_csv = "scan_id,subject_id,pose,points\n";
   for (auto& s : summary.scans)
@@ -415,20 +587,6 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
   }
   write_text_file(dir / "scans.csv", scans_csv);
   write_text_file(dir / "subjects.csv", subjects_csv);
-  nlohmann::ordered_json meta = {
-      {"generator", "bodymodel synth-db"},
-      {"seed", o.seed},
-      {"subjects", o.subjects},
-      {"poses_per_subject", o.poses_per_subject},
-      {"units", "millimetres, +y up, bodies face +z"},
-      {"noise_sigma_mm", o.scanner.noise_sigma_mm},
-      {"landmark_sigma_mm", o.landmark_sigma_mm},
-      {"pillars", o.scanner.pillars},
-      {"perturbation_deg", o.perturbation_deg},
-      {"pose_pool", summary.pose_pool},
-      {"density_kg_per_l", MeasureOptions{}.density_kg_per_l},
-      {"note", "truth/ is for evaluation only: nothing in the pipeline may read it"}};
-  write_text_file(dir / "database.json", meta.dump(2) + "\n");
   summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return summary;

@@ -44,6 +44,13 @@ struct SyntheticDatabaseOptions {
   double max_shift_mm = 40;      // random horizontal placement on the platform
   ScannerOptions scanner;
   int threads = 0;               // 0 = all cores
+  // Resume: when OUT/database.json describes this same database (every option above that changes
+  // the output, and the pose pool), a scan whose four files (scans/<id>.ply, .landmarks.json,
+  // truth/<id>.ply, .pose.csv) all exist and parse is kept and not made again; a scan with any
+  // of them missing or unreadable is made again in full. Otherwise every scan is made (the
+  // files of this database's scan ids are removed first, so a later resume never keeps a file
+  // made with other options). Either way the folder ends byte-identical to a clean run.
+  bool resume = true;
 };
 
 // What a subject is: slider values and measured labels (measured on the standard-pose mesh).
@@ -67,7 +74,21 @@ struct SyntheticDatabaseSummary {
   std::vector<SyntheticScanInfo> scans;
   std::vector<std::string> pose_pool;
   double seconds = 0;
+  int skipped = 0;               // scans kept from an earlier run of the same database
+  int removed_temporaries = 0;   // stale write_atomically temporaries of killed runs removed
 };
+
+// What OUT/database.json would hold for these options (seed, sizes, scanner, noise, pose pool):
+// the description of the database, and the key a resume compares.
+std::string synthetic_database_description(const MakeHuman& makehuman,
+                                           const SyntheticDatabaseOptions& options);
+
+// Whether `out_dir`/database.json describes exactly the database `options` make. When it does not
+// and `difference` is given, it receives a short phrase naming the first difference ("seed 11,
+// not 5", "no database.json", ...).
+bool is_same_synthetic_database(const MakeHuman& makehuman, const std::string& out_dir,
+                                const SyntheticDatabaseOptions& options,
+                                std::string* difference = nullptr);
 
 // Generates the whole database into `out_dir` (see tools/verbs/synth_db.cc for the layout).
 SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& makehuman,

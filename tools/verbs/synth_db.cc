@@ -14,7 +14,7 @@ namespace {
 struct SynthArgs {
   SyntheticDatabaseOptions options;
   std::string out;
-  bool force = false;
+  bool force = false, no_resume = false;
 };
 }  // namespace
 
@@ -25,7 +25,9 @@ BODYMODEL_VERB(add_synth_db_verb) {
       "Generate a synthetic scan database: MakeHuman subjects, posed, scanned by a simulated\n"
       "4-pillar laser scanner (noise, holes, estimated normals), with ground truth apart.\n"
       "Writes OUT/subjects.csv, OUT/scans.csv, OUT/scans/<id>.ply + <id>.landmarks.json,\n"
-      "OUT/truth/<id>.ply + <id>.pose.csv (evaluation only) and OUT/database.json.");
+      "OUT/truth/<id>.ply + <id>.pose.csv (evaluation only) and OUT/database.json.\n"
+      "A rerun with the same settings keeps the scans an earlier (interrupted) run finished and\n"
+      "makes the rest; the folder ends identical to a clean run.");
   auto& o = a->options;
   cmd->add_option("--subjects", o.subjects, "Number of subjects (alternating female/male)")
       ->capture_default_str();
@@ -45,13 +47,18 @@ BODYMODEL_VERB(add_synth_db_verb) {
       ->capture_default_str();
   cmd->add_option("--jobs", o.threads, "Threads (0 = all cores)")->capture_default_str();
   cmd->add_option("--out", a->out, "Output folder")->required();
-  cmd->add_flag("--force", a->force, "Write into an existing non-empty folder");
+  cmd->add_flag("--force", a->force,
+                "Write into an existing non-empty folder that does not hold this same database");
+  cmd->add_flag("--no-resume", a->no_resume,
+                "Make every scan again, even those an earlier run of the same database finished");
   cmd->callback([a] {
     namespace fs = std::filesystem;
     std::error_code ec;
-    if (fs::exists(a->out, ec) && !fs::is_empty(a->out, ec) && !a->force)
+    const bool non_empty = fs::exists(a->out, ec) && !fs::is_empty(a->out, ec);
+    if (non_empty && !a->force && !fs::exists(fs::path(a->out) / "database.json", ec))
       throw InputError("output folder '" + a->out +
                        "' exists and is not empty (use --force to write into it)");
+    a->options.resume = !a->no_resume;
     const auto& o = a->options;
     cli::info(fmt::format("synth-db: {} subjects x {} scans, seed {}, noise {} mm, landmarks {} mm, "
                           "{} pillars, min {} points/scan",
@@ -59,9 +66,25 @@ BODYMODEL_VERB(add_synth_db_verb) {
                           o.landmark_sigma_mm, o.scanner.pillars, o.scanner.min_points));
     cli::info("loading MakeHuman data from " + data_root().string());
     MakeHuman mh = MakeHuman::load();
+    if (non_empty) {
+      std::string difference;
+      if (is_same_synthetic_database(mh, a->out, o, &difference)) {
+        cli::info(o.resume ? "resuming the database in " + a->out + " (finished scans are kept)"
+                           : "making every scan of " + a->out + " again (--no-resume)");
+      } else if (!a->force) {
+        throw InputError("output folder '" + a->out + "' holds another synth-db database (" +
+                         difference + "; use --force to write into it)");
+      } else {
+        cli::info("writing into " + a->out + ": its database.json differs (" + difference +
+                  "), every scan is made again");
+      }
+    }
     cli::ProgressBar bar("synth-db");
     SyntheticDatabaseSummary s = generate_synthetic_database(mh, a->out, o, bar.callback());
-    bar.finish(fmt::format("{} scans", s.scans.size()));
+    bar.finish(fmt::format("{} scans ({} kept from an earlier run)", s.scans.size(), s.skipped));
+    if (s.removed_temporaries > 0)
+      cli::info(fmt::format("removed {} temporaries left by a killed run", s.removed_temporaries));
+    if (non_empty) cli::info(fmt::format("skipped {} existing scans", s.skipped));
     double hmin = 1e9, hmax = 0, wmin = 1e9, wmax = 0;
     long points = 0;
     for (auto& subj : s.subjects) {
@@ -72,8 +95,9 @@ BODYMODEL_VERB(add_synth_db_verb) {
     fmt::print("database      {}\n", a->out);
     fmt::print("subjects      {} ({} female, {} male)\n", s.subjects.size(),
                (s.subjects.size() + 1) / 2, s.subjects.size() / 2);
-    fmt::print("scans         {} (standard pose + {} of: {})\n", s.scans.size(),
-               o.poses_per_subject, fmt::join(s.pose_pool, ", "));
+    fmt::print("scans         {} (standard pose + {} of: {}); {} made now, {} kept\n", s.scans.size(),
+               o.poses_per_subject, fmt::join(s.pose_pool, ", "), s.scans.size() - s.skipped,
+               s.skipped);
     fmt::print("height        {:.1f} .. {:.1f} cm\n", hmin, hmax);
     fmt::print("weight        {:.1f} .. {:.1f} kg\n", wmin, wmax);
     fmt::print("points/scan   {:.0f} on average\n", double(points) / s.scans.size());
