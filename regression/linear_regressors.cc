@@ -6,6 +6,7 @@
 
 #include "core/error.h"
 #include "regression/cross_validation.h"
+#include "regression/prefix_linear.h"
 
 namespace bodymodel {
 
@@ -66,28 +67,65 @@ Eigen::MatrixXd select_columns(const Eigen::MatrixXd& X, const std::vector<int>&
 
 }  // namespace
 
-Eigen::VectorXd filtered_linear_curve(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
-                                      const std::vector<int>& fold_of, int folds, int max_components,
-                                      ComponentRanking ranking) {
+Eigen::MatrixXd filtered_linear_residuals(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
+                                          const std::vector<int>& fold_of, int folds, int max_components,
+                                          ComponentRanking ranking) {
+  if (X.rows() != y.size() || static_cast<Eigen::Index>(fold_of.size()) != X.rows())
+    throw InputError("filtered_linear_residuals: " + std::to_string(X.rows()) + " feature rows, " +
+                     std::to_string(y.size()) + " labels, " + std::to_string(fold_of.size()) +
+                     " fold indices (expected one of each per row)");
   const int d = static_cast<int>(X.cols());
   const int M = max_components <= 0 ? d : std::min(max_components, d);
-  Eigen::VectorXd sse = Eigen::VectorXd::Zero(M);
-  Eigen::Index tested = 0;
+  Eigen::MatrixXd residual = Eigen::MatrixXd::Constant(X.rows(), M, std::nan(""));
+  bool any = false;
   for (const auto& [train, test] : fold_splits(fold_of, folds)) {
     if (test.empty() || train.size() < 2) continue;
     const Eigen::MatrixXd Xtr = select_rows(X, train), Xte = select_rows(X, test);
-    const Eigen::VectorXd ytr = select_rows(y, train), yte = select_rows(y, test);
+    const Eigen::VectorXd ytr = select_rows(y, train);
     const std::vector<int> order = rank_components(Xtr, ytr, ranking);
-    for (int m = 1; m <= M; ++m) {
-      const LinearFit f = fit_linear(select_columns(Xtr, order, m), ytr);
-      const Eigen::VectorXd pred =
-          (select_columns(Xte, order, m) * f.gradient).array() + f.offset;
-      sse(m - 1) += (pred - yte).squaredNorm();
-    }
-    tested += static_cast<Eigen::Index>(test.size());
+    const Eigen::MatrixXd pred =
+        prefix_linear_predictions(select_columns(Xtr, order, M), ytr, select_columns(Xte, order, M), M);
+    for (size_t k = 0; k < test.size(); ++k)
+      residual.row(test[k]) = pred.row(static_cast<Eigen::Index>(k)).array() - y(test[k]);
+    any = true;
   }
-  if (tested == 0) throw InputError("filtered_linear_curve: no test rows in any fold");
+  if (!any) throw InputError("filtered_linear_residuals: no test rows in any fold");
+  return residual;
+}
+
+Eigen::VectorXd filtered_linear_curve(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
+                                      const std::vector<int>& fold_of, int folds, int max_components,
+                                      ComponentRanking ranking) {
+  const Eigen::MatrixXd r = filtered_linear_residuals(X, y, fold_of, folds, max_components, ranking);
+  Eigen::VectorXd sse = Eigen::VectorXd::Zero(r.cols());
+  Eigen::Index tested = 0;
+  for (Eigen::Index i = 0; i < r.rows(); ++i)
+    if (std::isfinite(r(i, 0))) sse += r.row(i).transpose().cwiseAbs2(), ++tested;
   return (sse / static_cast<double>(tested)).cwiseSqrt();
+}
+
+int choose_component_count(const Eigen::MatrixXd& residuals, CountSelection selection) {
+  std::vector<Eigen::Index> rows;
+  for (Eigen::Index i = 0; i < residuals.rows(); ++i)
+    if (residuals.row(i).allFinite()) rows.push_back(i);
+  if (rows.empty() || residuals.cols() == 0)
+    throw InputError("choose_component_count: no held-out residuals (expected at least one tested row)");
+  const double n = static_cast<double>(rows.size());
+  Eigen::VectorXd mse = Eigen::VectorXd::Zero(residuals.cols());
+  for (Eigen::Index i : rows) mse += residuals.row(i).transpose().cwiseAbs2();
+  mse /= n;
+  Eigen::Index best = 0;
+  mse.minCoeff(&best);
+  if (selection == CountSelection::minimum || rows.size() < 2) return static_cast<int>(best) + 1;
+  // One-standard-error rule (Hastie, Tibshirani & Friedman, §7.10): the fewest components whose
+  // cross-validated MSE is within one standard error of the minimum's. The standard error is
+  // that of the mean of the per-row squared errors at the minimum.
+  double var = 0;
+  for (Eigen::Index i : rows) var += std::pow(residuals(i, best) * residuals(i, best) - mse(best), 2);
+  const double se = std::sqrt(var / (n - 1) / n);
+  for (Eigen::Index m = 0; m <= best; ++m)
+    if (mse(m) <= mse(best) + se) return static_cast<int>(m) + 1;
+  return static_cast<int>(best) + 1;
 }
 
 // ---- filtered linear ------------------------------------------------------------------------
@@ -109,14 +147,13 @@ void FilteredLinearRegressor::fit(const Eigen::MatrixXd& X, const Eigen::VectorX
       std::sort(g.begin(), g.end());
       subjects = static_cast<int>(std::unique(g.begin(), g.end()) - g.begin());
     }
-    const int inner = std::min(options_.inner_folds, subjects);
+    const int inner = options_.inner_folds <= 0 ? subjects : std::min(options_.inner_folds, subjects);
     if (inner < 2) throw InputError("filtered_linear: needs at least 2 subjects to choose the component count");
     const std::vector<int> fold_of =
         grouped_folds(groups, static_cast<int>(X.rows()), inner, options_.inner_seed);
-    inner_curve_ = filtered_linear_curve(X, y, fold_of, inner, cap, options_.ranking);
-    Eigen::Index best = 0;
-    inner_curve_.minCoeff(&best);
-    m = static_cast<int>(best) + 1;
+    const Eigen::MatrixXd residuals = filtered_linear_residuals(X, y, fold_of, inner, cap, options_.ranking);
+    inner_curve_ = (residuals.colwise().squaredNorm() / static_cast<double>(X.rows())).cwiseSqrt().transpose();
+    m = choose_component_count(residuals, options_.selection);
   }
   const std::vector<int> order = rank_components(X, y, options_.ranking);
   kept_.assign(order.begin(), order.begin() + m);
