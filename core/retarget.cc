@@ -26,6 +26,12 @@ bool corrects_rest(const std::vector<std::string>& targets) {
   return true;
 }
 
+bool is_arm_chain(const std::vector<std::string>& targets) {
+  for (const auto& t : targets)
+    if (!(starts_with(t, "upperarm") || starts_with(t, "lowerarm") || starts_with(t, "wrist"))) return false;
+  return !targets.empty();
+}
+
 }  // namespace
 
 RetargetMap RetargetMap::poser_cmu() {
@@ -113,6 +119,7 @@ Retargeter::Retargeter(const BvhMotion& clip, const Skeleton& target, const Reta
   const int nj = static_cast<int>(clip_.joints.size());
   const int nb = target_.bone_count();
   driver_.assign(nb, -1);
+  spread_.assign(nb, 0);
   std::vector<const RetargetMap::Entry*> entry_of(nj, nullptr);
   for (const auto& e : map.entries) {
     const int j = clip_.find(e.source);
@@ -130,6 +137,14 @@ Retargeter::Retargeter(const BvhMotion& clip, const Skeleton& target, const Reta
       }
     }
     if (!present.empty()) entry_of[j] = &e;
+    // Spine and neck chains of consecutive bones share the bend.
+    bool spine = present.size() >= 2;
+    for (size_t i = 0; i < present.size() && spine; ++i) {
+      spine = starts_with(present[i], "spine") || starts_with(present[i], "neck");
+      if (i > 0) spine = spine && target_.parents[target_.find(present[i])] == target_.find(present[i - 1]);
+    }
+    if (spine)
+      for (const auto& t : present) spread_[target_.find(t)] = static_cast<int>(present.size());
   }
 
   // Rest positions of the source joints (file units, hm08 axes).
@@ -151,7 +166,10 @@ Retargeter::Retargeter(const BvhMotion& clip, const Skeleton& target, const Reta
     const int parent = clip_.joints[j].parent;
     Eigen::Matrix3d A = parent >= 0 ? correction_[parent] : Eigen::Matrix3d::Identity();
     const RetargetMap::Entry* e = entry_of[j];
-    if (e && e->correct_rest) {
+    const bool correct = e && e->correct_rest &&
+                         (options.rest_correction == RetargetOptions::RestCorrection::all_chains ||
+                          is_arm_chain(e->targets));
+    if (correct) {
       const Eigen::Vector3d dt = chain_direction(*e);
       // Source direction: towards the mapped child best aligned with the target chain, or
       // the End Site of a leaf joint; zero-length offsets carry no direction.
@@ -226,9 +244,19 @@ Pose Retargeter::pose(int frame) const {
     const int p = target_.parents[b];
     const int j = driver_[b];
     if (j >= 0) {
-      Q[b] = G[j] * correction_[j];
       const Eigen::Matrix3d Qp = p >= 0 ? Q[p] : Eigen::Matrix3d::Identity();
-      pose.rotations[b] = Qp.transpose() * Q[b];
+      if (spread_[b] > 0 && p >= 0 && driver_[p] == j) {
+        // Later bone of a shared chain: the same part of the bend as the first.
+        pose.rotations[b] = pose.rotations[p];
+        Q[b] = Qp * pose.rotations[b];
+      } else if (spread_[b] > 0) {
+        const Eigen::Quaterniond total(Eigen::Matrix3d(Qp.transpose() * G[j] * correction_[j]));
+        pose.rotations[b] = Eigen::Quaterniond::Identity().slerp(1.0 / spread_[b], total).toRotationMatrix();
+        Q[b] = Qp * pose.rotations[b];
+      } else {
+        Q[b] = G[j] * correction_[j];
+        pose.rotations[b] = Qp.transpose() * Q[b];
+      }
     } else {
       Q[b] = p >= 0 ? Q[p] : Eigen::Matrix3d::Identity();
     }

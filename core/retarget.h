@@ -7,13 +7,24 @@
 //
 // Three steps, as the README suggests:
 //  1. Name map: each source joint drives a chain of default-skeleton bones (`RetargetMap`).
-//  2. Rest-pose correction: the clips rest in a T-pose, hm08 in an A-pose. For each mapped
+//  2. Rest-pose correction: the clips rest in a T-pose, hm08 in an A-pose. For each corrected
 //     chain, A = the smallest rotation taking the hm08 rest chain direction (head of its first
 //     bone → tail of its last) onto the source rest direction (joint → its mapped child or End
 //     Site). The world rotation of every bone of the chain is Q_b = G_j · A, where G_j is the
-//     source joint's accumulated world rotation (file axes converted to hm08). Chains fixed to
-//     the hips (root, pelvis) and fingers/toes take no correction of their own: they use their
+//     source joint's accumulated world rotation (file axes converted to hm08). By default only
+//     the arm chains (upper arm, forearm, hand) are corrected: that is where the two rest poses
+//     differ. A mocap skeleton's rest pose is a calibration stance whose spine, neck, collars
+//     and legs are straight by construction, not by the actor's posture; aligning hm08's
+//     S-curved spine, neck and clavicles onto them bent a standing body by 17–39° per joint
+//     (12_03's rest frame: neck01 39°, spine02 25°, clavicle.L 23° but clavicle.R 18°) and
+//     stretched the neck, shoulders and crotch in every frame. Chains not corrected use their
 //     source parent's A. Bones that no chain drives keep identity relative to their parent.
+//     A spine or neck chain driven by one source joint (abdomen → spine05..spine03, chest →
+//     spine02, spine01, neck → neck01..neck03) shares the joint's rotation relative to the
+//     chain's parent equally among its bones (each takes the n-th root), so the hm08 spine bends
+//     along its length like a back instead of folding at its lowest bone (02_02's abdomen bends
+//     35° against the hips: all at spine05 it stretched the groin 4.9 × with the template
+//     weights). The chain's last bone ends where it did.
 //  3. Root translation: scaled by (hm08 thigh+shin length / source thigh+shin length), with
 //     the horizontal travel measured from frame 0 and the height from the source's rest hip
 //     height above its lowest rest joint, so a standing frame keeps the hm08 feet on the rest
@@ -56,6 +67,11 @@ struct RetargetOptions {
   // travels metres, which would carry a scanned body out of a scanner). On: see step 3 above.
   bool apply_root_translation = false;
   bool start_at_origin = true;        // horizontal translation relative to frame 0
+  // Which chains get a rest correction of their own (step 2). `arms`: upper arm, forearm and
+  // hand chains only (default). `all_chains`: every chain except root, pelvis, fingers and toes
+  // (the behaviour before session 3, kept for comparison).
+  enum class RestCorrection { arms, all_chains };
+  RestCorrection rest_correction = RestCorrection::arms;
 };
 
 // Drives `target` (the MakeHuman default skeleton, any body shape) with `clip`.
@@ -83,6 +99,8 @@ class Retargeter {
   RetargetOptions options_;
   Eigen::Matrix3d C_;                      // file axes → hm08 axes
   std::vector<int> driver_;                // #target bones: driving source joint or −1
+  std::vector<int> spread_;                // #target bones: length of the spine/neck chain whose
+                                           // bend this bone shares (0 = not shared)
   std::vector<Eigen::Matrix3d> correction_;  // #source joints: rest correction A
   double scale_ = 1;
   double rest_hip_height_ = 0;             // source units, above its lowest rest joint
