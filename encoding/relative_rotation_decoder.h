@@ -21,9 +21,13 @@
 //       c. otherwise (blends, model samples, masked changes: the relative rotations have
 //          holonomy, so no flat gauge exists and the preconditioner above needs > 20 iterations
 //          even in the gauge of the exact solution): sparse Cholesky of N as 3×3 blocks
-//          (encoding/block_cholesky.h: AMD ordering and elimination tree analysed once at
-//          set-up, numeric factorisation per decode, parallel over disjoint subtrees; ≈ 2.5×
-//          faster than CHOLMOD's scalar refactorisation of the same matrix on this machine).
+//          (encoding/block_cholesky.h: AMD ordering, elimination tree and supernodes analysed
+//          once at set-up, supernodal numeric factorisation per decode, parallel over disjoint
+//          subtrees). Preconditioning with a factorisation kept from a reference encoding
+//          (the set mean), even gauge-transformed by the exact solution's rotations, was
+//          measured too: 55–60+ CG iterations on the body's blends, each costing a quarter of
+//          a factorisation, because holonomy changes the magnitude (shrinkage) of the
+//          least-squares solution, not only its rotations; so the decoder refactorises.
 //     Each X_fᵀ is then orthonormalised (closest rotation) to give R_f.
 //  2. Positions. With U_f = R_f S_f the target gradient of triangle f, minimise
 //     Σ_f area_f ‖∇X|_f − U_f‖² (gradient-domain Poisson): K X = Gᵀ A B with K = Gᵀ A G the
