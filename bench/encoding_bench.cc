@@ -15,6 +15,12 @@
 //                          scalar refactorisation instead of the default 3×3-block Cholesky)
 //   Decode/5 baseline      the body blend, both systems analysed and factorised on every call
 //   DecodeTwoThreads       one decoder, two threads decoding a sample and a blend concurrently
+//   RotationFactor/0       the body blend's rotation system (3·26 755 unknowns, triangle 0
+//                          fixed): supernodal block Cholesky (encoding/block_cholesky.h, the
+//                          decoder's path), numeric factorisation and solve, process CPU
+//   RotationFactor/1       the same matrix with CHOLMOD's simplicial scalar refactorisation
+//                          (the direct reference); the summary prints the ratio of the two,
+//                          measured in this process, and the supernodal analysis' sizes
 // Each decode is also run in its two stages (split/...: rotation = encoding → matrices,
 // rotation solve, orthonormalisation; Poisson = right-hand side and back-substitution).
 #include <benchmark/benchmark.h>
@@ -34,6 +40,10 @@
 #include "core/io/bvh.h"
 #include "core/makehuman.h"
 #include "core/skeleton.h"
+#include <Eigen/CholmodSupport>
+#include <Eigen/Sparse>
+
+#include "encoding/block_cholesky.h"
 #include "encoding/relative_rotation_decoder.h"
 #include "encoding/relative_rotation_encoding.h"
 
@@ -195,6 +205,97 @@ void BM_DecodeTwoThreads(benchmark::State& state) {
 }
 BENCHMARK(BM_DecodeTwoThreads)->Unit(benchmark::kMillisecond)->Iterations(6)->UseRealTime();
 
+// The rotation system of the body blend on its own: block values and scalar matrix.
+struct RotationSystem {
+  int n = 0;                                    // unknown blocks (triangle 0 fixed)
+  std::vector<std::pair<int, int>> lower;       // block pattern, (r, c) with r > c
+  std::vector<Eigen::Matrix3d> diag, off;       // values for BlockCholesky3
+  Eigen::SparseMatrix<double> N;                // the same 3n by 3n matrix, lower triangle
+  Eigen::MatrixXd b;                            // 3n by 3 right-hand side
+  std::unique_ptr<BlockCholesky3> supernodal;
+};
+
+const RotationSystem& rotation_system() {
+  static const RotationSystem sys = [] {
+    const Fixture& f = fixture();
+    RotationSystem r;
+    std::vector<Eigen::Matrix3d> slots, S;
+    encoding_matrices(f.body_blend, slots, S);
+    const Eigen::MatrixX3i& TT = f.tmpl->adjacency();
+    const int nf = f.tmpl->triangle_count();
+    r.n = nf - 1;
+    auto reverse = [&](int f0, int k) {
+      const int g = TT(f0, k);
+      for (int kk = 0; kk < 3; ++kk)
+        if (TT(g, kk) == f0) return 3 * g + kk;
+      return 3 * f0 + k;
+    };
+    std::vector<Eigen::Triplet<double>> t;
+    r.diag.assign(r.n, Eigen::Matrix3d::Zero());
+    r.b = Eigen::MatrixXd::Zero(3 * r.n, 3);
+    for (int f0 = 0; f0 < nf; ++f0)
+      for (int k = 0; k < 3; ++k) {
+        const int g = TT(f0, k);
+        if (g < 0) continue;
+        const Eigen::Matrix3d M = slots[3 * f0 + k] + slots[reverse(f0, k)].transpose();
+        if (f0 >= 1) r.diag[f0 - 1] += 2 * Eigen::Matrix3d::Identity();
+        if (f0 >= 1 && g == 0) r.b.middleRows<3>(3 * (f0 - 1)) += M;
+        if (f0 > g && g >= 1) {
+          r.lower.emplace_back(f0 - 1, g - 1);
+          r.off.push_back(-M);
+        }
+      }
+    for (int p = 0; p < r.n; ++p)
+      for (int a = 0; a < 3; ++a)
+        for (int c = 0; c < 3; ++c) t.emplace_back(3 * p + a, 3 * p + c, r.diag[p](a, c));
+    for (size_t e = 0; e < r.lower.size(); ++e)
+      for (int a = 0; a < 3; ++a)
+        for (int c = 0; c < 3; ++c)
+          t.emplace_back(3 * r.lower[e].first + a, 3 * r.lower[e].second + c, r.off[e](a, c));
+    r.N.resize(3 * r.n, 3 * r.n);
+    r.N.setFromTriplets(t.begin(), t.end());
+    r.supernodal = std::make_unique<BlockCholesky3>(r.n, r.lower);
+    return r;
+  }();
+  return sys;
+}
+
+void BM_RotationFactor(benchmark::State& state) {
+  const RotationSystem& r = rotation_system();
+  const bool cholmod = state.range(0) == 1;
+  const std::string name = cholmod ? "CHOLMOD simplicial" : "supernodal";
+  Eigen::CholmodSimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower> scalar;
+  scalar.analyzePattern(r.N);
+  BlockCholesky3::Factor factor;
+  double residual = 0;
+  for (auto _ : state) {
+    Eigen::MatrixXd x = r.b;
+    std::clock_t c0 = std::clock();
+    if (cholmod) {
+      scalar.factorize(r.N);
+      samples()["rotation system: " + name + " factorise (process CPU)"].push_back(cpu_ms_since(c0));
+      c0 = std::clock();
+      x = scalar.solve(r.b);
+    } else {
+      if (!r.supernodal->factorize(r.diag, r.off, factor)) state.SkipWithError("not positive definite");
+      samples()["rotation system: " + name + " factorise (process CPU)"].push_back(cpu_ms_since(c0));
+      c0 = std::clock();
+      r.supernodal->solve(factor, x);
+    }
+    samples()["rotation system: " + name + " solve (process CPU)"].push_back(cpu_ms_since(c0));
+    const Eigen::MatrixXd full = r.N.selfadjointView<Eigen::Lower>() * x;
+    residual = (full - r.b).norm() / r.b.norm();
+  }
+  state.SetLabel(name);
+  state.counters["relative_residual"] = residual;
+  if (!cholmod) {
+    state.counters["supernodes"] = r.supernodal->supernode_count();
+    state.counters["factor_blocks"] = static_cast<double>(r.supernodal->factor_blocks());
+    state.counters["MFlop"] = r.supernodal->factor_flops() / 1e6;
+  }
+}
+BENCHMARK(BM_RotationFactor)->DenseRange(0, 1)->Unit(benchmark::kMillisecond)->Iterations(15);
+
 }  // namespace
 }  // namespace bodymodel
 
@@ -219,5 +320,12 @@ int main(int argc, char** argv) {
         std::printf("  %s %.1fx", c, ratio(base, std::string("decode/") + c + " (process CPU)"));
     std::printf("\n");
   }
+  const std::string sn = "rotation system: supernodal factorise (process CPU)";
+  const std::string ch = "rotation system: CHOLMOD simplicial factorise (process CPU)";
+  if (s.count(sn) && s.count(ch))
+    std::printf("rotation system, supernodal / CHOLMOD simplicial (process CPU, same process): "
+                "factorise %.2f, solve %.2f\n", ratio(sn, ch),
+                ratio("rotation system: supernodal solve (process CPU)",
+                      "rotation system: CHOLMOD simplicial solve (process CPU)"));
   return 0;
 }
