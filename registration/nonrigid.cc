@@ -2,6 +2,7 @@
 
 #include <Eigen/CholmodSupport>
 #include <Eigen/Eigenvalues>
+#include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -122,6 +123,73 @@ InverseCorrespondences inverse_correspondences(const Eigen::MatrixX3d& V,
     if (out.kind(i) == 2) ++out.closest_count;
   }
   return out;
+}
+
+int repair_flipped_triangles(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_ref,
+                             const Eigen::MatrixX3i& F, int rings, int passes) {
+  const int n = int(V.rows());
+  if (V_ref.rows() != n) throw InputError("repair_flipped_triangles: V and V_ref differ in size");
+  std::vector<std::vector<int>> nbr(n);
+  {
+    const Eigen::MatrixX2i E = unique_edges(F);
+    for (Eigen::Index e = 0; e < E.rows(); ++e) {
+      nbr[E(e, 0)].push_back(E(e, 1));
+      nbr[E(e, 1)].push_back(E(e, 0));
+    }
+  }
+  // Umbrella Laplacian coordinates of the reference.
+  Eigen::MatrixX3d delta(n, 3);
+  for (int i = 0; i < n; ++i) {
+    Eigen::RowVector3d d = double(nbr[i].size()) * V_ref.row(i);
+    for (int j : nbr[i]) d -= V_ref.row(j);
+    delta.row(i) = d;
+  }
+  const Eigen::MatrixX3d Nref = face_normals(V_ref, F);
+  int first = -1;
+  for (int pass = 0; pass < passes; ++pass) {
+    const Eigen::MatrixX3d N = face_normals(V, F);
+    std::vector<char> in(n, 0);
+    int flipped = 0;
+    for (Eigen::Index f = 0; f < F.rows(); ++f)
+      if (N.row(f).dot(Nref.row(f)) < 0) {
+        ++flipped;
+        for (int c = 0; c < 3; ++c) in[F(f, c)] = 1;
+      }
+    if (first < 0) first = flipped;
+    if (flipped == 0) break;
+    for (int r = 0; r < rings + pass; ++r) {  // a wider region on each further pass
+      std::vector<char> grown = in;
+      for (int i = 0; i < n; ++i)
+        if (in[i])
+          for (int j : nbr[i]) grown[j] = 1;
+      in.swap(grown);
+    }
+    std::vector<int> id(n, -1), region;
+    for (int i = 0; i < n; ++i)
+      if (in[i]) id[i] = int(region.size()), region.push_back(i);
+    const int m = int(region.size());
+    std::vector<Eigen::Triplet<double>> t;
+    Eigen::MatrixX3d b(m, 3);
+    const double eps = 1e-6;  // keeps a region without fixed neighbours non-singular
+    for (int k = 0; k < m; ++k) {
+      const int i = region[k];
+      t.emplace_back(k, k, double(nbr[i].size()) + eps);
+      Eigen::RowVector3d rhs = delta.row(i) + eps * V.row(i);
+      for (int j : nbr[i]) {
+        if (id[j] >= 0) t.emplace_back(k, id[j], -1.0);
+        else rhs += V.row(j);
+      }
+      b.row(k) = rhs;
+    }
+    SparseMatrixd A(m, m);
+    A.setFromTriplets(t.begin(), t.end());
+    Eigen::SimplicialLDLT<SparseMatrixd> ldlt(A);
+    if (ldlt.info() != Eigen::Success) break;
+    const Eigen::MatrixX3d X = ldlt.solve(b);
+    if (!X.allFinite()) break;
+    for (int k = 0; k < m; ++k) V.row(region[k]) = X.row(k);
+  }
+  return std::max(first, 0);
 }
 
 struct NonrigidRegistration::Impl {

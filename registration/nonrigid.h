@@ -116,6 +116,16 @@ InverseCorrespondences inverse_correspondences(const Eigen::MatrixX3d& V,
                                                const PointIndex& scan_index,
                                                const NonrigidOptions& options);
 
+// Repairs folds of a registered mesh: triangles of V whose normal points away from the same
+// triangle of V_ref (the pose-fitted template, which has the right orientation everywhere),
+// grown by `rings` vertex rings, are re-solved so that their vertices' umbrella-Laplacian
+// coordinates equal V_ref's (the region takes the reference's local shape, glued to the
+// unchanged vertices around it). Repeats up to `passes` times while flipped triangles remain.
+// Returns the number of triangles flipped against V_ref before the repair.
+//   V #V by 3 (modified in place), V_ref #V by 3, F #F by 3.
+int repair_flipped_triangles(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_ref,
+                             const Eigen::MatrixX3i& F, int rings = 2, int passes = 3);
+
 // Solver object: built once per template (cotangent weights of the *original* template,
 // symbolic factorisation), then fit() to any number of scans. Not thread-safe: use one object
 // per thread.

@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <set>
 #include <tbb/parallel_for.h>
 
@@ -15,7 +16,7 @@
 
 namespace bodymodel {
 
-const std::vector<PoseParameter>& default_pose_parameters() {
+const std::vector<PoseParameter>& segment_pose_parameters() {
   static const std::vector<PoseParameter> params = [] {
     // One rotation per body segment. MakeHuman splits segments over several bones; left
     // independent, consecutive bones counter-rotate to absorb the subject's proportions at no
@@ -54,6 +55,23 @@ const std::vector<PoseParameter>& default_pose_parameters() {
   }();
   return params;
 }
+
+const std::vector<PoseParameter>& bone_pose_parameters() {
+  static const std::vector<PoseParameter> params = [] {
+    std::vector<PoseParameter> p;
+    for (const auto& g : segment_pose_parameters()) {
+      if (g.bones[0].rfind("finger", 0) == 0) {  // keep the grasp groups
+        p.push_back(g);
+        continue;
+      }
+      for (const auto& b : g.bones) p.push_back({{b}, false});
+    }
+    return p;
+  }();
+  return params;
+}
+
+const std::vector<PoseParameter>& default_pose_parameters() { return segment_pose_parameters(); }
 
 const std::vector<std::string>& default_free_bones() {
   static const std::vector<std::string> names = [] {
@@ -210,20 +228,23 @@ class PointResidual : public ceres::CostFunction {
   double weight_, plane_weight_, point_weight_;
 };
 
+// weight·(aa − centre): towards the rest pose (centre 0) or towards the landmark-only pose.
 struct PriorResidual {
   double weight;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   template <typename T>
   bool operator()(const T* aa, T* r) const {
-    for (int k = 0; k < 3; ++k) r[k] = T(weight) * aa[k];
+    for (int k = 0; k < 3; ++k) r[k] = T(weight) * (aa[k] - T(centre[k]));
     return true;
   }
 };
 
 struct PriorResidual1 {
   double weight;
+  double centre = 0.0;
   template <typename T>
   bool operator()(const T* a, T* r) const {
-    r[0] = T(weight) * a[0];
+    r[0] = T(weight) * (a[0] - T(centre));
     return true;
   }
 };
@@ -429,10 +450,12 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
   // correspondences of a template in the wrong pose are not), then the ICP iterations.
   const int lm_iters = landmarks.size() >= 3 ? o.landmark_iterations : 0;
   const int total_iters = lm_iters + o.max_icp_iterations;
+  std::vector<Eigen::Vector3d> anchor;  // joint parameters after the landmark-only solves
   for (int iter = 0; iter < total_iters; ++iter) {
     report_progress(progress, double(iter) / total_iters, "pose fit");
     const bool data = iter >= lm_iters;
     const int data_iter = iter - lm_iters;
+    if (data_iter == 0 && lm_iters > 0) anchor = joint_aa;
     const Pose pose = current_pose();
     const Eigen::MatrixX3d V = pose_template(tpl.V, skeleton, W, scale, pose);
     const Eigen::MatrixX3d VN = vertex_normals(V, tpl.F);
@@ -450,6 +473,49 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
       }
       match[si] = j;
     });
+    // Scan → template pairs (symmetric ICP): every scan_samples-th scan point pulls its closest
+    // template sample. Template→scan pairs alone never pull a template limb towards scan
+    // surface it does not already face (an arm stuck against the torso matches the torso).
+    std::vector<std::pair<int, int>> back;  // (sample, scan point)
+    if (data && o.symmetric_weight > 0) {
+      Eigen::MatrixX3d SV(nsamples, 3);
+      for (int si = 0; si < nsamples; ++si) SV.row(si) = V.row(samples[si]);
+      PointIndex sample_index(SV);
+      const int m = int(scan.P.rows());
+      const int sstride = std::max(1, m / std::max(1, o.scan_samples));
+      const int count = (m + sstride - 1) / sstride;
+      std::vector<int> bmatch(count, -1);
+      tbb::parallel_for(0, count, [&](int k) {
+        const int j = k * sstride;
+        double d2 = 0;
+        const int si = sample_index.nearest(scan.P.row(j).transpose(), &d2);
+        if (si < 0 || d2 > dmax * dmax) return;
+        if (scan.has_normals()) {
+          const double c = scan.N.row(j).dot(VN.row(samples[si]));
+          if ((o.unsigned_normals ? std::abs(c) : c) < cos_min) return;
+        }
+        bmatch[k] = si;
+      });
+      for (int k = 0; k < count; ++k)
+        if (bmatch[k] >= 0) back.emplace_back(bmatch[k], k * sstride);
+    }
+    // Trimming: after the first data iteration, drop the worst trim_fraction of each direction's
+    // pairs (occluded or wrongly matched surface).
+    double trim_fwd = std::numeric_limits<double>::infinity(), trim_back = trim_fwd;
+    if (data && data_iter >= 1 && o.trim_fraction > 0) {
+      auto quantile = [&](std::vector<double> d) {
+        if (d.size() < 10) return std::numeric_limits<double>::infinity();
+        const size_t k = size_t((1.0 - o.trim_fraction) * double(d.size() - 1));
+        std::nth_element(d.begin(), d.begin() + k, d.end());
+        return d[k];
+      };
+      std::vector<double> df, db;
+      for (int si = 0; si < nsamples; ++si)
+        if (match[si] >= 0) df.push_back((V.row(samples[si]) - scan.P.row(match[si])).norm());
+      for (const auto& [si, j] : back) db.push_back((V.row(samples[si]) - scan.P.row(j)).norm());
+      trim_fwd = quantile(df);
+      trim_back = quantile(db);
+    }
 
     ceres::Problem problem;
     std::vector<double*> blocks_all;
@@ -475,13 +541,27 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     double d2sum = 0;
     for (int si = 0; si < nsamples; ++si) {
       if (match[si] < 0) continue;
-      ++matched;
       const Eigen::Vector3d target = scan.P.row(match[si]).transpose();
-      d2sum += (V.row(samples[si]).transpose() - target).squaredNorm();
+      const double d2 = (V.row(samples[si]).transpose() - target).squaredNorm();
+      if (d2 > trim_fwd * trim_fwd) continue;
+      ++matched;
+      d2sum += d2;
       const Eigen::Vector3d normal = scan.has_normals() ? Eigen::Vector3d(scan.N.row(match[si]))
                                                         : Eigen::Vector3d::Zero();
       add_point(si, target, normal, 1.0, 1.0, o.point_to_point_weight,
                 new ceres::HuberLoss(o.robust_scale));
+    }
+    if (!back.empty()) {
+      // Both directions weigh the same in total.
+      const double w = o.symmetric_weight * std::sqrt(double(std::max(matched, 1)) / back.size());
+      for (const auto& [si, j] : back) {
+        const Eigen::Vector3d target = scan.P.row(j).transpose();
+        if ((V.row(samples[si]).transpose() - target).norm() > trim_back) continue;
+        const Eigen::Vector3d normal =
+            scan.has_normals() ? Eigen::Vector3d(scan.N.row(j)) : Eigen::Vector3d::Zero();
+        add_point(si, target, normal, w, 1.0, o.point_to_point_weight,
+                  new ceres::HuberLoss(o.robust_scale));
+      }
     }
     double l2 = 0;
     for (size_t k = 0; k < landmarks.size(); ++k) {
@@ -493,7 +573,9 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     // Prior per bone: a tied group of g bones costs g times its shared rotation.
     for (int k = 0; k < nfree; ++k) {
       const double anneal =
-          data ? std::max(1.0, o.initial_prior_factor * std::pow(0.5, data_iter)) : 1.0;
+          data ? std::max(1.0, o.initial_prior_factor * std::pow(0.5, data_iter))
+               : std::pow(o.landmark_prior_factor,
+                          lm_iters > 1 ? double(lm_iters - 1 - iter) / double(lm_iters - 1) : 1.0);
       const double w = std::sqrt(anneal * o.pose_prior * params[k].prior * double(params[k].bones.size()));
       if (params[k].twist)
         problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual1, 1, 1>(
@@ -503,6 +585,17 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
         problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual, 3, 3>(
                                      new PriorResidual{w}),
                                  nullptr, joint_aa[k].data());
+      if (data && !anchor.empty() && o.anchor_prior > 0) {
+        const double wa = std::sqrt(o.anchor_prior * double(params[k].bones.size()));
+        if (params[k].twist)
+          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual1, 1, 1>(
+                                       new PriorResidual1{wa, anchor[k][0]}),
+                                   nullptr, joint_aa[k].data());
+        else
+          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual, 3, 3>(
+                                       new PriorResidual{wa, anchor[k]}),
+                                   nullptr, joint_aa[k].data());
+      }
     }
     sum.rms = matched ? std::sqrt(d2sum / matched) : 0.0;
     sum.matched_samples = matched;
@@ -549,6 +642,25 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
   result.V = pose_template(tpl.V, skeleton, W, scale, result.pose);
   result.free_bones = free_bones;
   if (!result.V.allFinite()) throw NumericalError("pose fit produced non-finite vertices");
+  {  // Two-sided distance of the result (truncated at max_distance): comparable across options.
+    const double cap = o.max_distance;
+    PointIndex vertex_index(result.V);
+    const int m = int(scan.P.rows());
+    const int sstride = std::max(1, m / 20000), vstride = std::max(1, n / 5000);
+    double a = 0, b = 0;
+    int na = 0, nb2 = 0;
+    for (int j = 0; j < m; j += sstride, ++na) {
+      double d2 = 0;
+      vertex_index.nearest(scan.P.row(j).transpose(), &d2);
+      a += std::min(std::sqrt(d2), cap);
+    }
+    for (int i = 0; i < n; i += vstride, ++nb2) {
+      double d2 = 0;
+      scan_index.nearest(result.V.row(i).transpose(), &d2);
+      b += std::min(std::sqrt(d2), cap);
+    }
+    sum.two_sided_mm = 0.5 * (a / std::max(na, 1) + b / std::max(nb2, 1));
+  }
   report_progress(progress, 1.0, "pose fit");
   sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (summary) *summary = sum;

@@ -61,9 +61,27 @@ struct PoseFitOptions {
   // pose_prior (coarse to fine: joints move first where the data insists most). 100 gave
   // 21.0 vs 22.1 mm posed-template error on six scans, joint error unchanged: off by default.
   double initial_prior_factor = 1.0;
+  // Symmetric ICP: scan→template pairs (every scan_samples-th scan point to its closest
+  // template sample, same rejection) with this total weight relative to the template→scan
+  // pairs. 0: template→scan only (§2.2).
+  double symmetric_weight = 0.0;
+  int scan_samples = 3000;
+  // From the second ICP iteration on, the worst trim_fraction of each direction's pairs is
+  // dropped (trimmed ICP). 0: off.
+  double trim_fraction = 0.0;
+  // Prior towards the pose of the landmark-only solve (same form as pose_prior, centred there
+  // instead of at rest): keeps joints the surface barely constrains (twists) where the
+  // landmarks put them. 0: off.
+  double anchor_prior = 0.0;
   int max_icp_iterations = 25;
   // Solves with the landmarks alone (and the prior) before the ICP iterations (needs ≥ 3).
   int landmark_iterations = 1;
+  // The landmark-only solves use a pose prior this many times stronger, relaxed geometrically to
+  // 1× over landmark_iterations solves (with one solve: this factor). Two dozen landmarks leave
+  // limb twists and the split between consecutive bones undetermined; a weak prior lets the
+  // solver wander into twisted poses (a thigh twisted 60° and the knee bent sideways to
+  // compensate) that the ICP, on near-cylindrical limbs, cannot undo.
+  double landmark_prior_factor = 1.0;
   int solver_iterations = 8;            // Levenberg–Marquardt iterations per ICP step
   // Stop when no joint angle changes by more than this (degrees) and the translation by less
   // than convergence_mm between ICP iterations.
@@ -80,6 +98,9 @@ struct PoseFitSummary {
   double landmark_rms = 0.0;    // mm
   bool converged = false;
   int landmarks_used = 0;       // landmarks on the root or free bones (the others are ignored)
+  // Mean of (scan points → posed template vertices) and (template vertices → scan points),
+  // each distance capped at max_distance (mm): compares fits with different options.
+  double two_sided_mm = 0.0;
 };
 
 struct PoseFitResult {
@@ -89,7 +110,14 @@ struct PoseFitResult {
   std::vector<int> free_bones;  // indices of the fitted bones (root first)
 };
 
-// The default parameters (MakeHuman default skeleton names): one rotation per body segment.
+// Pose parameterisations of the MakeHuman default skeleton:
+// 'segment': one rotation per body segment (tied spine and neck groups, clavicle + shoulder01,
+// twist-only second bones of each limb segment) plus finger grasp groups;
+const std::vector<PoseParameter>& segment_pose_parameters();
+// 'bone': every spine, neck, arm and leg bone of the segment set a free ball joint (the
+// pose prior picks the smallest split), finger grasp groups as in 'segment'.
+const std::vector<PoseParameter>& bone_pose_parameters();
+// The default parameters: one of the two above (the better on the synthetic database).
 const std::vector<PoseParameter>& default_pose_parameters();
 // All bones named by default_pose_parameters().
 const std::vector<std::string>& default_free_bones();

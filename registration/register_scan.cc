@@ -32,13 +32,30 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
     if (po.initial_scale <= 0 && !r.proportions.segment.empty())
       po.initial_scale = r.proportions.global_scale;
   }
-  r.pose = fit_pose(rest, skeleton, tpl.weights, scan, landmarks, po, &sum.pose,
-                    sub(0.0, pose_share));
+  const int fits = 1 + int(options.pose_alternatives.size());
+  for (int k = 0; k < fits; ++k) {
+    PoseFitOptions pk = k == 0 ? po : options.pose_alternatives[k - 1];
+    if (k > 0) {
+      pk.unsigned_normals = po.unsigned_normals;
+      if (pk.initial_scale <= 0) pk.initial_scale = po.initial_scale;
+    }
+    PoseFitSummary sk;
+    PoseFitResult rk = fit_pose(rest, skeleton, tpl.weights, scan, landmarks, pk, &sk,
+                                sub(pose_share * k / fits, pose_share * (k + 1) / fits));
+    if (k == 0 || sk.two_sided_mm < sum.pose.two_sided_mm) {
+      r.pose = std::move(rk);
+      sum.pose = sk;
+      sum.pose_choice = k;
+    }
+  }
   if (options.skip_nonrigid) {
     r.V = r.pose.V;
   } else {
     NonrigidRegistration reg(tpl.mesh, no);
     r.V = reg.fit(r.pose.V, scan, landmarks, &sum.nonrigid, sub(pose_share, 1.0));
+    if (options.repair_flipped_rings > 0)
+      sum.folded_triangles =
+          repair_flipped_triangles(r.V, r.pose.V, tpl.mesh.F, options.repair_flipped_rings);
   }
   if (!r.V.allFinite()) throw NumericalError(what + ": registration produced non-finite vertices");
   sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

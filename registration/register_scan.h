@@ -27,19 +27,28 @@ struct RegistrationTemplate {
 struct RegistrationOptions {
   ScanCheckOptions scan;
   PoseFitOptions pose;
+  // Further pose fits tried after `pose` (e.g. another parameterisation); the fit with the
+  // smallest two-sided distance to the scan (PoseFitSummary::two_sided_mm) is kept.
+  std::vector<PoseFitOptions> pose_alternatives;
   NonrigidOptions nonrigid;
   // Stretch the template's segments to the landmarks' proportions before the pose fit
   // (registration/proportions.h); needs ≥ 3 landmarks.
   bool fit_proportions = true;
   ProportionOptions proportions;
   bool skip_nonrigid = false;  // stop after the pose fit
+  // After the non-rigid fit, triangles folded against the pose-fitted template are re-solved
+  // from its local shape (repair_flipped_triangles, this many vertex rings around them).
+  // ≤ 0 rings: off.
+  int repair_flipped_rings = 0;
 };
 
 struct RegistrationSummary {
   ScanCheckReport scan;
   PoseFitSummary pose;
+  int pose_choice = 0;  // 0: `pose`, k ≥ 1: pose_alternatives[k − 1]
   NonrigidSummary nonrigid;
   double seconds = 0.0;
+  int folded_triangles = 0;  // flipped against the pose-fitted template before the repair
 };
 
 struct RegistrationResult {

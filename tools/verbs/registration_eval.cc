@@ -1,4 +1,4 @@
-// bodymodel eval-registration DB/ REG/ [--csv FILE]
+// bodymodel eval-registration DB/ REG/ [--csv FILE] [--per-joint] [--flipped-regions]
 //
 // Compares registered meshes and poses with the database's ground truth (EVALUATION.md,
 // registration): correspondence error (per-scan mean, median over scans, 95th percentile of all
@@ -9,10 +9,12 @@
 #include <cmath>
 #include <numeric>
 #include <filesystem>
+#include <map>
 #include <sstream>
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/geometry.h"
 #include "core/io/mesh_io.h"
 #include "core/makehuman.h"
 #include "registration/metrics.h"
@@ -27,8 +29,24 @@ namespace fs = std::filesystem;
 
 struct EvalArgs {
   std::string db, reg, csv;
-  bool per_joint = false;
+  bool per_joint = false, flipped_regions = false;
 };
+
+// Body region of a MakeHuman bone name, for the flipped-triangle breakdown.
+std::string bone_region(const std::string& b) {
+  auto has = [&](const char* k) { return b.find(k) != std::string::npos; };
+  if (has("finger") || has("metacarpal") || has("wrist")) return "hands";
+  if (has("toe") || has("foot")) return "feet";
+  if (has("head") || has("jaw") || has("eye") || has("tongue") || has("teeth") || has("ear") ||
+      has("lip") || has("nose") || has("cheek") || has("brow") || has("temple") || has("chin") ||
+      has("levator") || has("oris") || has("oculi") || has("risorius") || has("special"))
+    return "head/face";
+  if (has("neck")) return "neck";
+  if (has("upperleg") || has("lowerleg")) return "legs";
+  if (has("upperarm") || has("lowerarm")) return "arms";
+  if (has("clavicle") || has("shoulder")) return "shoulders";
+  return "torso/pelvis";
+}
 
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0.0;
@@ -52,6 +70,9 @@ BODYMODEL_VERB(add_eval_registration_verb) {
       ->required();
   cmd->add_option("--csv", a->csv, "Per-scan CSV to write (default REG/evaluation.csv)");
   cmd->add_flag("--per-joint", a->per_joint, "Also print the median error of each major joint");
+  cmd->add_flag("--flipped-regions", a->flipped_regions,
+                "Also print where the flipped triangles are (body region of the bone with the "
+                "largest weight at the triangle's vertices)");
   cmd->callback([a] {
     const fs::path db = a->db, reg = a->reg;
     if (!fs::is_directory(db / "truth"))
@@ -81,6 +102,17 @@ BODYMODEL_VERB(add_eval_registration_verb) {
     std::vector<double> scan_joint_medians;
     std::vector<std::vector<double>> per_joint(joints.size());
     int flipped_total = 0, evaluated = 0, missing = 0;
+    std::map<std::string, int> flipped_by_region;
+    std::vector<std::string> vertex_region;
+    if (a->flipped_regions) {
+      const SkinWeights& W = body.weights;
+      vertex_region.assign(W.rows(), "torso/pelvis");
+      for (int i = 0; i < W.outerSize(); ++i) {
+        double best = 0;
+        for (SkinWeights::InnerIterator it(W, i); it; ++it)
+          if (it.value() > best) best = it.value(), vertex_region[i] = bone_region(sk.names[it.col()]);
+      }
+    }
     double worst_hole = 0;
     cli::ProgressBar bar("eval-registration");
     for (size_t k = 0; k < ids.size(); ++k) {
@@ -105,6 +137,18 @@ BODYMODEL_VERB(add_eval_registration_verb) {
       hole_max.push_back(e.hole_max);
       worst_hole = std::max(worst_hole, e.hole_max);
       flipped_total += e.flipped_triangles;
+      if (a->flipped_regions) {
+        const Eigen::MatrixX3d Nr = face_normals(r.V, t.F), Nt = face_normals(t.V, t.F);
+        for (Eigen::Index f = 0; f < t.F.rows(); ++f)
+          if (Nr.row(f).dot(Nt.row(f)) < 0) {
+            // Region most of the triangle's vertices are in.
+            std::map<std::string, int> votes;
+            for (int c = 0; c < 3; ++c) ++votes[vertex_region[t.F(f, c)]];
+            auto best = std::max_element(votes.begin(), votes.end(),
+                                         [](const auto& x, const auto& y) { return x.second < y.second; });
+            ++flipped_by_region[best->first];
+          }
+      }
       double jmed = std::nan(""), jmax = std::nan("");
       if (fs::exists(reg / (id + ".pose.csv")) && fs::exists(db / "truth" / (id + ".pose.csv"))) {
         const auto Qe = read_pose_csv(reg / (id + ".pose.csv"), sk).world_rotations(sk);
@@ -146,6 +190,9 @@ BODYMODEL_VERB(add_eval_registration_verb) {
       fmt::print("  joint rotation error   median {:6.3f} deg, 95th percentile {:6.3f} deg over "
                  "{} major joints × scans   (target median <= 5)\n",
                  percentile(joint_all, 0.5), percentile(joint_all, 0.95), joint_all.size());
+    if (a->flipped_regions)
+      for (const auto& [region, count] : flipped_by_region)
+        fmt::print("    flipped in {:<14} {}\n", region, count);
     if (a->per_joint && !joint_all.empty())
       for (size_t j = 0; j < joints.size(); ++j)
         fmt::print("    {:<14} median {:6.2f} deg, max {:6.2f} deg\n", sk.names[joints[j]],
