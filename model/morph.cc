@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "core/geometry.h"
+#include "model/generate_measure.h"
 
 namespace bodymodel {
 
@@ -43,12 +44,12 @@ std::string MorphSummary::report() const {
 ShapeMorpher::ShapeMorpher(std::shared_ptr<const BodyModel> model, DecoderOptions options)
     : model_(std::move(model)), decoder_(model_->tmpl, options) {}
 
-Eigen::MatrixX3d ShapeMorpher::decode(const Eigen::VectorXd& x) {
+Eigen::MatrixX3d ShapeMorpher::decode(const Eigen::VectorXd& x) const {
   return decoder_.decode(model_->encoding_of(x));
 }
 
 BodyMeasurements ShapeMorpher::measure(const Eigen::MatrixX3d& V, Sex sex) const {
-  return measure_body(V, model_->tmpl->faces(), sex);
+  return measure_body_banded(V, model_->tmpl->faces(), sex);
 }
 
 namespace {
@@ -64,9 +65,14 @@ double tolerance_for(const LabelInfo& info, const MorphOptions& o) {
 Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
                                               const std::vector<LabelCondition>& conditions,
                                               const MorphOptions& o, MorphSummary* summary,
-                                              Eigen::VectorXd* x_out) {
+                                              Eigen::VectorXd* x_out, const Eigen::VectorXd* c0_known) const {
   auto t0 = std::chrono::steady_clock::now();
   const SubModel& sm = model_->shape;
+  // The start's shape coefficients. Without a mask every candidate is x0 + basis·z, whose
+  // coefficients are c0 + z (orthonormal basis): no D-sized projection per iteration (each
+  // costs as much memory traffic as reading the whole basis).
+  const Eigen::VectorXd c0 = c0_known ? *c0_known : sm.pca.project(x0);
+  const bool masked = o.triangle_mask.size() != 0;
   const SemanticRegression& reg = sm.regression;
   const int m = static_cast<int>(conditions.size());
   std::vector<int> idx(m);
@@ -92,9 +98,9 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
   Eigen::MatrixXd S(sm.component_count(), m);
   for (int i = 0; i < m; ++i) S.col(i) = reg.gradients.col(idx[i]);
 
-  auto values = [&](const Eigen::VectorXd& x, const Eigen::MatrixX3d& V) {
+  auto values = [&](const Eigen::VectorXd& x, const Eigen::VectorXd& z, const Eigen::MatrixX3d& V) {
     Eigen::VectorXd v(m);
-    Eigen::VectorXd pred = reg.predict(sm.pca.project(x));
+    Eigen::VectorXd pred = reg.predict(masked ? sm.pca.project(x) : Eigen::VectorXd(c0 + z));
     std::optional<BodyMeasurements> meas;
     if (any_measured && only_extent_and_volume) {
       // Fast path, the same definitions as measure_body (core/measure.h) without the girth
@@ -112,7 +118,7 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
   };
   auto apply_change = [&](const Eigen::VectorXd& z) {
     Eigen::VectorXd x = x0 + sm.pca.basis * z;
-    if (o.triangle_mask.size() != 0) x = masked_change(model_->encoding_of(x0), model_->encoding_of(x), o.triangle_mask).values;
+    if (masked) x = masked_change(model_->encoding_of(x0), model_->encoding_of(x), o.triangle_mask).values;
     return x;
   };
 
@@ -128,9 +134,9 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
   if (start_measured) {
     V = decode(x0);
     ++decodes;
-    start = values(x0, V);
+    start = values(x0, Eigen::VectorXd::Zero(c0.size()), V);
   } else {
-    Eigen::VectorXd pred = reg.predict(sm.pca.project(x0));
+    Eigen::VectorXd pred = reg.predict(c0);
     for (int i = 0; i < m; ++i) start(i) = pred(idx[i]);
   }
   Eigen::VectorXd target(m), lo(m), hi(m), tol(m);
@@ -183,7 +189,7 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
     x = apply_change(z);
     V = decode(x);
     ++decodes;
-    v = values(x, V);
+    v = values(x, z, V);
     double bad = badness(v);
     if (bad < best_bad) {
       best_bad = bad;
@@ -214,7 +220,7 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
 }
 
 Eigen::MatrixX3d ShapeMorpher::morph(const Eigen::MatrixX3d& V, const std::vector<LabelCondition>& conditions,
-                                     const MorphOptions& options, MorphSummary* summary) {
+                                     const MorphOptions& options, MorphSummary* summary) const {
   Encoding e = model_->encode(V, "input body");
   Eigen::MatrixX3d out = morph_encoding(e.values, conditions, options, summary);
   RigidMotion r = fit_rigid_motion(out, V);
@@ -223,7 +229,7 @@ Eigen::MatrixX3d ShapeMorpher::morph(const Eigen::MatrixX3d& V, const std::vecto
   return out;
 }
 
-GeneratedBody generate_body(ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
+GeneratedBody generate_body(const ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
                             uint64_t seed, const GenerateOptions& o) {
   const BodyModel& model = morpher.model();
   const SubModel& sm = model.shape;
@@ -264,7 +270,7 @@ GeneratedBody generate_body(ShapeMorpher& morpher, const std::vector<LabelCondit
     Eigen::VectorXd x0 = sm.pca.reconstruct(c);
     GeneratedBody g;
     g.attempts = attempt;
-    g.V = morpher.morph_encoding(x0, conditions, mo, &g.summary, &g.encoding);
+    g.V = morpher.morph_encoding(x0, conditions, mo, &g.summary, &g.encoding, &c);
     g.satisfied = true;
     double missed = 0;
     for (auto& l : g.summary.labels)

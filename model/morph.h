@@ -79,8 +79,9 @@ struct MorphSummary {
   std::string report() const;  // one line per label
 };
 
-// Shape-space morphing, generation and decoding with one reusable decoder (not thread-safe:
-// one morpher per thread).
+// Shape-space morphing, generation and decoding with one reusable decoder. Thread-safe: the
+// const methods may run concurrently on one morpher (the decoder is, see
+// encoding/relative_rotation_decoder.h), with results bit-identical to sequential calls.
 class ShapeMorpher {
  public:
   explicit ShapeMorpher(std::shared_ptr<const BodyModel> model, DecoderOptions options = {});
@@ -89,19 +90,23 @@ class ShapeMorpher {
   RelativeRotationDecoder& decoder() { return decoder_; }
 
   // Decodes encoding values x (relative to the model's mean), aligned to the template.
-  Eigen::MatrixX3d decode(const Eigen::VectorXd& x);
+  Eigen::MatrixX3d decode(const Eigen::VectorXd& x) const;
+  // measure_body (core/measure.h) of V, computed band by band (model/generate_measure.h).
   BodyMeasurements measure(const Eigen::MatrixX3d& V, Sex sex) const;
 
   // Morphs the body V (#V by 3, mm; the model's topology) to meet `conditions`. The result is
   // rigidly placed onto V (best fit, then its lowest point put at V's lowest point). Throws
   // InputError for unknown labels (listing the valid ones) or a conflicting label given twice.
   Eigen::MatrixX3d morph(const Eigen::MatrixX3d& V, const std::vector<LabelCondition>& conditions,
-                         const MorphOptions& options = {}, MorphSummary* summary = nullptr);
+                         const MorphOptions& options = {}, MorphSummary* summary = nullptr) const;
 
   // The same starting from encoding values x0 (no placement: template-aligned output).
+  // `c0_known`: the shape coefficients of x0 when the caller has them (x0 = pca.reconstruct(c0)),
+  // which saves projecting x0 (a pass over the whole D by K basis).
   Eigen::MatrixX3d morph_encoding(const Eigen::VectorXd& x0, const std::vector<LabelCondition>& conditions,
                                   const MorphOptions& options, MorphSummary* summary,
-                                  Eigen::VectorXd* x_out = nullptr);
+                                  Eigen::VectorXd* x_out = nullptr,
+                                  const Eigen::VectorXd* c0_known = nullptr) const;
 
  private:
   std::shared_ptr<const BodyModel> model_;
@@ -138,7 +143,7 @@ struct GeneratedBody {
 };
 
 // One body; `seed` makes it reproducible. Conditions may use "sex" with 0 = female, 1 = male.
-GeneratedBody generate_body(ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
+GeneratedBody generate_body(const ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
                             uint64_t seed, const GenerateOptions& options = {});
 
 // The cheap part of core/measure.h's measure_body, with its definitions: height = extent

@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "core/error.h"
+#include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
 #include "model/model_file.h"
 #include "model/morph.h"
@@ -167,6 +168,28 @@ TEST(ModelCli, BadInputGivesClearErrors) {
 
   r = run_cli("generate " + m + " --count 1 --where weight_kg=abc --out '" + (temp_dir() / "crowd").string() + "'");
   EXPECT_EQ(r.exit_code, 2) << r.output;
+}
+
+TEST(ModelCli, GenerateRerunSkipsExistingBodiesAndReportsIt) {
+  const std::string m = "'" + saved_model().string() + "'";
+  const fs::path crowd = temp_dir() / "resume_crowd";
+  auto args_with_seed = [&](int seed) {
+    return "generate " + m + " --count 2 --where sex=female --where weight_kg=65 --seed " + std::to_string(seed) +
+           " --no-girths --jobs 2 --out '" + crowd.string() + "'";
+  };
+  const std::string args = args_with_seed(3);
+  auto r = run_cli(args);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("constraints met        2 of 2"), std::string::npos) << r.output;
+  const std::string first = read_text_file(crowd / "body_001.obj");
+  fs::remove(crowd / "body_001.obj");
+  r = run_cli(args);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("skipped 1 existing"), std::string::npos) << r.output;
+  EXPECT_TRUE(read_text_file(crowd / "body_001.obj") == first);
+  r = run_cli(args_with_seed(4));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("other settings"), std::string::npos) << r.output;
 }
 
 }  // namespace

@@ -1,16 +1,14 @@
 // bodymodel generate model.npz --count 200 --where sex=female --where weight_kg=65
 //   --where height_cm=160..180 --seed 7 --out crowd/
 #include <fmt/format.h>
-#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
-#include <atomic>
-#include <chrono>
 #include <filesystem>
-#include <mutex>
 
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
+#include "model/generate_crowd.h"
 #include "model/morph.h"
 #include "tools/verb.h"
 #include "tools/verbs/model_common.h"
@@ -18,13 +16,16 @@
 namespace bodymodel {
 namespace {
 
+namespace fs = std::filesystem;
+
 struct GenerateArgs {
   std::string model, out, format = "obj";
   std::vector<std::string> where;
   int count = 10;
   uint64_t seed = 1;
   double spread = 1.0;
-  bool clamp = false, no_girths = false;
+  bool clamp = false, no_girths = false, force = false;
+  int jobs = 0;
   int diversity_sample = 40;
 };
 
@@ -52,8 +53,9 @@ BODYMODEL_VERB(add_model_generate_verb) {
       "generate",
       "Generate random bodies from the shape-only model (§5.2): coefficients ~ N(0, eigenvalues)\n"
       "(or the chosen sex's subjects), then the --where conditions are enforced as MEASURED on\n"
-      "each output (model/morph.h). Writes OUT/body_NNN.obj and OUT/labels.csv with the measured\n"
-      "labels of every body.");
+      "each output (model/morph.h). Writes OUT/body_NNN.obj, OUT/labels.csv with the measured\n"
+      "labels of every body and OUT/generate.json with the settings. Body k depends only on the\n"
+      "seed and k. A rerun with the same settings skips the bodies already written (model/generate_crowd.h).");
   cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`)")->required();
   cmd->add_option("--count", a->count, "Number of bodies")->capture_default_str()->check(CLI::Range(1, 100000));
   cmd->add_option("--where", a->where, "LABEL=VALUE or LABEL=LO..HI, repeatable (sex=female|male)");
@@ -65,92 +67,85 @@ BODYMODEL_VERB(add_model_generate_verb) {
                 "labels.csv without the girths and body fat (height, volume, weight only): about a third "
                 "faster");
   cmd->add_flag("--clamp", a->clamp, "Clamp values far outside the data to the data's range");
+  cmd->add_option("--jobs", a->jobs, "Bodies generated in parallel (0 = all cores); the crowd does not depend on it")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 256));
+  cmd->add_flag("--force", a->force,
+                "Replace a crowd generated in OUT with other settings (without it such a folder is refused; "
+                "a rerun with the same settings skips the bodies already written)");
   cmd->add_option("--out", a->out, "Output folder")->required();
   cmd->callback([a] {
     auto model = std::make_shared<const BodyModel>(model_cli::load_model_for_cli(a->model));
     const SemanticRegression& reg = model->shape.regression;
     std::vector<LabelCondition> cond;
     for (auto& w : a->where) cond.push_back(parse_where(reg, w, a->clamp));
-    ensure_directory(a->out);
-    GenerateOptions go;
-    go.spread = a->spread;
-    go.measure_girths = !a->no_girths;
+    GenerateCrowdOptions co;
+    co.generate.spread = a->spread;
+    co.generate.measure_girths = !a->no_girths;
+    co.seed = a->seed;
+    co.format = a->format;
+    co.threads = a->jobs;
+    co.force = a->force;
     Sex sex = Sex::unknown;
     for (auto& c : cond)
       if (c.label == "sex") sex = c.lo < 0.5 ? Sex::female : Sex::male;
     const int n = a->count;
-    std::vector<GeneratedBody> bodies(n);
-    std::vector<int> flipped(n, 0);
-    tbb::enumerable_thread_specific<std::unique_ptr<ShapeMorpher>> morphers;
-    cli::ProgressBar bar("generate");
-    std::atomic<int> done{0};
-    std::mutex mtx;
-    auto t0 = std::chrono::steady_clock::now();
-    tbb::parallel_for(0, n, [&](int i) {
-      auto& m = morphers.local();
-      if (!m) m = std::make_unique<ShapeMorpher>(model);
-      GeneratedBody g = generate_body(*m, cond, a->seed * 1000003ull + static_cast<uint64_t>(i), go);
-      flipped[i] = flipped_triangle_count(*model, g.V);
-      write_mesh(std::filesystem::path(a->out) / fmt::format("body_{:03d}.{}", i, a->format), g.V,
-                 model->tmpl->faces());
-      g.encoding.resize(0);
-      bodies[i] = std::move(g);
-      int d = ++done;
-      std::lock_guard<std::mutex> lock(mtx);
-      bar.update(double(d) / n, fmt::format("body {}", i));
-    });
-    double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    bar.finish(fmt::format("{} bodies in {:.1f} s ({:.1f}/s)", n, secs, n / secs));
-    std::string csv = "body,file,sex,height_cm,weight_kg,volume_l,waist_cm,hips_cm,chest_cm,neck_cm,body_fat_pct,"
-                      "constraints_met,iterations,attempts,flipped_triangles\n";
-    int met = 0, total_flipped = 0;
-    for (int i = 0; i < n; ++i) {
-      const auto& g = bodies[i];
-      const auto& m = g.measured;
-      met += g.satisfied ? 1 : 0;
-      total_flipped += flipped[i];
-      auto num = [](double v) { return std::isfinite(v) ? fmt::format("{:.2f}", v) : std::string(); };
-      csv += fmt::format("{},body_{:03d}.{},{},{:.2f},{:.2f},{:.2f},{},{},{},{},{},{},{},{},{}\n", i, i,
-                         a->format, sex == Sex::female ? "female" : sex == Sex::male ? "male" : "",
-                         m.height_cm, m.weight_kg, m.volume_l, num(m.waist_cm), num(m.hips_cm), num(m.chest_cm),
-                         num(m.neck_cm), num(m.body_fat_pct),
-                         g.satisfied ? 1 : 0, g.summary.iterations, g.attempts, flipped[i]);
+    const fs::path out(a->out);
+    GenerateCrowdSummary s;
+    {
+      cli::ProgressBar bar("generate");
+      s = generate_crowd(model, cond, n, out, co, bar.callback());
+      bar.finish(fmt::format("{} bodies in {:.1f} s ({:.1f}/s)", s.generated, s.seconds,
+                             s.generated / std::max(s.seconds, 1e-9)));
     }
-    write_text_file(std::filesystem::path(a->out) / "labels.csv", csv);
-    // Diversity: mean pairwise RMS vertex distance (after rigid fit) of a sample of the crowd,
-    // against that of the model's training subjects (decoded from their coefficients).
-    ShapeMorpher dm(model);
+    if (s.skipped > 0) cli::info(fmt::format("skipped {} existing (complete bodies of an earlier run with the same settings)", s.skipped));
+    // Diversity: mean pairwise RMS vertex distance (after rigid fit) of a sample of the crowd
+    // (read back: skipped bodies are only on disk), against that of the model's training
+    // subjects (decoded from their coefficients, in parallel on one thread-safe morpher).
     const int k = std::min(n, a->diversity_sample);
-    double gsum = 0;
-    int gp = 0;
-    for (int i = 0; i < k; ++i)
-      for (int j = i + 1; j < k; ++j, ++gp) gsum += rms_vertex_distance(bodies[i].V, bodies[j].V);
-    std::vector<Eigen::MatrixX3d> subj;
+    std::vector<Eigen::MatrixX3d> crowd(k);
+    for (int i = 0; i < k; ++i) crowd[i] = read_mesh(out / s.files[i]).V;
     const auto& C = model->shape.pca.coefficients;
     std::vector<int> same_sex;
     int sex_label = reg.find("sex");
     for (int i = 0; i < C.rows(); ++i)
-      if (sex == Sex::unknown || sex_label < 0 ||
-          std::abs(model->shape.labels(i, sex_label) - (sex == Sex::male ? 1.0 : 0.0)) < 0.5)
+      if (static_cast<int>(same_sex.size()) < a->diversity_sample &&
+          (sex == Sex::unknown || sex_label < 0 ||
+           std::abs(model->shape.labels(i, sex_label) - (sex == Sex::male ? 1.0 : 0.0)) < 0.5))
         same_sex.push_back(i);
-    for (int i : same_sex)
-      if (static_cast<int>(subj.size()) < a->diversity_sample)
-        subj.push_back(dm.decode(model->shape.pca.reconstruct(C.row(i).transpose())));
-    double ssum = 0;
-    int sp = 0;
-    for (size_t i = 0; i < subj.size(); ++i)
-      for (size_t j = i + 1; j < subj.size(); ++j, ++sp) ssum += rms_vertex_distance(subj[i], subj[j]);
-    fmt::print("bodies                 {}\n", n);
-    fmt::print("constraints met        {} of {} (as measured on each output)\n", met, n);
-    fmt::print("flipped triangles      {} in total ({:.4f}% of all triangles)\n", total_flipped,
-               100.0 * total_flipped / (double(n) * model->tmpl->triangle_count()));
+    const ShapeMorpher dm(model);
+    std::vector<Eigen::MatrixX3d> subj(same_sex.size());
+    auto decode_subjects = [&] {
+      tbb::parallel_for(0, static_cast<int>(same_sex.size()), [&](int t) {
+        subj[t] = dm.decode(model->shape.pca.reconstruct(C.row(same_sex[t]).transpose()));
+      });
+    };
+    if (a->jobs > 0) {
+      tbb::task_arena arena(a->jobs);
+      arena.execute(decode_subjects);
+    } else {
+      decode_subjects();
+    }
+    auto mean_pairwise = [](const std::vector<Eigen::MatrixX3d>& b) {
+      double sum = 0;
+      int pairs = 0;
+      for (size_t i = 0; i < b.size(); ++i)
+        for (size_t j = i + 1; j < b.size(); ++j, ++pairs) sum += rms_vertex_distance(b[i], b[j]);
+      return pairs ? sum / pairs : 0.0;
+    };
+    fmt::print("bodies                 {} ({} generated, {} skipped as already written)\n", n, s.generated, s.skipped);
+    fmt::print("constraints met        {} of {} (as measured on each output)\n", s.constraints_met, n);
+    fmt::print("flipped triangles      {} in total ({:.4f}% of all triangles)\n", s.flipped_triangles,
+               100.0 * s.flipped_triangles / (double(n) * model->tmpl->triangle_count()));
     fmt::print("diversity              mean pairwise RMS vertex distance {:.1f} mm (first {} bodies)\n",
-               gp ? gsum / gp : 0.0, k);
+               mean_pairwise(crowd), k);
     fmt::print("                       vs {:.1f} mm between the model's {} training subjects{}\n",
-               sp ? ssum / sp : 0.0, subj.size(), sex == Sex::unknown ? "" : " of that sex");
-    fmt::print("speed                  {:.1f} bodies/s including writing meshes\n", n / secs);
-    if (met < n) cli::warn(fmt::format("{} bodies did not meet every condition (see labels.csv)", n - met));
-    cli::info("wrote " + a->out + "/labels.csv");
+               mean_pairwise(subj), subj.size(), sex == Sex::unknown ? "" : " of that sex");
+    if (s.generated > 0)
+      fmt::print("speed                  {:.1f} bodies/s including writing meshes\n", s.generated / std::max(s.seconds, 1e-9));
+    if (s.constraints_met < n)
+      cli::warn(fmt::format("{} bodies did not meet every condition (see labels.csv)", n - s.constraints_met));
+    cli::info("wrote " + (out / "labels.csv").string());
   });
 }
 
