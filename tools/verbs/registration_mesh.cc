@@ -1,0 +1,238 @@
+// bodymodel register-mesh MESH... --landmarks LM.json --out REG/ [--scale 1000] [--detail]
+//
+// Registers the template (MakeHuman default body, its skeleton and weights) to meshes of any
+// topology — a captured sequence, a reconstruction — with landmarks placed once as vertex
+// indices of the mesh and reused for every mesh of the same topology. Writes REG/<stem>.ply
+// (template topology, mm), REG/<stem>.pose.csv and REG/register-mesh.csv (per mesh: two-sided
+// surface distance to the mesh, folded triangles, time); with --detail also the detail offsets
+// REG/<stem>.detail.npz and the detailed mesh REG/<stem>.detailed.ply.
+#include <fmt/format.h>
+
+#include <atomic>
+#include <filesystem>
+#include <mutex>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include "core/error.h"
+#include "core/io/atomic_write.h"
+#include "core/io/mesh_io.h"
+#include "core/landmarks.h"
+#include "core/makehuman.h"
+#include "registration/detail_transfer.h"
+#include "registration/mesh_scan.h"
+#include "registration/pose_io.h"
+#include "registration/register_scan.h"
+#include "tools/console.h"
+#include "tools/verb.h"
+
+namespace bodymodel {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RegisterMeshArgs {
+  std::vector<std::string> meshes;
+  std::string landmarks, out, schedule = "fast";
+  double scale = 1.0;
+  int jobs = 1, samples = MeshScanOptions{}.samples;
+  int fast_steps = NonrigidOptions{}.fast_steps;
+  bool force = false, detail = false, pose_only = false, no_proportions = false;
+  int pose_iterations = PoseFitOptions{}.max_icp_iterations;
+};
+
+std::string csv_header() {
+  return "mesh,scan_points,landmarks,scale,pose_icp_iterations,pose_rms_mm,nonrigid_iterations,"
+         "data_rms_mm,landmark_rms_mm,registered_to_scan_mm,scan_to_registered_mm,"
+         "two_sided_mm,registered_to_scan_p95_mm,scan_to_registered_p95_mm,folded_triangles,"
+         "flipped_against_scan,detail_scan_to_registered_mm,seconds\n";
+}
+
+void rebuild_csv(const fs::path& out) {
+  std::vector<fs::path> parts;
+  for (const auto& e : fs::directory_iterator(out)) {
+    const std::string s = e.path().filename().string();
+    if (s.size() > 18 && s.compare(s.size() - 18, 18, ".register-mesh.csv") == 0)
+      parts.push_back(e.path());
+  }
+  std::sort(parts.begin(), parts.end());
+  std::string s = csv_header();
+  for (const auto& p : parts) s += read_text_file(p);
+  write_text_file(out / "register-mesh.csv", s);
+}
+
+}  // namespace
+
+BODYMODEL_VERB(add_register_mesh_verb) {
+  auto a = std::make_shared<RegisterMeshArgs>();
+  auto* cmd = app.add_subcommand(
+      "register-mesh",
+      "Register the template to meshes of any topology (e.g. a captured sequence), with\n"
+      "landmarks placed once as vertex indices of the mesh and reused for every mesh:\n"
+      "skeleton pose fit, then non-rigid fit to a dense sampling of the mesh (Hasler et al.\n"
+      "2009 §2). Writes OUT/<stem>.ply (template topology, mm), OUT/<stem>.pose.csv and\n"
+      "OUT/register-mesh.csv (two-sided surface distance to the mesh, folded triangles).\n"
+      "Meshes already registered are skipped; a failed mesh is reported and skipped.\n"
+      "Example (a sequence in metres):\n"
+      "  bodymodel register-mesh frames/*.obj --landmarks lm.json --scale 1000 --out reg/");
+  cmd->add_option("meshes", a->meshes, "Scan meshes (OBJ/PLY), any topology")->required();
+  cmd->add_option("--landmarks", a->landmarks,
+                  "JSON {name: vertex index (0-based, of the scan mesh) or [x, y, z]}; names as "
+                  "in the template's landmark table (head_top, l_knee, ...)")
+      ->required();
+  cmd->add_option("--out", a->out, "Output folder")->required();
+  cmd->add_option("--scale", a->scale,
+                  "Millimetres per mesh unit (1000 for meshes in metres)")
+      ->capture_default_str();
+  cmd->add_option("--schedule", a->schedule,
+                  "Non-rigid stiffness schedule: 'paper' (1500 steps, §2.3) or 'fast'")
+      ->check(CLI::IsMember({"paper", "fast"}))
+      ->capture_default_str();
+  cmd->add_option("--fast-steps", a->fast_steps, "Steps of the fast schedule")
+      ->capture_default_str();
+  cmd->add_option("--samples", a->samples,
+                  "Surface samples drawn on each mesh for the registration (besides its vertices)")
+      ->capture_default_str();
+  cmd->add_option("--jobs", a->jobs, "Meshes registered in parallel")->capture_default_str();
+  cmd->add_flag("--detail", a->detail,
+                "Detail transfer: also write OUT/<stem>.detail.npz (normal offsets of the "
+                "mid-edge subdivision, per triangle) and OUT/<stem>.detailed.ply");
+  cmd->add_flag("--pose-only", a->pose_only, "Stop after the skeleton pose fit");
+  cmd->add_flag("--no-proportions", a->no_proportions,
+                "Keep the template's limb proportions (global scale only)");
+  cmd->add_option("--pose-iterations", a->pose_iterations,
+                  "ICP iterations of the pose fit (0: landmarks only)")
+      ->capture_default_str();
+  cmd->add_flag("--force", a->force, "Register again meshes that are already done");
+  cmd->callback([a] {
+    if (!(a->scale > 0) || !std::isfinite(a->scale))
+      throw InputError("--scale must be a positive number of millimetres per mesh unit, got " +
+                       fmt::format("{}", a->scale));
+    if (a->jobs < 1) throw InputError("--jobs must be at least 1, got " + std::to_string(a->jobs));
+    if (a->fast_steps < 1) throw InputError("--fast-steps must be at least 1");
+    if (a->samples < 0) throw InputError("--samples must not be negative");
+    const fs::path out = a->out;
+    std::vector<std::string> stems;
+    for (const auto& m : a->meshes) {
+      if (!fs::is_regular_file(m))
+        throw InputError("'" + m + "': expected a mesh file (OBJ/PLY), it does not exist");
+      const std::string stem = fs::path(m).stem().string();
+      if (std::find(stems.begin(), stems.end(), stem) != stems.end())
+        throw InputError("'" + m + "': two meshes share the name '" + stem +
+                         "'; their outputs would overwrite each other");
+      stems.push_back(stem);
+    }
+    if (!fs::is_regular_file(a->landmarks))
+      throw InputError("--landmarks '" + a->landmarks + "': file not found");
+    ensure_directory(out);
+    std::vector<size_t> todo;
+    for (size_t k = 0; k < stems.size(); ++k) {
+      const std::string& s = stems[k];
+      const bool done = fs::exists(out / (s + ".ply")) && fs::exists(out / (s + ".pose.csv")) &&
+                        fs::exists(out / (s + ".register-mesh.csv")) &&
+                        (!a->detail || fs::exists(out / (s + ".detail.npz")));
+      if (a->force || !done) todo.push_back(k);
+    }
+    if (todo.size() < stems.size())
+      cli::info(fmt::format("{} of {} meshes already registered in {}: skipped",
+                            stems.size() - todo.size(), stems.size(), a->out));
+    if (todo.empty()) {
+      rebuild_csv(out);
+      return;
+    }
+
+    MakeHuman mh = MakeHuman::load();
+    MakeHuman::Body body = mh.body(MacroSettings{});
+    const RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights};
+    RegistrationOptions options;
+    options.nonrigid.schedule =
+        a->schedule == "paper" ? NonrigidSchedule::paper : NonrigidSchedule::fast;
+    options.nonrigid.fast_steps = a->fast_steps;
+    options.skip_nonrigid = a->pose_only;
+    options.fit_proportions = !a->no_proportions;
+    options.pose.max_icp_iterations = a->pose_iterations;
+    // options.pose.parameters left empty: default_pose_parameters(), as `register`.
+
+    cli::ProgressBar bar(fmt::format("register {} meshes", todo.size()));
+    std::mutex mutex;
+    std::atomic<int> done{0};
+    std::vector<std::string> failures;
+    std::vector<double> current(todo.size(), 0.0);
+    auto update = [&](std::string_view what) {
+      double f = 0;
+      for (double c : current) f += c;
+      bar.update(f / todo.size(), what);
+    };
+    tbb::task_arena arena(a->jobs);
+    arena.execute([&] {
+      tbb::parallel_for(size_t(0), todo.size(), size_t(1), [&](size_t j) {
+        const std::string& path = a->meshes[todo[j]];
+        const std::string& stem = stems[todo[j]];
+        try {
+          Mesh mesh = read_mesh(path);
+          mesh.V *= a->scale;
+          std::vector<Landmark> landmarks =
+              read_mesh_landmarks(a->landmarks, body_landmarks(), mesh.V);
+          MeshScanOptions so;
+          so.samples = a->samples;
+          PointCloud scan = mesh_to_scan(mesh, so, path);
+          const PointCloud scan_copy = scan;
+          RegistrationSummary s;
+          auto progress = [&, j](double f, std::string_view) {
+            std::lock_guard<std::mutex> lock(mutex);
+            current[j] = 0.9 * f;
+            update(stem);
+            return true;
+          };
+          const RegistrationResult r =
+              register_scan(tpl, scan, landmarks, options, path, &s, progress);
+          const MeshScanDistance d = mesh_scan_distance(r.V, tpl.mesh.F, mesh, &r.pose.V);
+          double detail_distance = -1;
+          if (a->detail) {
+            const SurfaceDetail detail = capture_detail(r.V, tpl.mesh.F, scan_copy);
+            const Mesh detailed = apply_detail(r.V, tpl.mesh.F, detail);
+            detail_distance =
+                mesh_scan_distance(detailed.V, detailed.F, mesh).scan_to_registered_mean;
+            write_detail(out / (stem + ".detail.npz"), detail, tpl.mesh.F);
+            write_mesh(out / (stem + ".detailed.ply"), detailed);
+          }
+          PoseRecord rec;
+          rec.scale = r.pose.scale;
+          rec.pose = r.pose.pose;
+          write_mesh(out / (stem + ".ply"), r.V, tpl.mesh.F);
+          write_pose_csv(out / (stem + ".pose.csv"), tpl.skeleton, rec);
+          write_text_file(
+              out / (stem + ".register-mesh.csv"),
+              fmt::format("{},{},{},{:.6f},{},{:.4f},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},"
+                          "{:.4f},{},{},{:.4f},{:.2f}\n",
+                          stem, scan.P.rows(), landmarks.size(), r.pose.scale,
+                          s.pose.icp_iterations, s.pose.rms, s.nonrigid.iterations,
+                          s.nonrigid.data_rms, s.nonrigid.landmark_rms, d.registered_to_scan_mean,
+                          d.scan_to_registered_mean, d.two_sided_mean, d.registered_to_scan_p95,
+                          d.scan_to_registered_p95, d.folded_triangles, d.flipped_against_scan,
+                          detail_distance, s.seconds));
+          std::lock_guard<std::mutex> lock(mutex);
+          current[j] = 1.0;
+          ++done;
+          cli::info(fmt::format("{}: two-sided distance {:.2f} mm (registered→scan {:.2f}, "
+                                "scan→registered {:.2f}), {} folded triangles, {:.0f} s",
+                                stem, d.two_sided_mean, d.registered_to_scan_mean,
+                                d.scan_to_registered_mean, d.folded_triangles, s.seconds));
+          update(stem);
+        } catch (const std::exception& e) {
+          std::lock_guard<std::mutex> lock(mutex);
+          current[j] = 1.0;
+          failures.push_back(stem + ": " + e.what());
+          cli::warn(fmt::format("mesh {} failed and was skipped: {}", path, e.what()));
+        }
+      });
+    });
+    bar.finish(fmt::format("{} registered, {} failed", done.load(), failures.size()));
+    rebuild_csv(out);
+    if (!failures.empty())
+      throw InputError(fmt::format("{} of {} meshes failed; first: {}", failures.size(),
+                                   todo.size(), failures.front()));
+  });
+}
+
+}  // namespace bodymodel
