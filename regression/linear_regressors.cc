@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
 #include "core/error.h"
@@ -104,7 +105,11 @@ Eigen::VectorXd filtered_linear_curve(const Eigen::MatrixXd& X, const Eigen::Vec
   return (sse / static_cast<double>(tested)).cwiseSqrt();
 }
 
-int choose_component_count(const Eigen::MatrixXd& residuals, CountSelection selection) {
+int choose_component_count(const Eigen::MatrixXd& residuals, CountSelection selection,
+                           const std::vector<bool>& allowed) {
+  if (!allowed.empty() && static_cast<Eigen::Index>(allowed.size()) != residuals.cols())
+    throw InputError("choose_component_count: " + std::to_string(allowed.size()) + " candidate flags for " +
+                     std::to_string(residuals.cols()) + " counts");
   std::vector<Eigen::Index> rows;
   for (Eigen::Index i = 0; i < residuals.rows(); ++i)
     if (residuals.row(i).allFinite()) rows.push_back(i);
@@ -114,8 +119,11 @@ int choose_component_count(const Eigen::MatrixXd& residuals, CountSelection sele
   Eigen::VectorXd mse = Eigen::VectorXd::Zero(residuals.cols());
   for (Eigen::Index i : rows) mse += residuals.row(i).transpose().cwiseAbs2();
   mse /= n;
+  for (Eigen::Index m = 0; m < mse.size(); ++m)
+    if (!allowed.empty() && !allowed[m]) mse(m) = std::numeric_limits<double>::infinity();
   Eigen::Index best = 0;
   mse.minCoeff(&best);
+  if (!std::isfinite(mse(best))) throw InputError("choose_component_count: no candidate count allowed");
   if (selection == CountSelection::minimum || rows.size() < 2) return static_cast<int>(best) + 1;
   // One-standard-error rule (Hastie, Tibshirani & Friedman, §7.10): the fewest components whose
   // cross-validated MSE is within one standard error of the minimum's. The standard error is
@@ -153,7 +161,13 @@ void FilteredLinearRegressor::fit(const Eigen::MatrixXd& X, const Eigen::VectorX
         grouped_folds(groups, static_cast<int>(X.rows()), inner, options_.inner_seed);
     const Eigen::MatrixXd residuals = filtered_linear_residuals(X, y, fold_of, inner, cap, options_.ranking);
     inner_curve_ = (residuals.colwise().squaredNorm() / static_cast<double>(X.rows())).cwiseSqrt().transpose();
-    m = choose_component_count(residuals, options_.selection);
+    std::vector<bool> allowed;
+    if (options_.skip_interpolating_subsets) {
+      allowed.assign(cap, false);
+      for (int k = 1; k <= cap; ++k) allowed[k - 1] = k <= static_cast<int>(X.rows()) - 2 || k == features_;
+      if (std::find(allowed.begin(), allowed.end(), true) == allowed.end()) allowed.clear();
+    }
+    m = choose_component_count(residuals, options_.selection, allowed);
   }
   const std::vector<int> order = rank_components(X, y, options_.ranking);
   kept_.assign(order.begin(), order.begin() + m);
