@@ -26,11 +26,17 @@ std::unique_ptr<Regressor> make_regressor(const std::string& name) {
     o.name = name;
     return std::make_unique<FilteredLinearRegressor>(o);
   }
+  if (name == "filtered_linear_10fold") {  // count by inner 10-fold CV (the earlier default)
+    FilteredLinearRegressor::Options o;
+    o.inner_folds = 10;
+    o.name = name;
+    return std::make_unique<FilteredLinearRegressor>(o);
+  }
   if (name == "svr") return std::make_unique<SvrRegressor>();
   if (name == "gaussian_process") return std::make_unique<GaussianProcessRegressor>();
   std::string known;
   for (const auto& n : regressor_names()) known += (known.empty() ? "" : ", ") + n;
-  known += ", filtered_linear_by_s";
+  known += ", filtered_linear_by_s, filtered_linear_10fold";
   throw InputError("unknown regressor '" + name + "' (expected one of " + known + ")");
 }
 

@@ -12,6 +12,7 @@
 #include "regression/linear.h"
 #include "regression/linear_regressors.h"
 #include "regression/prefix_linear.h"
+#include "regression/regressor.h"
 
 namespace bodymodel {
 namespace {
@@ -86,6 +87,19 @@ TEST(FilteredSelection, NearInterpolationThresholdFilteringBeatsSimpleOnNoisyLab
   const auto filtered = cross_validate(FilteredLinearRegressor(), d.X, Y.col(0), {}, d.cv);
   EXPECT_LT(filtered.rmse, 0.75 * simple.rmse) << "simple " << simple.rmse << ", filtered " << filtered.rmse;
   EXPECT_LT(filtered.rmse, 0.3 * sd);
+}
+
+TEST(FilteredSelection, TenFoldVariantIsAvailableForComparison) {
+  EXPECT_EQ(make_regressor("filtered_linear_10fold")->name(), "filtered_linear_10fold");
+  EXPECT_EQ(make_regressor("filtered_linear_10fold")->clone()->name(), "filtered_linear_10fold");
+  // Leave-one-out and 10-fold choose from the same curve family: on well-separated data they agree.
+  NearThreshold d;
+  const Eigen::VectorXd y = 2 * d.X.col(0) - d.X.col(1);
+  auto loo = make_regressor("filtered_linear"), ten = make_regressor("filtered_linear_10fold");
+  loo->fit(d.X, y);
+  ten->fit(d.X, y);
+  EXPECT_NEAR(loo->predict(d.X.row(3).transpose()), y(3), 1e-6);
+  EXPECT_NEAR(ten->predict(d.X.row(3).transpose()), y(3), 1e-6);
 }
 
 }  // namespace
