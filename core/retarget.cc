@@ -41,7 +41,9 @@ RetargetMap RetargetMap::poser_cmu() {
     m.entries.push_back({std::move(source), std::move(targets), correct});
   };
   add("hip", {"root"});
-  add("abdomen", {"spine05", "spine04", "spine03"});
+  // spine05 is the top of the pelvis: it moves with the hips, as in rig/cmu_mb.mhskel (Hips →
+  // root, spine05); the abdomen bends the lumbar bones above it.
+  add("abdomen", {"spine04", "spine03"});
   add("chest", {"spine02", "spine01"});
   add("neck", {"neck01", "neck02", "neck03"});
   add("head", {"head"});

@@ -19,12 +19,14 @@
 //     (12_03's rest frame: neck01 39°, spine02 25°, clavicle.L 23° but clavicle.R 18°) and
 //     stretched the neck, shoulders and crotch in every frame. Chains not corrected use their
 //     source parent's A. Bones that no chain drives keep identity relative to their parent.
-//     A spine or neck chain driven by one source joint (abdomen → spine05..spine03, chest →
+//     A spine or neck chain driven by one source joint (abdomen → spine04, spine03, chest →
 //     spine02, spine01, neck → neck01..neck03) shares the joint's rotation relative to the
 //     chain's parent equally among its bones (each takes the n-th root), so the hm08 spine bends
-//     along its length like a back instead of folding at its lowest bone (02_02's abdomen bends
-//     35° against the hips: all at spine05 it stretched the groin 4.9 × with the template
-//     weights). The chain's last bone ends where it did.
+//     along its length like a back instead of folding at its lowest bone. spine05, the top of
+//     the pelvis, moves with the hips (as in rig/cmu_mb.mhskel: Hips → root, spine05): 02_02's
+//     abdomen bends up to 35° against the hips, and all of it at spine05 stretched the groin
+//     4.9 × its rest length with the template weights (2.9 × now, smoothed weights).
+//     The chain's last bone ends where it did.
 //  3. Root translation: scaled by (hm08 thigh+shin length / source thigh+shin length), with
 //     the horizontal travel measured from frame 0 and the height from the source's rest hip
 //     height above its lowest rest joint, so a standing frame keeps the hm08 feet on the rest

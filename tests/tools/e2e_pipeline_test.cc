@@ -11,6 +11,9 @@
 #include "core/io/bvh.h"
 #include "core/io/npz.h"
 #include "core/makehuman.h"
+#include "core/retarget.h"
+
+#include <Eigen/Geometry>
 #include "support/fixtures.h"
 #include "support/run_cli.h"
 #include "tools/pipeline/animate_job.h"
@@ -178,6 +181,37 @@ TEST(EndToEndCli, AnimateRefusesARigWithoutASkeleton) {
                                 "' --out '" + out.string() + "'"),
                         "skeleton");
   EXPECT_FALSE(fs::exists(out));
+}
+
+}  // namespace
+}  // namespace bodymodel
+
+namespace bodymodel {
+namespace {
+
+// Retargeting corrects the rest pose of the arm chains only (T-pose → hm08 A-pose): the clips'
+// rest frame (every rotation zero) leaves hm08's spine, neck, head, clavicles and legs at their
+// rest rotation, symmetric left and right. Aligning those chains too bent a standing body by
+// 17–39° per joint (neck01 39°, clavicle.L 23° vs clavicle.R 18° on 12_03).
+TEST(RetargetClip, TheClipsRestFrameBendsOnlyTheArms) {
+  MakeHuman mh = MakeHuman::load();
+  Skeleton sk = mh.body(MacroSettings{}).skeleton;
+  for (const char* name : {"02_02", "12_03"}) {
+    SCOPED_TRACE(name);
+    BvhMotion clip = read_bvh(mh.directory() / "motion" / "cmu" / (std::string(name) + ".bvh"));
+    clip.frames.setZero();
+    const Pose p = Retargeter(clip, sk, RetargetMap::for_clip(clip, mh.directory())).pose(0);
+    for (int b = 0; b < sk.bone_count(); ++b) {
+      const std::string& n = sk.names[b];
+      const double deg = Eigen::AngleAxisd(p.rotations[b]).angle() * 180 / M_PI;
+      const bool arm = n.rfind("upperarm", 0) == 0 || n.rfind("lowerarm", 0) == 0 || n.rfind("wrist", 0) == 0;
+      if (!arm) EXPECT_LT(deg, 0.5) << n;
+    }
+    const double l = Eigen::AngleAxisd(p.rotations[sk.index("upperarm01.L")]).angle();
+    const double r = Eigen::AngleAxisd(p.rotations[sk.index("upperarm01.R")]).angle();
+    EXPECT_GT(l * 180 / M_PI, 30);   // A-pose arm raised to the T-pose
+    EXPECT_NEAR(l, r, 0.05);         // symmetric
+  }
 }
 
 }  // namespace

@@ -136,12 +136,18 @@ AnimateResult animate_character(const CharacterRigFile& ch, const ClipPoses& cli
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::string csv =
       "frame,clip_frame,time_s,max_edge_ratio,min_edge_ratio,flipped,lbs_max_edge_ratio,lbs_flipped,"
-      "template_max_edge_ratio,template_flipped\n";
-  for (int i = 0; i < res.frames; ++i)
-    csv += fmt::format("{},{},{:.4f},{:.4f},{:.4f},{},{:.4f},{},{:.4f},{}\n", i, res.source_frames[i],
-                       i * res.frame_time, res.rig[i].max_edge_ratio, res.rig[i].min_edge_ratio, res.rig[i].flipped,
+      "template_max_edge_ratio,template_flipped,p99_edge_ratio,worst_vertex_a,worst_vertex_b,worst_rest_mm,"
+      "worst_bone\n";
+  for (int i = 0; i < res.frames; ++i) {
+    const FrameCheck& c = res.rig[i];
+    const int e = std::max(c.worst_edge, 0);
+    const int a = checker.edges()(e, 0), b = checker.edges()(e, 1);
+    csv += fmt::format("{},{},{:.4f},{:.4f},{:.4f},{},{:.4f},{},{:.4f},{},{:.4f},{},{},{:.3f},{}\n", i,
+                       res.source_frames[i], i * res.frame_time, c.max_edge_ratio, c.min_edge_ratio, c.flipped,
                        res.lbs[i].max_edge_ratio, res.lbs[i].flipped, res.template_lbs[i].max_edge_ratio,
-                       res.template_lbs[i].flipped);
+                       res.template_lbs[i].flipped, c.p99_edge_ratio, a, b, checker.rest_length(e),
+                       ch.skeleton.names[checker.dominant_bone_of_vertex(a)]);
+  }
   write_text_file(dir / "animation.csv", csv);
   if (!sheet.empty()) {
     // Frames side by side; each centred horizontally (a walk travels), common scale.

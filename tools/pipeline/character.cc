@@ -247,20 +247,113 @@ SkinningExamples training_examples(const CharacterExamples& ex) {
 
 }  // namespace
 
+namespace {
+
+std::vector<std::vector<int>> vertex_neighbours(int n, const Eigen::MatrixX3i& F) {
+  const Eigen::MatrixX2i E = unique_edges(F);
+  std::vector<std::vector<int>> nb(n);
+  for (Eigen::Index e = 0; e < E.rows(); ++e) {
+    nb[E(e, 0)].push_back(E(e, 1));
+    nb[E(e, 1)].push_back(E(e, 0));
+  }
+  return nb;
+}
+
+}  // namespace
+
+Eigen::MatrixXd smooth_skin_weights(const Eigen::MatrixXd& W, const Eigen::MatrixX3i& F, int steps) {
+  if (steps <= 0) return W;
+  const int n = static_cast<int>(W.rows());
+  const auto nb = vertex_neighbours(n, F);
+  Eigen::MatrixXd A = W, B(W.rows(), W.cols());
+  for (int s = 0; s < steps; ++s) {
+    tbb::parallel_for(0, n, [&](int v) {
+      if (nb[v].empty()) {
+        B.row(v) = A.row(v);
+        return;
+      }
+      Eigen::RowVectorXd m = Eigen::RowVectorXd::Zero(A.cols());
+      for (int u : nb[v]) m += A.row(u);
+      B.row(v) = 0.5 * A.row(v) + (0.5 / nb[v].size()) * m;
+    });
+    std::swap(A, B);
+  }
+  return A;
+}
+
+void smooth_mwe_refinement(SkinningRig& mwe, const SkinningRig& base, const Eigen::MatrixX3i& F, int steps,
+                           const Eigen::VectorXd* keep) {
+  if (mwe.method != SkinningMethod::mwe || base.method != SkinningMethod::lbs ||
+      mwe.vertex_count() != base.vertex_count() || mwe.influences != base.influences)
+    throw InputError("smooth_mwe_refinement: needs an MWE rig fitted over the given SSD rig (same influences)");
+  const int n = mwe.vertex_count(), K = mwe.max_influences();
+  const SkinningRig b12 = lbs_as_mwe(base);
+  Eigen::MatrixXd D = mwe.coefficients - b12.coefficients;  // #V by 12·K
+  const auto nb = vertex_neighbours(n, F);
+  Eigen::MatrixXd E(D.rows(), D.cols());
+  for (int s = 0; s < steps; ++s) {
+    tbb::parallel_for(0, n, [&](int v) {
+      for (int k = 0; k < K; ++k) {
+        const int bone = mwe.influences(v, k);
+        if (bone < 0 || nb[v].empty()) {
+          E.block(v, 12 * k, 1, 12) = D.block(v, 12 * k, 1, 12);
+          continue;
+        }
+        Eigen::RowVectorXd m = Eigen::RowVectorXd::Zero(12);
+        for (int u : nb[v])
+          for (int j = 0; j < K; ++j)
+            if (mwe.influences(u, j) == bone) {
+              m += D.block(u, 12 * j, 1, 12);
+              break;
+            }
+        E.block(v, 12 * k, 1, 12) = 0.5 * D.block(v, 12 * k, 1, 12) + (0.5 / nb[v].size()) * m;
+      }
+    });
+    std::swap(D, E);
+  }
+  if (keep) {
+    if (keep->size() != n) throw InputError("smooth_mwe_refinement: the mask has a value per vertex");
+    D = keep->asDiagonal() * D;
+  }
+  mwe.coefficients = b12.coefficients + D;
+}
+
+Eigen::VectorXd mwe_refinement_mask(const Eigen::MatrixXd& W, const Skeleton& skeleton, const Eigen::MatrixX3i& F,
+                                    int steps) {
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(W.rows());
+  for (int b = 0; b < skeleton.bone_count(); ++b)
+    for (int a = b; a >= 0; a = skeleton.parents[a]) {
+      const std::string& n = skeleton.names[a];
+      if (n.rfind("wrist", 0) == 0 || n.rfind("foot", 0) == 0 || n == "head") {
+        x += W.col(b);
+        break;
+      }
+    }
+  Eigen::MatrixXd m = smooth_skin_weights(Eigen::MatrixXd(x), F, steps);
+  return (1.0 - m.col(0).array()).cwiseMax(0.0).cwiseMin(1.0).matrix();
+}
+
 CharacterRigs fit_character_rigs(const CharacterExamples& ex, const CharacterOptions& o,
                                  const ProgressCallback& progress) {
   CharacterRigs r;
   const SkinningExamples s = training_examples(ex);
-  r.template_lbs = lbs_rig_from_weights(
-      ex.rest, merge_undriven_weights(Eigen::MatrixXd(ex.template_weights), ex.skeleton, ex.driven), o.max_influences);
+  const Eigen::MatrixXd Wt = merge_undriven_weights(Eigen::MatrixXd(ex.template_weights), ex.skeleton, ex.driven);
+  r.template_lbs = lbs_rig_from_weights(ex.rest, Wt, o.max_influences);
+  r.smooth_lbs = lbs_rig_from_weights(ex.rest, smooth_skin_weights(Wt, ex.F, o.weight_smoothing_steps), o.max_influences);
   auto sub = [&](double a, double b) -> ProgressCallback {
     if (!progress) return {};
     return [=](double f, std::string_view w) { return progress(a + (b - a) * f, w); };
   };
-  r.lbs = fit_lbs(s, r.template_lbs.influences, o.lbs, &r.lbs_summary, sub(0.0, 0.3));
-  const SkinningRig& base = o.base_on_template_weights ? r.template_lbs : r.lbs;
+  r.lbs = fit_lbs(s, r.smooth_lbs.influences, o.lbs, &r.lbs_summary, sub(0.0, 0.3));
+  const SkinningRig& base = o.base_on_template_weights ? r.smooth_lbs : r.lbs;
   r.as = fit_animation_space(s, &base, o.animation_space, &r.as_summary, sub(0.3, 0.5));
   r.mwe = fit_mwe(s, &base, o.mwe, &r.mwe_summary, sub(0.5, 1.0));
+  if (o.mwe_mask_steps >= 0) {
+    const Eigen::VectorXd keep = mwe_refinement_mask(Wt, ex.skeleton, ex.F, o.mwe_mask_steps);
+    smooth_mwe_refinement(r.mwe, base, ex.F, o.mwe_smoothing_steps, &keep);
+  } else {
+    smooth_mwe_refinement(r.mwe, base, ex.F, o.mwe_smoothing_steps);
+  }
   return r;
 }
 
@@ -275,7 +368,8 @@ Eigen::VectorXd vertex_errors(const SkinningRig& rig, const BoneTransforms& M, c
 std::vector<RigErrorRow> evaluate_character_rigs(const CharacterExamples& ex, const CharacterRigs& rigs) {
   std::vector<RigErrorRow> rows;
   const std::pair<const char*, const SkinningRig*> methods[] = {
-      {"template_lbs", &rigs.template_lbs}, {"lbs", &rigs.lbs}, {"as", &rigs.as}, {"mwe", &rigs.mwe}};
+      {"template_lbs", &rigs.template_lbs}, {"smooth_lbs", &rigs.smooth_lbs}, {"lbs", &rigs.lbs},
+      {"as", &rigs.as}, {"mwe", &rigs.mwe}};
   for (auto [name, rig] : methods)
     for (bool held : {false, true}) {
       std::vector<double> e;

@@ -71,6 +71,30 @@ Eigen::MatrixXd merge_undriven_weights(const Eigen::MatrixXd& W, const Skeleton&
 // global rigid motion, unlike SSD) independent of where the character walks.
 BoneTransforms relative_to_root(const BoneTransforms& M, const Skeleton& skeleton, Eigen::Affine3d* root = nullptr);
 
+// Skinning weights W (#V by #B, rows summing to one) smoothed over the mesh F (#F by 3):
+// `steps` times W ← ½ W + ½ (mean of the 1-ring neighbours' rows). Rows still sum to one.
+// MakeHuman's weights change abruptly across a few short edges in the armpit and crotch, which
+// linear blend skinning stretches most (tools/pipeline/character.h, CharacterOptions).
+Eigen::MatrixXd smooth_skin_weights(const Eigen::MatrixXd& W, const Eigen::MatrixX3i& F, int steps);
+
+// An MWE rig fitted in delta space over `base` (same vertices and influences) keeps the base
+// and smooths its refinement D = W_mwe − W_base over the mesh: `steps` times D_v ← ½ D_v +
+// ½ (mean of the 1-ring's D for the same bone; 0 where a neighbour lacks the bone). MWE's
+// per-vertex fits are independent, so D carries vertex-to-vertex noise that unseen poses
+// amplify on short edges (fingers, toes, eyelids: 20–40 × their rest length on CMU clips).
+// `keep` (#V in [0, 1], optional) then scales each vertex's refinement (0 = the base alone).
+// Throws InputError when the rigs do not match.
+void smooth_mwe_refinement(SkinningRig& mwe, const SkinningRig& base, const Eigen::MatrixX3i& F, int steps,
+                           const Eigen::VectorXd* keep = nullptr);
+
+// Per vertex (#V in [0, 1]): 1 − the weight (W #V by #B, smoothed `steps` times) of the hands,
+// feet and head (the bones `wrist.*`, `foot.*`, `head` and their descendants). These parts are
+// small and stiff; pose morphs (model/pose_edit.h) leave them as decoding noise around the
+// skinned tip constraints, which MWE fits and unseen poses amplify (toes, fingers: edges at
+// 20–90 × their rest length on CMU clips).
+Eigen::VectorXd mwe_refinement_mask(const Eigen::MatrixXd& W, const Skeleton& skeleton, const Eigen::MatrixX3i& F,
+                                    int steps);
+
 struct CharacterOptions {
   RangeOfMotionOptions range_of_motion;
   PoseMorphOptions pose_morph;
@@ -80,6 +104,15 @@ struct CharacterOptions {
   // morphs, whose vertex-to-vertex noise stretches edges in unseen poses (max edge ratio 23 vs 4
   // on CMU 12_03 for one character).
   bool base_on_template_weights = true;
+  // Smoothing steps of the template weights (smooth_skin_weights) for the SSD rig AS and MWE
+  // build on and the glb exports. On CMU 12_03 / 02_02 with the default body: 0 steps max edge
+  // ratio 4.8 / 4.9, 5 → 3.1 / 3.4, 10 → 2.7 / 3.2, 20 → 3.1 / 3.3, 40 → 2.9 / 3.7.
+  int weight_smoothing_steps = 10;
+  // Smoothing steps of MWE's refinement over that SSD (smooth_mwe_refinement).
+  int mwe_smoothing_steps = 20;
+  // The refinement is faded out on the hands, feet and head (mwe_refinement_mask) over this
+  // many smoothing steps of the mask; < 0 = no mask.
+  int mwe_mask_steps = 10;
   LbsFitOptions lbs;
   AnimationSpaceFitOptions animation_space;
   // MWE ridge s = 2e-5 (relative), 10⁴ × the horse-tuned default: the range of motion is small
@@ -117,6 +150,7 @@ CharacterExamples make_character_examples(const BodyModel& model, const Eigen::M
 
 struct CharacterRigs {
   SkinningRig template_lbs;   // the model's weights as they are (largest max_influences kept)
+  SkinningRig smooth_lbs;     // the same smoothed (weight_smoothing_steps): AS and MWE's base
   SkinningRig lbs, as, mwe;   // fitted to the training examples
   LbsFitSummary lbs_summary;
   AnimationSpaceFitSummary as_summary;
@@ -129,7 +163,7 @@ CharacterRigs fit_character_rigs(const CharacterExamples& ex, const CharacterOpt
 // Errors of one rig on one split: vertex error ‖x_i − y_i‖ against the pose morph (mm), over all
 // vertices of all poses of the split (EVALUATION.md: vertex error).
 struct RigErrorRow {
-  std::string method;   // "template_lbs", "lbs", "as", "mwe"
+  std::string method;   // "template_lbs", "smooth_lbs", "lbs", "as", "mwe"
   std::string split;    // "train" or "held_out"
   int poses = 0;
   double mean_mm = 0, max_mm = 0, rms_mm = 0, p95_mm = 0;

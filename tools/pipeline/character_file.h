@@ -7,7 +7,8 @@
 //   skeleton_heads/tails #B by 3, mm
 //   skeleton_driven      #B int, 1 = the rig was trained with this bone moving; animation sets
 //                        the others' rotations to identity (tools/pipeline/character.h)
-//   lbs_influences, lbs_coefficients            #V by K, the SSD rig fitted to the examples
+//   lbs_influences, lbs_coefficients            #V by K, the SSD rig the MWE refines (smoothed
+//                                               template weights, CharacterOptions)
 //   template_influences, template_coefficients  #V by K, the model's weights (largest K)
 //   character            JSON text: how the body was made, measured labels, fit errors
 #pragma once
@@ -23,7 +24,7 @@ namespace bodymodel {
 
 struct CharacterRigFile {
   SkinningRig rig;            // the MWE rig (or whatever method was saved)
-  SkinningRig lbs;            // fitted SSD
+  SkinningRig lbs;            // the SSD the MWE refines
   SkinningRig template_lbs;   // the model's weights
   Eigen::MatrixX3i F;         // #F by 3
   Skeleton skeleton;

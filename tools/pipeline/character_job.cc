@@ -98,7 +98,11 @@ CharacterJobResult write_character(const BodyModel& model, const Eigen::MatrixX3
 
   CharacterRigFile f;
   f.rig = rigs.mwe;
-  f.lbs = rigs.lbs;
+  // The SSD the MWE refines (the smoothed template weights by default): what animate compares
+  // with and the glb carries. The SSD fitted to the pose morphs stretches short edges in unseen
+  // poses (vertex-to-vertex noise) and is only reported in fit.csv.
+  const SkinningRig& base = o.character.base_on_template_weights ? rigs.smooth_lbs : rigs.lbs;
+  f.lbs = base;
   f.template_lbs = rigs.template_lbs;
   f.F = ex.F;
   f.skeleton = ex.skeleton;
@@ -111,7 +115,7 @@ CharacterJobResult write_character(const BodyModel& model, const Eigen::MatrixX3
   if (o.write_glb) {
     GltfExportOptions go;
     go.mesh_name = "character";
-    write_skinned_gltf(dir / "character.glb", V, ex.F, {}, ex.skeleton, skin_weights_of(rigs.lbs), nullptr, go);
+    write_skinned_gltf(dir / "character.glb", V, ex.F, {}, ex.skeleton, skin_weights_of(base), nullptr, go);
     res.wrote_glb = true;
   } else {
     res.glb_note = "not asked for";

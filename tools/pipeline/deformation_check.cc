@@ -1,6 +1,8 @@
 #include "tools/pipeline/deformation_check.h"
 
+#include <algorithm>
 #include <map>
+#include <vector>
 
 #include "core/error.h"
 #include "core/geometry.h"
@@ -17,6 +19,14 @@ DeformationChecker::DeformationChecker(const Eigen::MatrixX3d& rest, const Eigen
   for (Eigen::Index e = 0; e < E_.rows(); ++e)
     rest_length_(e) = std::max((rest.row(E_(e, 0)) - rest.row(E_(e, 1))).norm(), 1e-12);
   rest_normals_ = face_normals(rest, F);
+  vertex_bone_.resize(rest.rows());
+  for (Eigen::Index v = 0; v < rest.rows(); ++v) {
+    int best = 0;
+    double bw = -1;
+    for (int k = 0; k < lbs.max_influences(); ++k)
+      if (lbs.influences(v, k) >= 0 && lbs.coefficients(v, k) > bw) bw = lbs.coefficients(v, k), best = lbs.influences(v, k);
+    vertex_bone_(v) = best;
+  }
   dominant_bone_.resize(F.rows());
   for (Eigen::Index f = 0; f < F.rows(); ++f) {
     std::map<int, double> w;
@@ -37,10 +47,17 @@ FrameCheck DeformationChecker::check(const Eigen::MatrixX3d& X, const BoneTransf
   FrameCheck c;
   c.max_edge_ratio = 0;
   c.min_edge_ratio = std::numeric_limits<double>::infinity();
+  std::vector<double> ratios(E_.rows());
   for (Eigen::Index e = 0; e < E_.rows(); ++e) {
     const double r = (X.row(E_(e, 0)) - X.row(E_(e, 1))).norm() / rest_length_(e);
+    ratios[e] = r;
     if (!(r <= c.max_edge_ratio)) c.max_edge_ratio = r, c.worst_edge = static_cast<int>(e);
     c.min_edge_ratio = std::min(c.min_edge_ratio, r);
+  }
+  if (!ratios.empty()) {
+    const size_t k = static_cast<size_t>(0.99 * (ratios.size() - 1));
+    std::nth_element(ratios.begin(), ratios.begin() + static_cast<long>(k), ratios.end());
+    c.p99_edge_ratio = ratios[k];
   }
   const Eigen::MatrixX3d N = face_normals(X, F_);
   for (Eigen::Index f = 0; f < F_.rows(); ++f) {

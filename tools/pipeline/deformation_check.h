@@ -13,6 +13,7 @@ namespace bodymodel {
 struct FrameCheck {
   double max_edge_ratio = 1;   // max over edges of |e'| / |e|
   double min_edge_ratio = 1;
+  double p99_edge_ratio = 1;   // 99th percentile over edges of |e'| / |e|
   int worst_edge = -1;         // index into the checker's edges
   int flipped = 0;             // triangles with n' · (R_b n) < 0
 };
@@ -25,6 +26,9 @@ class DeformationChecker {
   // X #V by 3 posed vertices; M the bone maps of the frame (#B).
   FrameCheck check(const Eigen::MatrixX3d& X, const BoneTransforms& M) const;
   const Eigen::MatrixX2i& edges() const { return E_; }
+  double rest_length(int edge) const { return rest_length_(edge); }
+  // Bone with the largest weight at vertex v in the SSD rig given to the constructor.
+  int dominant_bone_of_vertex(int v) const { return vertex_bone_(v); }
 
  private:
   Eigen::MatrixX3i F_;
@@ -32,6 +36,7 @@ class DeformationChecker {
   Eigen::VectorXd rest_length_;
   Eigen::MatrixX3d rest_normals_;
   Eigen::VectorXi dominant_bone_;
+  Eigen::VectorXi vertex_bone_;
 };
 
 }  // namespace bodymodel
