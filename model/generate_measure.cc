@@ -1,5 +1,6 @@
 #include "model/generate_measure.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -24,35 +25,43 @@ BodyMeasurements measure_body_banded(const Eigen::MatrixX3d& V, const Eigen::Mat
   m.volume_l = vol * std::pow(o.mm_per_unit, 3) * 1e-6;
   m.weight_kg = m.volume_l * o.density_kg_per_l;
 
-  // Vertical extent of every triangle (once), then per band the triangles overlapping it.
+  // Vertical extent of every triangle (once); per band and cut, the triangles whose extent
+  // contains the cut's height (a superset of the ones the plane crosses).
   Eigen::VectorXd fmin(F.rows()), fmax(F.rows());
   for (Eigen::Index f = 0; f < F.rows(); ++f) {
     const double a = V(F(f, 0), up), b = V(F(f, 1), up), c = V(F(f, 2), up);
     fmin(f) = std::min({a, b, c});
     fmax(f) = std::max({a, b, c});
   }
-  auto band_faces = [&](double h0, double h1) {
-    std::vector<int> keep;
-    for (Eigen::Index f = 0; f < F.rows(); ++f)
-      if (fmax(f) >= h0 && fmin(f) <= h1) keep.push_back(static_cast<int>(f));
-    Eigen::MatrixX3i Fb(keep.size(), 3);
-    for (size_t k = 0; k < keep.size(); ++k) Fb.row(k) = F.row(keep[k]);
-    return Fb;
-  };
-  // The band scan of measure_body (core/measure.cc), on the band's triangles.
+  const int n = o.slices_per_band;
+  // The band scan of measure_body (core/measure.cc), each cut on its own triangles.
   auto band = [&](double f0, double f1, bool maximum, double& at, bool stop_at_jump = false) {
-    const Eigen::MatrixX3i Fb = band_faces(lo + f0 * height, lo + f1 * height);
+    std::vector<double> fraction(n), h(n);
+    for (int s = 0; s < n; ++s) {
+      fraction[s] = f0 + (f1 - f0) * (s + 0.5) / n;
+      h[s] = lo + fraction[s] * height;
+    }
+    std::vector<std::vector<int>> cut_faces(n);
+    if (n > 0)
+      for (Eigen::Index f = 0; f < F.rows(); ++f) {
+        if (fmax(f) < h.front() || fmin(f) > h.back()) continue;
+        const auto first = std::lower_bound(h.begin(), h.end(), fmin(f));
+        const auto last = std::upper_bound(first, h.end(), fmax(f));
+        for (auto it = first; it != last; ++it) cut_faces[it - h.begin()].push_back(static_cast<int>(f));
+      }
     double best = maximum ? -1 : std::numeric_limits<double>::infinity();
     double previous = 0;
-    for (int s = 0; s < o.slices_per_band; ++s) {
-      double f = f0 + (f1 - f0) * (s + 0.5) / o.slices_per_band;
-      double g = girth_at_height(V, Fb, lo + f * height, up);
+    Eigen::MatrixX3i Fc;
+    for (int s = 0; s < n; ++s) {
+      Fc.resize(static_cast<Eigen::Index>(cut_faces[s].size()), 3);
+      for (size_t k = 0; k < cut_faces[s].size(); ++k) Fc.row(k) = F.row(cut_faces[s][k]);
+      double g = girth_at_height(V, Fc, h[s], up);
       if (g <= 0) continue;
       if (stop_at_jump && previous > 0 && g > 1.12 * previous) break;
       previous = g;
       if (maximum ? g > best : g < best) {
         best = g;
-        at = f * height * to_cm;
+        at = fraction[s] * height * to_cm;
       }
     }
     return std::isfinite(best) && best > 0 ? best * to_cm : 0.0;

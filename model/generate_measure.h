@@ -2,11 +2,11 @@
 // and the same results, about ten times faster.
 //
 // measure_body cuts the whole mesh (every triangle) 160 times (four girth bands × 40 cuts);
-// on a 27k-triangle body that is most of a generated body's measuring time. Here each band
-// first keeps the triangles whose vertical extent overlaps the band (a tenth of the body), and
-// the cuts see only those: a plane section at height h only involves triangles that straddle
-// h, so every section, and so every girth, is the one measure_body finds (a test checks
-// equality on male and female bodies).
+// on a 27k-triangle body that is most of a generated body's measuring time. Here the
+// triangles are first listed per cut by their vertical extent (each triangle spans a few of a
+// band's cuts), and each cut sees only its own: a plane section at height h only involves
+// triangles that straddle h, so every section, and so every girth, is the one measure_body
+// finds (a test checks equality on male and female bodies).
 #pragma once
 
 #include <Eigen/Core>

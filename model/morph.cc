@@ -5,7 +5,10 @@
 #include <limits>
 #include "model/format.h"
 #include <random>
+#include <map>
+#include <mutex>
 #include <set>
+#include <Eigen/LU>
 
 #include "core/error.h"
 #include "core/geometry.h"
@@ -41,8 +44,13 @@ std::string MorphSummary::report() const {
   return s;
 }
 
+struct ShapeMorpher::ResponseCache {
+  std::mutex mutex;
+  std::map<std::string, Eigen::MatrixXd> inverse_jacobians;  // by label set and sex
+};
+
 ShapeMorpher::ShapeMorpher(std::shared_ptr<const BodyModel> model, DecoderOptions options)
-    : model_(std::move(model)), decoder_(model_->tmpl, options) {}
+    : model_(std::move(model)), decoder_(model_->tmpl, options), response_cache_(std::make_shared<ResponseCache>()) {}
 
 Eigen::MatrixX3d ShapeMorpher::decode(const Eigen::VectorXd& x) const {
   return decoder_.decode(model_->encoding_of(x));
@@ -59,6 +67,83 @@ double tolerance_for(const LabelInfo& info, const MorphOptions& o) {
   if (info.unit == "kg") return o.tolerance_kg;
   return o.tolerance_other * std::max(info.stddev, 1e-9);
 }
+
+// The conditions' label values of a body: measured on V where a mesh can tell (height and
+// weight/volume only: the fast measure_height_and_weight), else the regression's prediction
+// from the coefficients c.
+Eigen::VectorXd label_values(const ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
+                             const std::vector<int>& idx, const Eigen::VectorXd& c, const Eigen::MatrixX3d& V,
+                             Sex sex) {
+  const int m = static_cast<int>(conditions.size());
+  bool any_measured = false, only_extent_and_volume = true;
+  for (auto& cond : conditions)
+    if (is_measurable_label(cond.label)) {
+      any_measured = true;
+      if (cond.label != "height_cm" && cond.label != "weight_kg" && cond.label != "volume_l")
+        only_extent_and_volume = false;
+    }
+  Eigen::VectorXd v(m);
+  Eigen::VectorXd pred = morpher.model().shape.regression.predict(c);
+  std::optional<BodyMeasurements> meas;
+  if (any_measured && only_extent_and_volume) {
+    // Fast path, the same definitions as measure_body (core/measure.h) without the girth
+    // sections: height = extent along +y, weight = enclosed volume × density.
+    meas = measure_height_and_weight(V, morpher.model().tmpl->faces());
+  } else if (any_measured) {
+    meas = morpher.measure(V, sex);
+  }
+  for (int i = 0; i < m; ++i) {
+    std::optional<double> mv;
+    if (meas) mv = measured_label(conditions[i].label, *meas);
+    v(i) = mv ? *mv : pred(idx[i]);
+  }
+  return v;
+}
+
+}  // namespace
+
+Eigen::MatrixXd ShapeMorpher::measured_response(const std::vector<LabelCondition>& conditions,
+                                                const MorphOptions& o) const {
+  const SubModel& sm = model_->shape;
+  const int m = static_cast<int>(conditions.size());
+  std::string key = std::to_string(static_cast<int>(o.sex));
+  for (auto& c : conditions) key += "|" + c.label;
+  std::lock_guard<std::mutex> lock(response_cache_->mutex);
+  auto found = response_cache_->inverse_jacobians.find(key);
+  if (found != response_cache_->inverse_jacobians.end()) return found->second;
+  std::vector<int> idx(m);
+  Eigen::MatrixXd S(sm.component_count(), m);
+  for (int i = 0; i < m; ++i) {
+    idx[i] = sm.regression.index(conditions[i].label);
+    S.col(i) = sm.regression.gradients.col(idx[i]);
+  }
+  // Finite differences at the mean body (coefficients 0): one step per measured label, of
+  // about the size of a typical request (5 cm, 5 kg, half a standard deviation).
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(sm.component_count());
+  const Eigen::VectorXd v0 = label_values(*this, conditions, idx, zero, decode(sm.pca.mean), o.sex);
+  Eigen::MatrixXd J = Eigen::MatrixXd::Identity(m, m);
+  bool usable = true;
+  for (int i = 0; i < m; ++i) {
+    if (!is_measurable_label(conditions[i].label)) continue;
+    const LabelInfo& info = sm.regression.labels[idx[i]];
+    const double step = info.unit == "cm" || info.unit == "kg" ? 5.0 : 0.5 * std::max(info.stddev, 1e-9);
+    Eigen::VectorXd delta = Eigen::VectorXd::Zero(m);
+    delta(i) = step;
+    const Eigen::VectorXd z = constrained_change(S, delta, o.change);
+    const Eigen::VectorXd v = label_values(*this, conditions, idx, z, decode(sm.pca.mean + sm.pca.basis * z), o.sex);
+    J.col(i) = (v - v0) / step;
+    if (!(J(i, i) > 0.2 && J(i, i) < 5)) usable = false;  // not a usable slope: keep the unit one
+  }
+  Eigen::MatrixXd inverse = Eigen::MatrixXd::Identity(m, m);
+  if (usable && J.allFinite()) {
+    Eigen::FullPivLU<Eigen::MatrixXd> lu(J);
+    if (lu.isInvertible() && lu.rcond() > 1e-3) inverse = lu.inverse();
+  }
+  response_cache_->inverse_jacobians[key] = inverse;
+  return inverse;
+}
+
+namespace {
 
 }  // namespace
 
@@ -77,7 +162,7 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
   const int m = static_cast<int>(conditions.size());
   std::vector<int> idx(m);
   std::set<std::string> seen;
-  bool any_measured = false, only_extent_and_volume = true;
+  bool any_measured = false;
   for (int i = 0; i < m; ++i) {
     idx[i] = reg.index(conditions[i].label);
     if (!seen.insert(conditions[i].label).second)
@@ -85,12 +170,7 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
     if (!conditions[i].keep && !(conditions[i].lo <= conditions[i].hi))
       throw InputError(fmt::format("label '{}': empty range {}..{}", conditions[i].label,
                                    conditions[i].lo, conditions[i].hi));
-    if (is_measurable_label(conditions[i].label)) {
-      any_measured = true;
-      if (conditions[i].label != "height_cm" && conditions[i].label != "weight_kg" &&
-          conditions[i].label != "volume_l")
-        only_extent_and_volume = false;
-    }
+    any_measured = any_measured || is_measurable_label(conditions[i].label);
   }
   if (o.triangle_mask.size() != 0 && o.triangle_mask.size() != model_->tmpl->triangle_count())
     throw InputError(fmt::format("mask has {} entries, the model has {} triangles", o.triangle_mask.size(),
@@ -99,22 +179,7 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
   for (int i = 0; i < m; ++i) S.col(i) = reg.gradients.col(idx[i]);
 
   auto values = [&](const Eigen::VectorXd& x, const Eigen::VectorXd& z, const Eigen::MatrixX3d& V) {
-    Eigen::VectorXd v(m);
-    Eigen::VectorXd pred = reg.predict(masked ? sm.pca.project(x) : Eigen::VectorXd(c0 + z));
-    std::optional<BodyMeasurements> meas;
-    if (any_measured && only_extent_and_volume) {
-      // Fast path, the same definitions as measure_body (core/measure.h) without the girth
-      // sections: height = extent along +y, weight = enclosed volume × density.
-      meas = measure_height_and_weight(V, model_->tmpl->faces());
-    } else if (any_measured) {
-      meas = measure(V, o.sex);
-    }
-    for (int i = 0; i < m; ++i) {
-      std::optional<double> mv;
-      if (meas) mv = measured_label(conditions[i].label, *meas);
-      v(i) = mv ? *mv : pred(idx[i]);
-    }
-    return v;
+    return label_values(*this, conditions, idx, masked ? sm.pca.project(x) : Eigen::VectorXd(c0 + z), V, o.sex);
   };
   auto apply_change = [&](const Eigen::VectorXd& z) {
     Eigen::VectorXd x = x0 + sm.pca.basis * z;
@@ -176,7 +241,11 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
     return b;
   };
 
-  Eigen::VectorXd delta = target - start;
+  // Requested change per measured change: J⁻¹ (MorphOptions::calibrated_response) or 1.
+  const Eigen::MatrixXd response_inverse = o.calibrated_response && !masked && any_measured
+                                               ? measured_response(conditions, o)
+                                               : Eigen::MatrixXd::Identity(m, m);
+  Eigen::VectorXd delta = response_inverse * (target - start);
   Eigen::VectorXd z = Eigen::VectorXd::Zero(sm.component_count());
   Eigen::VectorXd x = x0, best_x = x0, v = start, best_v = start;
   Eigen::MatrixX3d best_V = V;
@@ -198,9 +267,9 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
       best_V = V;
     }
     ok = all_ok(v);
-    // Newton-like correction on the measured value (unit slope: the regression is the
-    // Jacobian's estimate, so the remaining error is simply requested again).
-    delta += target - v;
+    // Newton-like correction on the measured value: the remaining error, through the measured
+    // response (or with a unit slope: the regression as the Jacobian's estimate).
+    delta += response_inverse * (target - v);
   }
   if (summary) {
     summary->iterations = it;

@@ -57,6 +57,14 @@ struct MorphOptions {
   Eigen::VectorXd triangle_mask;   // #F in [0, 1] (§5.1, Fig. 6); empty = the whole body
   Sex sex = Sex::unknown;          // for the body-fat measurement
   ConstrainedChangeOptions change; // eq. 11 solver
+  // Correct with the measured response instead of a unit slope: the Jacobian J of the measured
+  // labels with respect to the requested (eq. 11) change, by finite differences at the model's
+  // mean body (1 + #measured-labels decodes, once per morpher and label set, cached), and each
+  // iteration requests J⁻¹·(target − measured). The regression's slope is not the measured one
+  // (weight is a volume, height an extent): with a unit slope a 65 kg request typically lands
+  // 0.6–0.7× as far as asked and needs a third decode. Worth it when many bodies share the
+  // label set (generation), not for one morph.
+  bool calibrated_response = false;
 };
 
 struct LabelOutcome {
@@ -109,8 +117,14 @@ class ShapeMorpher {
                                   const Eigen::VectorXd* c0_known = nullptr) const;
 
  private:
+  // J (see MorphOptions::calibrated_response) for the conditions' labels, cached by label set
+  // and sex (thread-safe; a deterministic function of the model and the label set).
+  Eigen::MatrixXd measured_response(const std::vector<LabelCondition>& conditions, const MorphOptions& o) const;
+
   std::shared_ptr<const BodyModel> model_;
   RelativeRotationDecoder decoder_;
+  struct ResponseCache;
+  std::shared_ptr<ResponseCache> response_cache_;
 };
 
 // Random bodies from the shape-only model (§5.2).
@@ -129,6 +143,7 @@ struct GenerateOptions {
     MorphOptions m;
     m.tolerance_kg = 1.0;
     m.tolerance_cm = 1.0;
+    m.calibrated_response = true;
     return m;
   }();
 };
