@@ -4,10 +4,25 @@
 
 #include "core/error.h"
 
+#include <cmath>
+
 namespace bodymodel {
 namespace {
 
 std::string json_list(const std::vector<std::string>& v) { return nlohmann::json(v).dump(); }
+
+// A NaN or infinity in a model array would reach every body decoded from it: refused on load,
+// naming the array and the first bad element.
+template <typename Derived>
+void check_finite(const Eigen::DenseBase<Derived>& M, const std::string& key, const std::string& what) {
+  if (M.allFinite()) return;
+  for (Eigen::Index r = 0; r < M.rows(); ++r)
+    for (Eigen::Index c = 0; c < M.cols(); ++c)
+      if (!std::isfinite(M(r, c)))
+        throw InputError(fmt::format("{}: '{}' holds {} at {}, expected finite values", what, key,
+                                     std::isnan(M(r, c)) ? "NaN" : "infinity", M.cols() == 1 ? fmt::format("element {}", r)
+                                                            : fmt::format("row {}, column {}", r, c)));
+}
 
 std::vector<std::string> read_list(const Npz& z, const std::string& key, const std::string& what) {
   try {
@@ -30,20 +45,28 @@ void put_sparse(Npz& z, const std::string& key, const Eigen::SparseMatrix<double
   z.put(key + "_shape", shape);
 }
 
+// A sparse matrix stored as (row, column, value) triplets and a 2-element shape, which must be
+// rows × cols (the caller's expectation: a wrong shape is refused before anything is allocated).
 Eigen::SparseMatrix<double, Eigen::RowMajor> get_sparse(const Npz& z, const std::string& key,
-                                                        const std::string& what) {
+                                                        const std::string& what, int rows, int cols) {
   Eigen::MatrixXd T = z.matrix(key);
   Eigen::VectorXi shape = z.int_vector(key + "_shape");
   if (shape.size() != 2 || T.cols() != 3)
     throw InputError(fmt::format("{}: '{}' must be #nonzeros by 3 triplets with a 2-element shape", what, key));
+  if (shape(0) != rows || shape(1) != cols)
+    throw InputError(fmt::format("{}: '{}_shape' is {}×{}, expected {}×{} (bones × template vertices, "
+                                 "or template vertices × bones for the weights)",
+                                 what, key, shape(0), shape(1), rows, cols));
+  check_finite(T, key, what);
   std::vector<Eigen::Triplet<double>> trip;
   for (int i = 0; i < T.rows(); ++i) {
-    int r = static_cast<int>(T(i, 0)), c = static_cast<int>(T(i, 1));
-    if (r < 0 || r >= shape(0) || c < 0 || c >= shape(1))
-      throw InputError(fmt::format("{}: '{}' triplet {} is outside the {}×{} matrix", what, key, i, shape(0), shape(1)));
-    trip.emplace_back(r, c, T(i, 2));
+    const double r = T(i, 0), c = T(i, 1);
+    if (!(r >= 0 && r < rows && c >= 0 && c < cols) || r != std::floor(r) || c != std::floor(c))
+      throw InputError(fmt::format("{}: '{}' triplet {} is at ({}, {}), outside the {}×{} matrix", what, key, i,
+                                   r, c, rows, cols));
+    trip.emplace_back(static_cast<int>(r), static_cast<int>(c), T(i, 2));
   }
-  Eigen::SparseMatrix<double, Eigen::RowMajor> M(shape(0), shape(1));
+  Eigen::SparseMatrix<double, Eigen::RowMajor> M(rows, cols);
   M.setFromTriplets(trip.begin(), trip.end());
   return M;
 }
@@ -89,6 +112,10 @@ SubModel get_sub_model(const Npz& z, const std::string& p, bool shape, int D, co
                                  "coefficients with {} columns; encoding size {})",
                                  what, p, m.pca.mean.size(), m.pca.basis.rows(), K,
                                  m.pca.eigenvalues.size(), m.pca.coefficients.cols(), D));
+  check_finite(m.pca.mean, p + "_mean", what);
+  check_finite(m.pca.basis, p + "_basis", what);
+  check_finite(m.pca.eigenvalues, p + "_eigenvalues", what);
+  check_finite(m.pca.coefficients, p + "_coefficients", what);
   const std::string lp = shape ? "" : p + "_";
   m.labels = z.matrix(lp + "labels");
   auto names = read_list(z, lp + "label_names", what);
@@ -104,6 +131,10 @@ SubModel get_sub_model(const Npz& z, const std::string& p, bool shape, int D, co
       m.labels.rows() != m.pca.coefficients.rows() ||
       static_cast<int>(m.sample_ids.size()) != m.pca.coefficients.rows())
     throw InputError(fmt::format("{}: the {} model's label arrays disagree with its {} labels", what, p, L));
+  check_finite(m.labels, lp + "labels", what);
+  check_finite(stats, lp + "label_statistics", what);
+  check_finite(m.regression.offsets, p + "_label_offsets", what);
+  check_finite(m.regression.gradients, p + "_label_gradients", what);
   for (int i = 0; i < L; ++i)
     m.regression.labels.push_back({names[i], units[i], stats(i, 0), stats(i, 1), stats(i, 2), stats(i, 3)});
   m.semantic_basis.basis = z.matrix(p + "_semantic_basis");
@@ -111,6 +142,11 @@ SubModel get_sub_model(const Npz& z, const std::string& p, bool shape, int D, co
   m.semantic_basis.semantic_labels = read_list(z, p + "_semantic_labels", what);
   if (m.semantic_basis.basis.rows() != K || m.semantic_basis.basis.cols() != K)
     throw InputError(fmt::format("{}: {}_semantic_basis must be {}×{}", what, p, K, K));
+  if (m.semantic_basis.variances.size() != K)
+    throw InputError(fmt::format("{}: {}_semantic_variances has {} values, expected {} (one per component)",
+                                 what, p, m.semantic_basis.variances.size(), K));
+  check_finite(m.semantic_basis.basis, p + "_semantic_basis", what);
+  check_finite(m.semantic_basis.variances, p + "_semantic_variances", what);
   return m;
 }
 
@@ -164,26 +200,46 @@ BodyModel model_from_npz(const Npz& z, const std::string& what) {
   Eigen::MatrixXi F = z.int_matrix("template_faces");
   if (V.cols() != 3 || F.cols() != 3)
     throw InputError(fmt::format("{}: template_vertices/template_faces must have 3 columns", what));
-  model.tmpl = std::make_shared<EncodingTemplate>(Eigen::MatrixX3d(V), Eigen::MatrixX3i(F));
+  if (V.rows() == 0 || F.rows() == 0)
+    throw InputError(fmt::format("{}: the template has {} vertices and {} faces, expected at least one of each",
+                                 what, V.rows(), F.rows()));
+  check_finite(V, "template_vertices", what);
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k)
+      if (F(f, k) < 0 || F(f, k) >= V.rows())
+        throw InputError(fmt::format("{}: 'template_faces' row {} names vertex {}, expected 0..{} "
+                                     "('template_vertices' has {} rows)",
+                                     what, f, F(f, k), V.rows() - 1, V.rows()));
+  try {
+    model.tmpl = std::make_shared<EncodingTemplate>(Eigen::MatrixX3d(V), Eigen::MatrixX3i(F));
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("{}: 'template_vertices'/'template_faces': {}", what, e.what()));
+  }
   const int D = model.tmpl->encoding_size();
   Eigen::VectorXd mean = z.vector("encoding_mean");
   if (mean.size() != D)
     throw InputError(fmt::format("{}: encoding_mean has {} values, the template needs {}", what, mean.size(), D));
+  check_finite(mean, "encoding_mean", what);
   model.mean = EncodingMean::from_values(std::move(mean));
   model.shape = get_sub_model(z, "shape", true, D, what);
   model.full = get_sub_model(z, "full", false, D, what);
   if (z.has("rig_bone_names")) {
     model.rig.bone_names = read_list(z, "rig_bone_names", what);
+    const int B = model.rig.bone_count(), nv = static_cast<int>(V.rows());
     Eigen::VectorXi par = z.int_vector("rig_parents");
+    if (par.size() != B)
+      throw InputError(fmt::format("{}: 'rig_parents' has {} entries, 'rig_bone_names' {} bones", what,
+                                   par.size(), B));
+    // Parents come before their children (the order forward kinematics walks): no cycles.
+    for (int b = 0; b < B; ++b)
+      if (par(b) < -1 || par(b) >= b)
+        throw InputError(fmt::format("{}: 'rig_parents' gives bone {} ('{}') the parent {}, expected -1 "
+                                     "(a root) or a bone index below {}",
+                                     what, b, model.rig.bone_names[b], par(b), b));
     model.rig.parents.assign(par.data(), par.data() + par.size());
-    model.rig.head_regressor = get_sparse(z, "rig_head_regressor", what);
-    model.rig.tail_regressor = get_sparse(z, "rig_tail_regressor", what);
-    model.rig.weights = get_sparse(z, "rig_weights", what);
-    const int B = model.rig.bone_count();
-    if (static_cast<int>(model.rig.parents.size()) != B || model.rig.head_regressor.rows() != B ||
-        model.rig.head_regressor.cols() != V.rows() || model.rig.weights.rows() != V.rows() ||
-        model.rig.weights.cols() != B)
-      throw InputError(fmt::format("{}: the rig arrays disagree with {} bones and {} vertices", what, B, V.rows()));
+    model.rig.head_regressor = get_sparse(z, "rig_head_regressor", what, B, nv);
+    model.rig.tail_regressor = get_sparse(z, "rig_tail_regressor", what, B, nv);
+    model.rig.weights = get_sparse(z, "rig_weights", what, nv, B);
   }
   return model;
 }

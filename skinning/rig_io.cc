@@ -5,6 +5,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
+
 namespace bodymodel {
 
 void save_rig(const std::filesystem::path& path, const SkinningRig& rig, const Eigen::MatrixX3i& faces,
@@ -55,8 +57,16 @@ SkinningRig load_rig(const std::filesystem::path& path, Eigen::MatrixX3i* faces,
     throw InputError(path.string() + ": not a bodymodel skinning rig (expected key 'format' = "
                      "'bodymodel-skinning-rig-1')");
   SkinningRig rig;
-  rig.method = parse_skinning_method(z.text("method"));
-  rig.bone_count = static_cast<int>(z.scalar("bone_count"));
+  try {
+    rig.method = parse_skinning_method(z.text("method"));
+  } catch (const InputError& e) {
+    throw InputError(path.string() + ": 'method': " + e.what());
+  }
+  const double bones = z.scalar("bone_count");
+  if (!(bones >= 1 && bones <= 1e6) || bones != std::floor(bones))
+    throw InputError(path.string() + ": 'bone_count' is " + std::to_string(bones) +
+                     ", expected a whole number from 1 to 1000000");
+  rig.bone_count = static_cast<int>(bones);
   const Eigen::MatrixXd rest = z.matrix("rest");
   if (rest.cols() != 3) throw InputError(path.string() + ": 'rest' must have 3 columns");
   rig.rest = rest;
@@ -66,6 +76,12 @@ SkinningRig load_rig(const std::filesystem::path& path, Eigen::MatrixX3i* faces,
   if (faces) {
     const Eigen::MatrixXi F = z.int_matrix("faces");
     if (F.rows() && F.cols() != 3) throw InputError(path.string() + ": 'faces' must have 3 columns");
+    for (Eigen::Index f = 0; f < F.rows(); ++f)
+      for (int k = 0; k < 3; ++k)
+        if (F(f, k) < 0 || F(f, k) >= rig.rest.rows())
+          throw InputError(path.string() + ": 'faces' row " + std::to_string(f) + " names vertex " +
+                           std::to_string(F(f, k)) + ", expected 0.." + std::to_string(rig.rest.rows() - 1) +
+                           " ('rest' has " + std::to_string(rig.rest.rows()) + " rows)");
     *faces = F.rows() ? Eigen::MatrixX3i(F) : Eigen::MatrixX3i(0, 3);
   }
   if (poses) {
@@ -74,6 +90,11 @@ SkinningRig load_rig(const std::filesystem::path& path, Eigen::MatrixX3i* faces,
       const Eigen::MatrixXd T = z.matrix("pose_transforms");
       if (T.cols() != 12 || T.rows() % rig.bone_count != 0)
         throw InputError(path.string() + ": 'pose_transforms' must be #P·#B by 12");
+      for (Eigen::Index r = 0; r < T.rows(); ++r)
+        if (!T.row(r).allFinite())
+          throw InputError(path.string() + ": 'pose_transforms' row " + std::to_string(r) + " (pose " +
+                           std::to_string(r / rig.bone_count) + ", bone " + std::to_string(r % rig.bone_count) +
+                           ") holds NaN or infinity");
       for (Eigen::Index p = 0; p < T.rows() / rig.bone_count; ++p) {
         BoneTransforms M(static_cast<size_t>(rig.bone_count), Eigen::Affine3d::Identity());
         for (int b = 0; b < rig.bone_count; ++b)
@@ -100,7 +121,14 @@ SkinningRig load_rig(const std::filesystem::path& path, Eigen::MatrixX3i* faces,
         throw InputError(path.string() + ": 'skeleton_heads' and 'skeleton_tails' must have 3 columns");
       skeleton->heads = heads;
       skeleton->tails = tails;
-      skeleton->validate();
+      if (skeleton->parents.size() != skeleton->names.size())
+        throw InputError(path.string() + ": 'skeleton_parents' has " + std::to_string(skeleton->parents.size()) +
+                         " entries, 'skeleton_names' " + std::to_string(skeleton->names.size()) + " bones");
+      try {  // sizes, parents before children (so no cycles), finite joints
+        skeleton->validate();
+      } catch (const InputError& e) {
+        throw InputError(path.string() + ": 'skeleton_parents'/'skeleton_heads'/'skeleton_tails': " + e.what());
+      }
       if (skeleton->bone_count() != rig.bone_count)
         throw InputError(path.string() + ": the skeleton has " + std::to_string(skeleton->bone_count()) +
                          " bones, the rig " + std::to_string(rig.bone_count));

@@ -2,6 +2,7 @@
 
 #include <zlib.h>
 
+#include <cmath>
 #include <cstring>
 #include <regex>
 
@@ -100,11 +101,28 @@ Eigen::VectorXd Npz::vector(const std::string& name) const {
   for (int64_t i = 0; i < a.size(); ++i) v(i) = value(a, i);
   return v;
 }
+namespace {
+// Rounds to int; a NaN, infinite or out-of-int32 value is an InputError naming the array and
+// element (converting it would be undefined behaviour).
+Eigen::MatrixXi to_int(const Eigen::MatrixXd& m, const std::string& source, const std::string& name) {
+  for (Eigen::Index c = 0; c < m.cols(); ++c)
+    for (Eigen::Index r = 0; r < m.rows(); ++r) {
+      const double x = std::round(m(r, c));
+      if (!(x >= -2147483648.0 && x <= 2147483647.0))
+        throw InputError("'" + source + "': array '" + name + "' element " +
+                         (m.cols() > 1 ? "(" + std::to_string(r) + ", " + std::to_string(c) + ")"
+                                       : std::to_string(r)) +
+                         " is " + std::to_string(m(r, c)) + ", expected an integer in the int32 range");
+    }
+  return m.array().round().cast<int>();
+}
+}  // namespace
+
 Eigen::MatrixXi Npz::int_matrix(const std::string& name) const {
-  return matrix(name).array().round().cast<int>();
+  return to_int(matrix(name), source_, name);
 }
 Eigen::VectorXi Npz::int_vector(const std::string& name) const {
-  return vector(name).array().round().cast<int>();
+  return to_int(vector(name), source_, name);
 }
 double Npz::scalar(const std::string& name) const {
   const NpyArray& a = get(arrays_, name, source_);

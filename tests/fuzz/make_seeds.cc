@@ -10,6 +10,7 @@
 #include "core/io/npz.h"
 #include "model/model_file.h"
 #include "skinning/rig_io.h"
+#include "tiny_files.h"
 
 namespace fs = std::filesystem;
 using namespace bodymodel;
@@ -88,52 +89,13 @@ int main(int argc, char** argv) {
   put("fuzz_dmat", "binary.dmat", file_bytes(tmp / "b.dmat"));
   put("fuzz_dmat", "anim.dmat", file_bytes(tmp / "c.dmat"));
   put("fuzz_dmat", "two.Tmat", "1 0 0\n0 1 0\n0 0 1\n0 0 0\n0 1 0\n-1 0 0\n0 0 1\n1 2 3\n");
-  // A skinning rig (SSD, 4 vertices, 2 bones) with one fitted pose.
-  SkinningRig rig;
-  rig.bone_count = 2;
-  rig.rest = V;
-  rig.influences.resize(4, 2);
-  rig.influences << 0, 1, 0, -1, 1, 0, 1, -1;
-  rig.coefficients.resize(4, 2);
-  rig.coefficients << 0.5, 0.5, 1, 0, 0.75, 0.25, 1, 0;
-  BoneTransforms pose(2, Eigen::Affine3d::Identity());
-  pose[1].translate(Eigen::Vector3d(1, 2, 3));
-  save_rig(tmp / "rig.npz", rig, F, {pose});
+  // A skinning rig (SSD, 4 vertices, 2 bones) with one fitted pose, without and with a skeleton.
+  tiny::write_rig(tmp / "rig.npz", false);
   put("fuzz_rig_npz", "ssd.npz", file_bytes(tmp / "rig.npz"));
-  // A model file in the real format with tiny arrays: a tetrahedron template (D = 60 encoding
-  // values), K = 2 components, 3 samples, 2 labels, a two-bone rig (made by hand: building a
-  // model needs the solver stages, which the fuzz build leaves out).
-  {
-    BodyModel m;
-    m.tmpl = std::make_shared<EncodingTemplate>(V, F);
-    const int D = m.tmpl->encoding_size(), K = 2, N = 3;
-    m.mean = EncodingMean::from_values(Eigen::VectorXd::Zero(D));
-    m.metadata = {{"format", "bodymodel-model"}, {"format_version", 1}};
-    for (SubModel* sub : {&m.shape, &m.full}) {
-      sub->pca.mean = Eigen::VectorXd::Zero(D);
-      sub->pca.basis = Eigen::MatrixXd::Identity(D, K);
-      sub->pca.eigenvalues = Eigen::Vector2d(2.0, 0.5);
-      sub->pca.coefficients = Eigen::MatrixXd::Random(N, K);
-      sub->labels = Eigen::MatrixXd::Random(N, 2);
-      sub->sample_ids = {"s0", "s1", "s2"};
-      sub->regression.labels = {{"height_cm", "cm", 170, 10, 150, 190}, {"sex", "", 0.5, 0.5, 0, 1}};
-      sub->regression.offsets = Eigen::Vector2d(170, 0.5);
-      sub->regression.gradients = Eigen::MatrixXd::Random(K, 2);
-      sub->semantic_basis.basis = Eigen::MatrixXd::Identity(K, K);
-      sub->semantic_basis.variances = Eigen::Vector2d(1, 1);
-      sub->semantic_basis.semantic_labels = {"height_cm"};
-    }
-    m.rig.bone_names = {"root", "child"};
-    m.rig.parents = {-1, 0};
-    m.rig.head_regressor.resize(2, 4);
-    m.rig.head_regressor.insert(0, 0) = 1;
-    m.rig.head_regressor.insert(1, 1) = 0.5;
-    m.rig.head_regressor.insert(1, 2) = 0.5;
-    m.rig.tail_regressor = m.rig.head_regressor;
-    m.rig.weights.resize(4, 2);
-    for (int v = 0; v < 4; ++v) m.rig.weights.insert(v, v % 2) = 1;
-    put("fuzz_model_npz", "tetra.npz", model_to_npz(m).serialize());
-  }
+  tiny::write_rig(tmp / "rig.npz", true);
+  put("fuzz_rig_npz", "ssd_skeleton.npz", file_bytes(tmp / "rig.npz"));
+  // A model file in the real format with tiny arrays.
+  put("fuzz_model_npz", "tetra.npz", tiny::model_npz().serialize());
   fs::remove_all(tmp);
   std::cout << "seeds written to " << dir << "\n";
   return 0;

@@ -135,19 +135,33 @@ inline void read_dmat_file(const std::string& in) {
   read_transform_animation(path);
 }
 
+// A model that loads must also place its skeleton in its template and pose it (small models).
 inline void read_model_npz(const std::string& in) {
-  model_from_npz(Npz::parse(in, "fuzz.npz"), "fuzz.npz");
+  const BodyModel model = model_from_npz(Npz::parse(in, "fuzz.npz"), "fuzz.npz");
+  if (!model.rig.empty() && model.rig.bone_count() <= 64 && model.tmpl->rest_vertices().rows() <= 4096) {
+    const Eigen::MatrixX3d& V = model.tmpl->rest_vertices();
+    Skeleton s;  // what ModelRig::skeleton_for makes (model_rig.cc is not in the fuzz build)
+    s.names = model.rig.bone_names;
+    s.parents = model.rig.parents;
+    s.heads = model.rig.head_regressor * V;
+    s.tails = model.rig.tail_regressor * V;
+    s.validate();
+    check(forward_kinematics(s, Pose::rest(s.bone_count())).size() == static_cast<size_t>(s.bone_count()));
+  }
 }
 
-// A rig that loads must also evaluate (small rigs: the fuzzer's time is better spent parsing).
+// A rig that loads must also evaluate, and its skeleton pose (small rigs: the fuzzer's time is
+// better spent parsing).
 inline void read_rig_npz(const std::string& in) {
   Eigen::MatrixX3i faces;
   std::vector<BoneTransforms> poses;
-  const SkinningRig rig = load_rig(input_file(in, ".npz"), &faces, &poses);
+  Skeleton skeleton;
+  const SkinningRig rig = load_rig(input_file(in, ".npz"), &faces, &poses, &skeleton);
   if (rig.bone_count <= 64 && rig.vertex_count() <= 4096) {
     const BoneTransforms M(static_cast<size_t>(rig.bone_count), Eigen::Affine3d::Identity());
     check(evaluate_rig(rig, M).allFinite());
     for (const auto& P : poses) evaluate_rig(rig, P);
+    if (skeleton.bone_count() > 0) forward_kinematics(skeleton, Pose::rest(skeleton.bone_count()));
   }
 }
 

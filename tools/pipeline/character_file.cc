@@ -56,7 +56,11 @@ CharacterRigFile load_character_rig(const fs::path& path) {
   c.skeleton.parents.assign(parents.data(), parents.data() + parents.size());
   c.skeleton.heads = z.matrix("skeleton_heads");
   c.skeleton.tails = z.matrix("skeleton_tails");
-  c.skeleton.validate();
+  try {  // sizes, parents before children (so no cycles), finite joints: the message names the file
+    c.skeleton.validate();
+  } catch (const InputError& e) {
+    throw InputError(path.string() + ": 'skeleton_parents'/'skeleton_heads'/'skeleton_tails': " + e.what());
+  }
   if (c.skeleton.bone_count() != c.rig.bone_count)
     throw InputError(path.string() + ": the skeleton has " + std::to_string(c.skeleton.bone_count()) +
                      " bones, the rig " + std::to_string(c.rig.bone_count));

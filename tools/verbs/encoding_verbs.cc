@@ -13,6 +13,7 @@
 //   layout             text: a one-paragraph description of the layout
 #include <fmt/format.h>
 
+#include <cmath>
 #include <filesystem>
 #include <sstream>
 
@@ -105,6 +106,20 @@ struct DecodeArgs {
   std::string input, templ, out, format;
 };
 
+// "row 3 ('walk_02')": an encoding row and the mesh it decodes to.
+std::string item_name(Eigen::Index row, const std::vector<std::string>& names) {
+  return fmt::format("row {} ('{}')", row, names[static_cast<size_t>(row)]);
+}
+
+// The first non-finite value of `M` as "NaN at row r, column c", or "".
+std::string first_non_finite(const Eigen::MatrixXd& M) {
+  for (Eigen::Index r = 0; r < M.rows(); ++r)
+    for (Eigen::Index c = 0; c < M.cols(); ++c)
+      if (!std::isfinite(M(r, c)))
+        return fmt::format("{} at row {}, column {}", std::isnan(M(r, c)) ? "NaN" : "infinity", r, c);
+  return "";
+}
+
 void run_decode(const DecodeArgs& a) {
   const Npz npz = Npz::load(a.input);
   Mesh t;
@@ -113,8 +128,11 @@ void run_decode(const DecodeArgs& a) {
   } else {
     t.V = npz.matrix("template_vertices");
     t.F = npz.int_matrix("template_faces");
+    if (const std::string bad = first_non_finite(t.V); !bad.empty())
+      throw InputError(fmt::format("{}: 'template_vertices' holds {}, expected finite coordinates",
+                                   a.input, bad));
   }
-  auto tmpl = make_template(t, a.templ.empty() ? a.input + " template" : a.templ);
+  auto tmpl = make_template(t, a.templ.empty() ? a.input + ": 'template_vertices'/'template_faces'" : a.templ);
   if (npz.has("template_faces")) {
     const Eigen::MatrixXi F = npz.int_matrix("template_faces");
     if (F.cols() != 3) throw InputError(a.input + ": template_faces must have 3 columns");
@@ -124,10 +142,15 @@ void run_decode(const DecodeArgs& a) {
   if (rows.cols() != tmpl->encoding_size())
     throw InputError(fmt::format("{}: 'encodings' has {} columns, the template needs {} "
                                  "(15 per triangle)", a.input, rows.cols(), tmpl->encoding_size()));
-  auto mean = EncodingMean::from_values(npz.vector("mean"));
-  if (mean->values.size() != tmpl->encoding_size())
+  const Eigen::VectorXd mean_values = npz.vector("mean");
+  if (mean_values.size() != tmpl->encoding_size())
     throw InputError(fmt::format("{}: 'mean' has {} values, expected {}", a.input,
-                                 mean->values.size(), tmpl->encoding_size()));
+                                 mean_values.size(), tmpl->encoding_size()));
+  for (Eigen::Index k = 0; k < mean_values.size(); ++k)
+    if (!std::isfinite(mean_values(k)))
+      throw InputError(fmt::format("{}: 'mean' holds {} at value {} (triangle {}), expected finite values",
+                                   a.input, std::isnan(mean_values(k)) ? "NaN" : "infinity", k, k / 15));
+  auto mean = EncodingMean::from_values(mean_values);
   std::vector<std::string> names;
   if (npz.has("names")) {
     std::istringstream in(npz.text("names"));
@@ -136,6 +159,14 @@ void run_decode(const DecodeArgs& a) {
   }
   while (names.size() < static_cast<size_t>(rows.rows()))
     names.push_back(fmt::format("decoded_{:03d}", names.size()));
+  // Every row is checked before anything is written: a bad row names the file and the item.
+  for (Eigen::Index i = 0; i < rows.rows(); ++i)
+    for (Eigen::Index k = 0; k < rows.cols(); ++k)
+      if (!std::isfinite(rows(i, k)))
+        throw InputError(fmt::format("{}: 'encodings' {} holds {} at value {} (triangle {}), expected "
+                                     "finite values",
+                                     a.input, item_name(i, names), std::isnan(rows(i, k)) ? "NaN" : "infinity",
+                                     k, k / 15));
   std::string ext = a.format.empty() ? ".obj" : "." + a.format;
   if (ext != ".obj" && ext != ".ply") throw InputError("--format must be obj or ply, found " + a.format);
   ensure_directory(a.out);
@@ -144,7 +175,17 @@ void run_decode(const DecodeArgs& a) {
   double total_ms = 0;
   for (Eigen::Index i = 0; i < rows.rows(); ++i) {
     const Encoding e{rows.row(i).transpose(), mean};
-    const Eigen::MatrixX3d V = decoder.decode(e);
+    Eigen::MatrixX3d V;
+    try {
+      V = decoder.decode(e);
+    } catch (const InputError& err) {
+      throw InputError(fmt::format("{}: 'encodings' {}: {}", a.input, item_name(i, names), err.what()));
+    } catch (const NumericalError& err) {
+      throw NumericalError(fmt::format("{}: 'encodings' {}: {}", a.input, item_name(i, names), err.what()));
+    }
+    if (!V.allFinite())
+      throw NumericalError(fmt::format("{}: 'encodings' {} decoded to non-finite vertices", a.input,
+                                       item_name(i, names)));
     total_ms += decoder.last_timing().total_ms;
     write_mesh(output_name(a.out, names[i], ext), V, tmpl->faces());
     bar.update(static_cast<double>(i + 1) / rows.rows(), names[i]);
