@@ -39,7 +39,7 @@ struct RegistrationOptions {
   // After the non-rigid fit, triangles folded against the pose-fitted template are re-solved
   // from its local shape (repair_flipped_triangles, this many vertex rings around them).
   // ≤ 0 rings: off.
-  int repair_flipped_rings = 0;
+  int repair_flipped_rings = 2;
 };
 
 struct RegistrationSummary {

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/error.h"
@@ -158,6 +159,39 @@ TEST(NonrigidRegistration, LandmarksAndHoles) {
     if (moved.V(i, 2) > 100.0) hole_max = std::max(hole_max, err(i));
   EXPECT_LT(hole_max, 5.0);  // no spike inside the hole
   EXPECT_LT(err.mean(), 1.5);
+}
+
+// A sphere whose top cap is mirrored left to right (y → −y: its triangles turn inside out,
+// a tangle at its rim): the repair removes every fold and brings the cap back close to the
+// reference sphere, leaving the rest untouched.
+TEST(RepairFlippedTriangles, UnfoldsAFoldedCap) {
+  const Mesh sphere = test::icosphere(100.0, 3);
+  Eigen::MatrixX3d V = sphere.V;
+  std::vector<char> cap(V.rows(), 0);
+  for (Eigen::Index i = 0; i < V.rows(); ++i)
+    if (V(i, 2) > 80.0) {
+      V(i, 1) = -V(i, 1);
+      cap[i] = 1;
+    }
+  const auto flipped = [&](const Eigen::MatrixX3d& X) {
+    const Eigen::MatrixX3d N = face_normals(X, sphere.F), R = face_normals(sphere.V, sphere.F);
+    int c = 0;
+    for (Eigen::Index f = 0; f < sphere.F.rows(); ++f) c += N.row(f).dot(R.row(f)) < 0;
+    return c;
+  };
+  const int before = flipped(V);
+  ASSERT_GT(before, 10);
+  const Eigen::MatrixX3d folded = V;
+  const int reported = repair_flipped_triangles(V, sphere.V, sphere.F, 2);
+  EXPECT_EQ(reported, before);
+  EXPECT_EQ(flipped(V), 0);
+  double cap_err = 0, moved_far = 0;
+  for (Eigen::Index i = 0; i < V.rows(); ++i) {
+    if (cap[i]) cap_err = std::max(cap_err, (V.row(i) - sphere.V.row(i)).norm());
+    if (V(i, 2) < 40.0) moved_far = std::max(moved_far, (V.row(i) - folded.row(i)).norm());
+  }
+  EXPECT_LT(cap_err, 1.0);      // the cap was up to 120 mm off
+  EXPECT_LT(moved_far, 1e-12);  // far from the fold nothing moves
 }
 
 TEST(NonrigidRegistration, BadInput) {

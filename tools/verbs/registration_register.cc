@@ -31,7 +31,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct RegisterArgs {
-  std::string db, out, schedule = "fast", shard, scan, pose_joints = "bone";
+  std::string db, out, schedule = "fast", shard, scan, pose_joints = "segment";
   int jobs = 1;
   int fast_steps = NonrigidOptions{}.fast_steps;
   double fast_k_end = NonrigidOptions{}.fast_k_end;
@@ -67,7 +67,8 @@ std::vector<std::string> read_scan_ids(const fs::path& csv) {
 std::string summary_header() {
   return "scan_id,points,normals_estimated,landmarks,pose_icp_iterations,pose_rms_mm,"
          "pose_landmark_rms_mm,scale,nonrigid_iterations,data_rms_mm,landmark_rms_mm,"
-         "matched_vertices,plane_matches,pose_seconds,nonrigid_seconds,seconds\n";
+         "matched_vertices,plane_matches,pose_seconds,nonrigid_seconds,seconds,pose_two_sided_mm,"
+         "pose_joints,folded_triangles_repaired\n";
 }
 
 void rebuild_registration_csv(const fs::path& out) {
@@ -119,9 +120,10 @@ BODYMODEL_VERB(add_register_verb) {
   cmd->add_flag("--pose-only", a->pose_only, "Stop after the skeleton pose fit");
   cmd->add_option("--pose-joints", a->pose_joints,
                   "Pose-fit joints: 'segment' (one rotation per body segment, twist bones, "
-                  "finger grasp) or 'bone' (every spine, neck, arm and leg bone a free ball "
-                  "joint; finger grasp as in 'segment')")
-      ->check(CLI::IsMember({"segment", "bone"}))
+                  "finger grasp), 'bone' (every spine, neck, arm and leg bone a free ball "
+                  "joint; finger grasp as in 'segment') or 'best' (both, keeping the fit closer "
+                  "to the scan)")
+      ->check(CLI::IsMember({"segment", "bone", "best"}))
       ->capture_default_str();
   cmd->add_flag("--no-proportions", a->no_proportions,
                 "Keep the template's limb proportions (global scale only) instead of stretching "
@@ -179,15 +181,16 @@ BODYMODEL_VERB(add_register_verb) {
     options.nonrigid.normalization_length = a->transform_length;
     options.skip_nonrigid = a->pose_only;
     options.fit_proportions = !a->no_proportions;
-    if (a->pose_joints == "bone")
-      for (const auto& p : default_pose_parameters()) {
-        if (p.bones[0].rfind("finger", 0) == 0) {  // keep the grasp groups
-          options.pose.parameters.push_back(p);
-          continue;
-        }
-        for (const auto& b : p.bones) options.pose.parameters.push_back({{b}, false});
-      }
+    if (a->pose_joints == "bone") options.pose.parameters = bone_pose_parameters();
+    if (a->pose_joints == "segment") options.pose.parameters = segment_pose_parameters();
+    if (a->pose_joints == "best") {
+      options.pose.parameters = segment_pose_parameters();
+      options.pose_alternatives.push_back(options.pose);
+      options.pose_alternatives.back().parameters = bone_pose_parameters();
+    }
 
+    std::vector<std::string> pose_joint_names = {a->pose_joints, "bone"};
+    if (a->pose_joints == "best") pose_joint_names[0] = "segment";
     cli::ProgressBar bar(fmt::format("register {} scans", todo.size()));
     std::mutex mutex;
     std::atomic<int> done{0};
@@ -229,12 +232,13 @@ BODYMODEL_VERB(add_register_verb) {
           write_text_file(
               out / (id + ".summary.csv"),
               fmt::format("{},{},{},{},{},{:.4f},{:.4f},{:.6f},{},{:.4f},{:.4f},{},{},{:.2f},{:.2f},"
-                          "{:.2f}\n",
+                          "{:.2f},{:.3f},{},{}\n",
                           id, scan.P.rows(), s.scan.normals_estimated ? 1 : 0, landmarks.size(),
                           s.pose.icp_iterations, s.pose.rms, s.pose.landmark_rms, r.pose.scale,
                           s.nonrigid.iterations, s.nonrigid.data_rms, s.nonrigid.landmark_rms,
                           s.nonrigid.matched_vertices, s.nonrigid.plane_matches, s.pose.seconds,
-                          s.nonrigid.seconds, s.seconds));
+                          s.nonrigid.seconds, s.seconds, s.pose.two_sided_mm,
+                          pose_joint_names[s.pose_choice], s.folded_triangles));
           std::lock_guard<std::mutex> lock(mutex);
           if (s.scan.normals_estimated)
             cli::info(id + ": the scan has no normals; estimated them (unoriented)");
