@@ -69,21 +69,16 @@ int ereach(int k, const std::vector<int>& up_rows, const std::vector<int>& paren
 
 
 // C (m by n, leading dimension ldc) = A Bᵀ with A m by k (lda) and B n by k (ldb), all
-// column-major: the update product of the wider supernodes. The portable version is three
-// loops; where the CPU has AVX2 and FMA (checked once at run time; the rest of the project is
+// column-major: the update product of the wider supernodes. The portable version is Eigen's
+// GEMM; where the CPU has AVX2 and FMA (checked once at run time; the rest of the project is
 // built for plain x86-64) a 12×4 register-tiled kernel computes the same products. The two
 // round differently, but one machine always takes the same path, so results are reproducible.
 void gemm_nt_portable(int m, int n, int k, const double* A, long lda, const double* B, long ldb,
                       double* C, long ldc) {
-  for (int j = 0; j < n; ++j) {
-    double* c = C + j * ldc;
-    for (int i = 0; i < m; ++i) c[i] = 0;
-    for (int p = 0; p < k; ++p) {
-      const double b = B[j + p * ldb];
-      const double* a = A + p * lda;
-      for (int i = 0; i < m; ++i) c[i] += a[i] * b;
-    }
-  }
+  using Strided = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>;
+  Eigen::Map<Eigen::MatrixXd, 0, Eigen::OuterStride<>> out(C, m, n, Eigen::OuterStride<>(ldc));
+  out.noalias() = Strided(A, m, k, Eigen::OuterStride<>(lda)) *
+                  Strided(B, n, k, Eigen::OuterStride<>(ldb)).transpose();
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
