@@ -1,10 +1,13 @@
 // Statistical model benchmarks (issue 5):
-//  * BM_GenerateBodies/<conditions>/<girths>: bodies per second of `generate` one at a time,
-//    including writing the OBJ, with the time split into morphing (decodes), the final
-//    measurement and writing; conditions = weight 65 kg, height 160..180 cm, female; girths 0 =
-//    `--no-girths`. Model built in-process from 30 MakeHuman bodies.
-//  * BM_GenerateCrowdParallel/<girths>: 16 bodies per batch in parallel (TBB, one morpher per
-//    thread), as the generate verb runs them.
+//  * BM_GenerateBodies/<conditions>/<girths>: one body at a time as `generate` makes it
+//    (generate_body + flipped-triangle check + OBJ); conditions = female, weight 65 kg, height
+//    160..180 cm; girths 0 = `--no-girths`. Process CPU per body (cpu_ms_per_body), the same in
+//    units of one decode timed in the same process (body_in_decodes), decodes per body, and the
+//    final measurement and the OBJ apart. Model built in-process from 30 MakeHuman bodies.
+//  * BM_GenerateCrowdParallel/<girths>/<threads>: batches of 16 bodies through generate_crowd
+//    (model/generate_crowd.h: parallel bodies, OBJ files, labels.csv), wall and process CPU.
+//  * BM_MeasureBanded, BM_WriteObj: measure_body vs measure_body_banded, and the to_chars OBJ
+//    writer vs the snprintf one it replaced, alternating in one process (speedup ratios).
 //  * BM_Generalisation: reconstruction error of HELD-OUT subjects (all their scans, posed ones
 //    included) vs the number of components, for the RRE model and for plain vertex-position
 //    PCA of the same (rigidly aligned) meshes. Needs a synthetic database: BODYMODEL_BENCH_DB
