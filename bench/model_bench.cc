@@ -6,7 +6,7 @@
 //    final measurement and the OBJ apart. Model built in-process from 30 MakeHuman bodies.
 //  * BM_GenerateCrowdParallel/<girths>/<threads>: batches of 16 bodies through generate_crowd
 //    (model/generate_crowd.h: parallel bodies, OBJ files, labels.csv), wall and process CPU.
-//  * BM_MeasureBanded, BM_WriteObj: measure_body vs measure_body_banded, and the to_chars OBJ
+//  * BM_MeasureBanded, BM_WriteObj: measure_body cutting only each band's triangles vs every triangle, and the to_chars OBJ
 //    writer vs the snprintf one it replaced, alternating in one process (speedup ratios).
 //  * BM_Generalisation: reconstruction error of HELD-OUT subjects (all their scans, posed ones
 //    included) vs the number of components, for the RRE model and for plain vertex-position
@@ -38,7 +38,6 @@
 #include "model/database.h"
 #include "model/model_file.h"
 #include "model/generate_crowd.h"
-#include "model/generate_measure.h"
 #include "model/morph.h"
 #include "model/pca.h"
 #include "model/pose_edit.h"
@@ -166,19 +165,21 @@ void BM_GenerateCrowdParallel(benchmark::State& state) {
 }
 BENCHMARK(BM_GenerateCrowdParallel)->Args({1, 2})->Args({0, 2})->Args({1, 1})->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// measure_body (core/measure.h) against measure_body_banded (model/generate_measure.h) on
-// the same generated body, alternating in one process: ratio = banded speed-up.
+// measure_body (core/measure.h) cutting every triangle against cutting each band's triangles
+// only (the default) on the same generated body, alternating in one process: ratio = speed-up.
 void BM_MeasureBanded(benchmark::State& state) {
   auto model = bench_model();
   ShapeMorpher morpher(model);
   const Eigen::MatrixX3d V = generate_body(morpher, {}, 3).V;
   const Eigen::MatrixX3i& F = model->tmpl->faces();
+  MeasureOptions every_triangle;
+  every_triangle.cut_band_triangles_only = false;
   double full = 0, banded = 0;
   for (auto _ : state) {
     const double t0 = process_cpu_seconds();
-    benchmark::DoNotOptimize(measure_body(V, F, Sex::female));
+    benchmark::DoNotOptimize(measure_body(V, F, Sex::female, every_triangle));
     const double t1 = process_cpu_seconds();
-    benchmark::DoNotOptimize(measure_body_banded(V, F, Sex::female));
+    benchmark::DoNotOptimize(measure_body(V, F, Sex::female));
     const double t2 = process_cpu_seconds();
     full += t1 - t0;
     banded += t2 - t1;

@@ -3,6 +3,7 @@
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/convex_hull_2.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <unordered_map>
@@ -133,19 +134,49 @@ BodyMeasurements measure_body(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i&
   m.volume_l = vol * std::pow(o.mm_per_unit, 3) * 1e-6;
   m.weight_kg = m.volume_l * o.density_kg_per_l;
 
+  // Vertical extent of every triangle, for listing each cut's candidate triangles.
+  const int up = o.up_axis, n = o.slices_per_band;
+  Eigen::VectorXd fmin(F.rows()), fmax(F.rows());
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    const double a = V(F(f, 0), up), b = V(F(f, 1), up), c = V(F(f, 2), up);
+    fmin(f) = std::min({a, b, c});
+    fmax(f) = std::max({a, b, c});
+  }
+
   // Cuts from the bottom of the band upwards. With `stop_at_jump`, the scan ends at the first
   // cut whose girth exceeds the previous one by more than 12 %: the arms joining the torso
   // loop at the armpits (A-pose), which must not count as chest.
   auto band = [&](double f0, double f1, bool maximum, double& at, bool stop_at_jump = false) {
+    std::vector<double> fraction(n), h(n);
+    for (int s = 0; s < n; ++s) {
+      fraction[s] = f0 + (f1 - f0) * (s + 0.5) / n;
+      h[s] = lo + fraction[s] * height;
+    }
+    // A plane section at height h only involves triangles whose extent contains h.
+    std::vector<std::vector<int>> cut_faces(o.cut_band_triangles_only ? n : 0);
+    if (o.cut_band_triangles_only && n > 0)
+      for (Eigen::Index f = 0; f < F.rows(); ++f) {
+        if (fmax(f) < h.front() || fmin(f) > h.back()) continue;
+        const auto first = std::lower_bound(h.begin(), h.end(), fmin(f));
+        const auto last = std::upper_bound(first, h.end(), fmax(f));
+        for (auto it = first; it != last; ++it) cut_faces[it - h.begin()].push_back(static_cast<int>(f));
+      }
     double best = maximum ? -1 : std::numeric_limits<double>::infinity();
     double previous = 0;
-    for (int s = 0; s < o.slices_per_band; ++s) {
-      double f = f0 + (f1 - f0) * (s + 0.5) / o.slices_per_band;
-      double g = girth_at_height(V, F, lo + f * height, o.up_axis);
+    Eigen::MatrixX3i Fc;
+    for (int s = 0; s < n; ++s) {
+      double g;
+      if (o.cut_band_triangles_only) {
+        Fc.resize(static_cast<Eigen::Index>(cut_faces[s].size()), 3);
+        for (size_t k = 0; k < cut_faces[s].size(); ++k) Fc.row(static_cast<Eigen::Index>(k)) = F.row(cut_faces[s][k]);
+        g = girth_at_height(V, Fc, h[s], up);
+      } else {
+        g = girth_at_height(V, F, h[s], up);
+      }
       if (g <= 0) continue;
       if (stop_at_jump && previous > 0 && g > 1.12 * previous) break;
       previous = g;
-      if (maximum ? g > best : g < best) { best = g; at = f * height * to_cm; }
+      if (maximum ? g > best : g < best) { best = g; at = fraction[s] * height * to_cm; }
     }
     return std::isfinite(best) && best > 0 ? best * to_cm : 0.0;
   };

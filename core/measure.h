@@ -27,6 +27,10 @@ struct MeasureOptions {
   double density_kg_per_l = 1.01;   // see header comment
   double mm_per_unit = 1.0;         // mesh unit in millimetres (bodies here are in mm)
   int slices_per_band = 40;         // cuts per girth band
+  // Each cut looks only at the triangles whose vertical extent contains its height (listed once
+  // per band) instead of at every triangle: the same sections, about 4x faster on a 27k-triangle
+  // body. `false` cuts the whole mesh every time (the reference the tests compare against).
+  bool cut_band_triangles_only = true;
 };
 
 enum class Sex { unknown, female, male };

@@ -12,7 +12,6 @@
 
 #include "core/error.h"
 #include "core/geometry.h"
-#include "model/generate_measure.h"
 
 namespace bodymodel {
 
@@ -57,7 +56,7 @@ Eigen::MatrixX3d ShapeMorpher::decode(const Eigen::VectorXd& x) const {
 }
 
 BodyMeasurements ShapeMorpher::measure(const Eigen::MatrixX3d& V, Sex sex) const {
-  return measure_body_banded(V, model_->tmpl->faces(), sex);
+  return measure_body(V, model_->tmpl->faces(), sex);
 }
 
 namespace {

@@ -99,7 +99,7 @@ class ShapeMorpher {
 
   // Decodes encoding values x (relative to the model's mean), aligned to the template.
   Eigen::MatrixX3d decode(const Eigen::VectorXd& x) const;
-  // measure_body (core/measure.h) of V, computed band by band (model/generate_measure.h).
+  // measure_body (core/measure.h) of V.
   BodyMeasurements measure(const Eigen::MatrixX3d& V, Sex sex) const;
 
   // Morphs the body V (#V by 3, mm; the model's topology) to meet `conditions`. The result is
