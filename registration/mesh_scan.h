@@ -73,4 +73,20 @@ MeshScanDistance mesh_scan_distance(const Eigen::MatrixX3d& reg_V, const Eigen::
 int folded_triangles(const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& reference_V,
                      const Eigen::MatrixX3i& F);
 
+struct UnfoldOptions {
+  int max_rounds = 30;             // each round grows the smoothed region by one ring
+  int rings = 1;                   // rings around the folded triangles smoothed in round 1
+  int smoothing_iterations = 200;  // Jacobi sweeps of the displacement per round
+};
+
+// Removes folds left by a non-rigid fit where the template is finer than the scan (eyelids,
+// armpits): inside a region around the folded triangles the displacement D = V − reference_V
+// is replaced by the average of its neighbours' (a harmonic fill with the region's border
+// fixed), so the region follows the fold-free reference mesh up to a smooth displacement; the
+// region grows by one ring per round until no fold is left. V #V by 3 (modified), reference_V
+// #V by 3 (e.g. the pose-fitted template), F #F by 3. Returns the folds left (0 unless
+// max_rounds ran out).
+int unfold_triangles(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& reference_V,
+                     const Eigen::MatrixX3i& F, const UnfoldOptions& options = {});
+
 }  // namespace bodymodel
