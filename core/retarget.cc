@@ -26,9 +26,11 @@ bool corrects_rest(const std::vector<std::string>& targets) {
   return true;
 }
 
-bool is_arm_chain(const std::vector<std::string>& targets) {
+bool is_limb_chain(const std::vector<std::string>& targets) {
   for (const auto& t : targets)
-    if (!(starts_with(t, "upperarm") || starts_with(t, "lowerarm") || starts_with(t, "wrist"))) return false;
+    if (!(starts_with(t, "upperarm") || starts_with(t, "lowerarm") || starts_with(t, "wrist") ||
+          starts_with(t, "upperleg") || starts_with(t, "lowerleg") || starts_with(t, "foot")))
+      return false;
   return !targets.empty();
 }
 
@@ -170,7 +172,7 @@ Retargeter::Retargeter(const BvhMotion& clip, const Skeleton& target, const Reta
     const RetargetMap::Entry* e = entry_of[j];
     const bool correct = e && e->correct_rest &&
                          (options.rest_correction == RetargetOptions::RestCorrection::all_chains ||
-                          is_arm_chain(e->targets));
+                          is_limb_chain(e->targets));
     if (correct) {
       const Eigen::Vector3d dt = chain_direction(*e);
       // Source direction: towards the mapped child best aligned with the target chain, or

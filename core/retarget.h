@@ -12,10 +12,12 @@
 //     bone → tail of its last) onto the source rest direction (joint → its mapped child or End
 //     Site). The world rotation of every bone of the chain is Q_b = G_j · A, where G_j is the
 //     source joint's accumulated world rotation (file axes converted to hm08). By default only
-//     the arm chains (upper arm, forearm, hand) are corrected: that is where the two rest poses
-//     differ. A mocap skeleton's rest pose is a calibration stance whose spine, neck, collars
-//     and legs are straight by construction, not by the actor's posture; aligning hm08's
-//     S-curved spine, neck and clavicles onto them bent a standing body by 17–39° per joint
+//     the limb chains (upper arm, forearm, hand; thigh, shin, foot) are corrected: the arms are
+//     where the two rest poses differ, and the clips' leg directions follow their own hip
+//     widths (12_03's thighs converge: uncorrected, its walk crossed the legs). A mocap
+//     skeleton's spine, neck and collars are straight by construction, not by the actor's
+//     posture; aligning hm08's S-curved spine, neck and clavicles onto them bent a standing
+//     body by 17–39° per joint
 //     (12_03's rest frame: neck01 39°, spine02 25°, clavicle.L 23° but clavicle.R 18°) and
 //     stretched the neck, shoulders and crotch in every frame. Chains not corrected use their
 //     source parent's A. Bones that no chain drives keep identity relative to their parent.
@@ -69,11 +71,11 @@ struct RetargetOptions {
   // travels metres, which would carry a scanned body out of a scanner). On: see step 3 above.
   bool apply_root_translation = false;
   bool start_at_origin = true;        // horizontal translation relative to frame 0
-  // Which chains get a rest correction of their own (step 2). `arms`: upper arm, forearm and
-  // hand chains only (default). `all_chains`: every chain except root, pelvis, fingers and toes
-  // (the behaviour before session 3, kept for comparison).
-  enum class RestCorrection { arms, all_chains };
-  RestCorrection rest_correction = RestCorrection::arms;
+  // Which chains get a rest correction of their own (step 2). `limbs`: arm and leg chains
+  // (default). `all_chains`: every chain except root, pelvis, fingers and toes (the behaviour
+  // before session 3, kept for comparison).
+  enum class RestCorrection { limbs, all_chains };
+  RestCorrection rest_correction = RestCorrection::limbs;
 };
 
 // Drives `target` (the MakeHuman default skeleton, any body shape) with `clip`.

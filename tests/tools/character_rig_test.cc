@@ -4,12 +4,11 @@
 // character pose-morphed into a small range of motion and rigged (SSD, AS, MWE), then
 // `bodymodel animate` on a CMU clip with the saved rig.
 //   - MWE reproduces held-out pose morphs better than SSD (mean vertex error, mm);
-//   - animated frames stay plausible (tools/pipeline/deformation_check.h). The check is
-//     every edge within 3 × its rest length and no flipped triangle. Measured on this body
-//     (MakeHuman's default): 02_02 3.25 × at the groin (spine05), 12_03 2.67 ×; 30 / 63 flipped
-//     triangles, in the groin crease and armpits where linear blend skinning folds. Until the
-//     groin is fixed the test holds the rig to ≤ 3.5 × and to the template weights' own figures
-//     (MakeHuman's weights as they are: 4.3–4.8 ×), and flips to ≤ 0.5 % of the triangles.
+//   - `bodymodel animate` keeps every edge within 3 × its rest length (the check,
+//     tools/pipeline/deformation_check.h; measured on this body, MakeHuman's default: 02_02
+//     2.98 ×, 12_03 2.68 ×) and below the template weights' own stretch. Flipped triangles are
+//     NOT yet zero (30 / 36, in the groin crease and armpits where linear blend skinning
+//     folds): the test bounds them to 0.5 % of the triangles.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -156,7 +155,7 @@ TEST(CharacterRig, MweReproducesHeldOutPoseMorphsBetterThanSsd) {
   EXPECT_LT(row(w.errors, "mwe", "train").mean_mm, row(w.errors, "smooth_lbs", "train").mean_mm);
 }
 
-TEST(CharacterRig, AnimateOnCmuClipsStretchesEdgesLessThanTheTemplateWeights) {
+TEST(CharacterRig, AnimateOnCmuClipsKeepsEdgesWithinThreeTimesRest) {
   const SmallWorld& w = world();
   const fs::path dir = fs::temp_directory_path() / ("bodymodel_character_test_" + std::to_string(::getpid()));
   fs::remove_all(dir);
@@ -199,7 +198,7 @@ TEST(CharacterRig, AnimateOnCmuClipsStretchesEdgesLessThanTheTemplateWeights) {
       ++frames;
     }
     EXPECT_GE(frames, 10);
-    EXPECT_LE(worst, 3.5) << where;   // the target: 3
+    EXPECT_LE(worst, 3.0) << where;
     EXPECT_LT(worst, template_worst) << where;
     EXPECT_LE(flipped, 0.005 * w.examples.F.rows()) << where;  // the target: 0
     std::cout << clip << ": " << frames << " frames, max edge ratio " << worst << " (" << where
