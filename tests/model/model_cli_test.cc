@@ -168,6 +168,14 @@ TEST(ModelCli, BadInputGivesClearErrors) {
 
   r = run_cli("generate " + m + " --count 1 --where weight_kg=abc --out '" + (temp_dir() / "crowd").string() + "'");
   EXPECT_EQ(r.exit_code, 2) << r.output;
+
+  // Conditions no body of the data can meet: the crowd is written, and the exit code says so.
+  const fs::path heavy = temp_dir() / "heavy_crowd";
+  r = run_cli("generate " + m + " --count 1 --where weight_kg=250 --where height_cm=150 --no-girths --out '" +
+              heavy.string() + "'");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("1 of 1 bodies did not meet every condition"), std::string::npos) << r.output;
+  EXPECT_TRUE(fs::exists(heavy / "labels.csv"));
 }
 
 TEST(ModelCli, GenerateRerunSkipsExistingBodiesAndReportsIt) {

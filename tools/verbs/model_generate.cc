@@ -143,9 +143,13 @@ BODYMODEL_VERB(add_model_generate_verb) {
                mean_pairwise(subj), subj.size(), sex == Sex::unknown ? "" : " of that sex");
     if (s.generated > 0)
       fmt::print("speed                  {:.1f} bodies/s including writing meshes\n", s.generated / std::max(s.seconds, 1e-9));
-    if (s.constraints_met < n)
-      cli::warn(fmt::format("{} bodies did not meet every condition (see labels.csv)", n - s.constraints_met));
     cli::info("wrote " + (out / "labels.csv").string());
+    // A body that misses a condition is a failed item of the batch: everything stays written
+    // (and is skipped on a rerun), but the exit code says the crowd is not what was asked for.
+    if (s.constraints_met < n)
+      throw InputError(fmt::format("{} of {} bodies did not meet every condition as measured (constraints_met "
+                                   "is 0 in their rows of '{}'); the bodies were written",
+                                   n - s.constraints_met, n, (out / "labels.csv").string()));
   });
 }
 
