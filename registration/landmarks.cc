@@ -8,6 +8,15 @@
 
 namespace bodymodel {
 
+int template_landmark_vertex(const LandmarkTable& table, const std::string& name,
+                             const std::filesystem::path& path) {
+  for (const auto& [n, v] : table)
+    if (n == name) return v;
+  std::string known;
+  for (const auto& [n, v] : table) known += (known.empty() ? "" : ", ") + n;
+  throw InputError(path.string() + ": unknown landmark name '" + name + "'; the template knows: " + known);
+}
+
 std::vector<Landmark> read_landmarks(const std::filesystem::path& path,
                                      const LandmarkTable& table) {
   const std::string text = read_text_file(path);
@@ -24,15 +33,7 @@ std::vector<Landmark> read_landmarks(const std::filesystem::path& path,
   std::vector<Landmark> out;
   for (auto it = j.begin(); it != j.end(); ++it) {
     const std::string& name = it.key();
-    int vertex = -1;
-    for (const auto& [n, v] : table)
-      if (n == name) vertex = v;
-    if (vertex < 0) {
-      std::string known;
-      for (const auto& [n, v] : table) known += (known.empty() ? "" : ", ") + n;
-      throw InputError(path.string() + ": unknown landmark name '" + name +
-                       "'; the template knows: " + known);
-    }
+    const int vertex = template_landmark_vertex(table, name, path);
     const auto& a = it.value();
     if (!a.is_array() || a.size() != 3 || !a[0].is_number() || !a[1].is_number() ||
         !a[2].is_number())

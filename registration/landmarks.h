@@ -26,6 +26,11 @@ using LandmarkTable = std::vector<std::pair<std::string, int>>;
 // finite numbers, or a name is not in the table (listing the known names).
 std::vector<Landmark> read_landmarks(const std::filesystem::path& path, const LandmarkTable& table);
 
+// The template vertex of landmark `name`; an unknown name is an InputError naming `path` (the
+// landmark file it came from) and listing the names the table knows.
+int template_landmark_vertex(const LandmarkTable& table, const std::string& name,
+                             const std::filesystem::path& path);
+
 // Checks landmark vertex indices against a template of `vertex_count` vertices and that the
 // targets are finite; InputError naming `what` otherwise.
 void check_landmarks(const std::vector<Landmark>& landmarks, int vertex_count,

@@ -89,15 +89,7 @@ std::vector<Landmark> read_mesh_landmarks(const std::filesystem::path& path,
   std::vector<Landmark> out;
   for (auto it = j.begin(); it != j.end(); ++it) {
     const std::string& name = it.key();
-    int vertex = -1;
-    for (const auto& [n, v] : table)
-      if (n == name) vertex = v;
-    if (vertex < 0) {
-      std::string known;
-      for (const auto& [n, v] : table) known += (known.empty() ? "" : ", ") + n;
-      throw InputError(path.string() + ": unknown landmark name '" + name +
-                       "'; the template knows: " + known);
-    }
+    const int vertex = template_landmark_vertex(table, name, path);
     Landmark l;
     l.vertex = vertex;
     l.name = name;
