@@ -5,6 +5,8 @@
 // vertices), surface fit, hole error, flipped triangles and joint rotation error.
 #include <fmt/format.h>
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -46,6 +48,19 @@ std::string bone_region(const std::string& b) {
   if (has("upperarm") || has("lowerarm")) return "arms";
   if (has("clavicle") || has("shoulder")) return "shoulders";
   return "torso/pelvis";
+}
+
+// Swing (angle between the bone's posed directions) and twist (rotation about the bone's own
+// axis that is left) of the error between two world rotations of a bone with rest direction d.
+std::pair<double, double> swing_twist_deg(const Eigen::Matrix3d& Qe, const Eigen::Matrix3d& Qt,
+                                          const Eigen::Vector3d& d) {
+  const Eigen::Quaterniond q(Qt.transpose() * Qe);  // error in the bone's rest frame
+  const Eigen::Vector3d e = q * d;
+  const double swing = std::acos(std::clamp(e.dot(d), -1.0, 1.0)) * 180.0 / M_PI;
+  double twist = 2.0 * std::atan2(q.vec().dot(d), q.w()) * 180.0 / M_PI;
+  if (twist > 180) twist -= 360;
+  if (twist < -180) twist += 360;
+  return {swing, std::abs(twist)};
 }
 
 double percentile(std::vector<double> v, double q) {
@@ -100,7 +115,20 @@ BODYMODEL_VERB(add_eval_registration_verb) {
         "flipped_triangles,joint_median_deg,joint_max_deg\n";
     std::vector<double> scan_means, all_vertices, surface_means, hole_max, joint_all;
     std::vector<double> scan_joint_medians;
-    std::vector<std::vector<double>> per_joint(joints.size());
+    std::vector<std::vector<double>> per_joint(joints.size()), per_swing(joints.size()),
+        per_twist(joints.size());
+    std::vector<Eigen::Vector3d> rest_dir(sk.bone_count(), Eigen::Vector3d::UnitY());
+    for (int b = 0; b < sk.bone_count(); ++b) {
+      const Eigen::Vector3d d = (sk.tails.row(b) - sk.heads.row(b)).transpose();
+      if (d.norm() > 1e-9) rest_dir[b] = d.normalized();
+    }
+    // Distal phalanx of each finger (evaluated apart: not a major joint).
+    std::vector<int> fingertips;
+    for (const char* side : {".L", ".R"})
+      for (int f = 1; f <= 5; ++f)
+        if (sk.find("finger" + std::to_string(f) + "-3" + side) >= 0)
+          fingertips.push_back(sk.find("finger" + std::to_string(f) + "-3" + side));
+    std::vector<double> finger_all;
     int flipped_total = 0, evaluated = 0, missing = 0;
     std::map<std::string, int> flipped_by_region;
     std::vector<std::string> vertex_region;
@@ -157,7 +185,11 @@ BODYMODEL_VERB(add_eval_registration_verb) {
         for (size_t j = 0; j < joints.size(); ++j) {
           je.push_back(rotation_angle_deg(Qe[joints[j]], Qt[joints[j]]));
           per_joint[j].push_back(je.back());
+          const auto [sw, tw] = swing_twist_deg(Qe[joints[j]], Qt[joints[j]], rest_dir[joints[j]]);
+          per_swing[j].push_back(sw);
+          per_twist[j].push_back(tw);
         }
+        for (int b : fingertips) finger_all.push_back(rotation_angle_deg(Qe[b], Qt[b]));
         joint_all.insert(joint_all.end(), je.begin(), je.end());
         jmed = percentile(je, 0.5);
         jmax = *std::max_element(je.begin(), je.end());
@@ -195,9 +227,15 @@ BODYMODEL_VERB(add_eval_registration_verb) {
         fmt::print("    flipped in {:<14} {}\n", region, count);
     if (a->per_joint && !joint_all.empty())
       for (size_t j = 0; j < joints.size(); ++j)
-        fmt::print("    {:<14} median {:6.2f} deg, max {:6.2f} deg\n", sk.names[joints[j]],
-                   percentile(per_joint[j], 0.5),
-                   *std::max_element(per_joint[j].begin(), per_joint[j].end()));
+        fmt::print("    {:<14} median {:6.2f} deg, max {:6.2f} deg   (swing median {:6.2f}, "
+                   "twist median {:6.2f})\n",
+                   sk.names[joints[j]], percentile(per_joint[j], 0.5),
+                   *std::max_element(per_joint[j].begin(), per_joint[j].end()),
+                   percentile(per_swing[j], 0.5), percentile(per_twist[j], 0.5));
+    if (a->per_joint && !finger_all.empty())
+      fmt::print("    distal phalanges (not major joints) median {:6.2f} deg, 95th percentile "
+                 "{:6.2f} deg\n",
+                 percentile(finger_all, 0.5), percentile(finger_all, 0.95));
   });
 }
 
