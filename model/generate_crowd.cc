@@ -65,6 +65,7 @@ nlohmann::json settings_json(const std::string& fingerprint, const std::vector<L
           {"spread", g.spread},
           {"max_attempts", g.max_attempts},
           {"measure_girths", g.measure_girths},
+          {"repair_folds", g.repair_folds},
           {"max_iterations", g.morph.max_iterations},
           {"tolerance_cm", g.morph.tolerance_cm},
           {"tolerance_kg", g.morph.tolerance_kg},
@@ -197,6 +198,7 @@ GenerateCrowdSummary generate_crowd(std::shared_ptr<const BodyModel> model,
                                   g.satisfied ? 1 : 0, g.summary.iterations, g.attempts, flipped);
     std::lock_guard<std::mutex> lock(mutex);
     rows[i] = std::move(row);
+    summary.repaired_triangles += g.folds.flipped_before;
     ++done;
     const auto now = std::chrono::steady_clock::now();
     if (std::chrono::duration<double>(now - last_flush).count() >= o.labels_flush_seconds) {
@@ -217,7 +219,9 @@ GenerateCrowdSummary generate_crowd(std::shared_ptr<const BodyModel> model,
   for (auto& r : rows) {
     auto cells = split_row(*r);
     summary.constraints_met += cells[kColumnMet] == "1" ? 1 : 0;
-    summary.flipped_triangles += std::atoi(cells[kColumnFlipped].c_str());
+    const int flipped = std::atoi(cells[kColumnFlipped].c_str());
+    summary.flipped_triangles += flipped;
+    summary.max_flipped_triangles = std::max(summary.max_flipped_triangles, flipped);
   }
   return summary;
 }

@@ -31,7 +31,7 @@ namespace bodymodel {
 
 // Bumped whenever generate_body's algorithm changes what a seed produces (a resumed crowd must
 // not mix bodies of two algorithms).
-inline constexpr int kCrowdGeneratorVersion = 2;
+inline constexpr int kCrowdGeneratorVersion = 3;  // 3: fold repair after decoding
 
 struct GenerateCrowdOptions {
   GenerateOptions generate;   // per-body generation (model/morph.h)
@@ -48,7 +48,9 @@ struct GenerateCrowdSummary {
   int generated = 0;          // bodies made by this run
   int skipped = 0;            // complete bodies found from an earlier run (same settings)
   int constraints_met = 0;    // bodies meeting every condition as measured (of count)
-  int flipped_triangles = 0;  // total over the crowd (flipped_triangle_count, model/morph.h)
+  int flipped_triangles = 0;  // total over the crowd after the fold repair (flipped_triangle_count)
+  int max_flipped_triangles = 0;    // ... of the worst body
+  int repaired_triangles = 0;       // flipped before the repair, total over the bodies made by this run
   double seconds = 0;         // wall time of the generation (set-up excluded)
   std::vector<std::string> files;  // count mesh file names (relative to the folder)
 };

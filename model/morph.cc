@@ -297,6 +297,31 @@ Eigen::MatrixX3d ShapeMorpher::morph(const Eigen::MatrixX3d& V, const std::vecto
   return out;
 }
 
+namespace {
+
+// The measured labels of a summary re-measured on V (after a fold repair moved vertices):
+// achieved and satisfied as measured on the body that is returned.
+void remeasure_labels(const ShapeMorpher& morpher, const Eigen::MatrixX3d& V, Sex sex, MorphSummary& summary) {
+  bool any = false, only_extent_and_volume = true;
+  for (auto& l : summary.labels)
+    if (l.measured) {
+      any = true;
+      if (l.label != "height_cm" && l.label != "weight_kg" && l.label != "volume_l") only_extent_and_volume = false;
+    }
+  if (!any) return;
+  const BodyMeasurements meas = only_extent_and_volume ? measure_height_and_weight(V, morpher.model().tmpl->faces())
+                                                       : morpher.measure(V, sex);
+  for (auto& l : summary.labels) {
+    if (!l.measured) continue;
+    if (auto mv = measured_label(l.label, meas)) {
+      l.achieved = *mv;
+      l.satisfied = l.achieved >= l.lo && l.achieved <= l.hi;
+    }
+  }
+}
+
+}  // namespace
+
 GeneratedBody generate_body(const ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
                             uint64_t seed, const GenerateOptions& o) {
   const BodyModel& model = morpher.model();
@@ -339,6 +364,10 @@ GeneratedBody generate_body(const ShapeMorpher& morpher, const std::vector<Label
     GeneratedBody g;
     g.attempts = attempt;
     g.V = morpher.morph_encoding(x0, conditions, mo, &g.summary, &g.encoding, &c);
+    if (o.repair_folds) {
+      g.folds = repair_body_folds(model, g.V, o.fold_repair);
+      if (g.folds.vertices_moved > 0) remeasure_labels(morpher, g.V, mo.sex, g.summary);
+    }
     g.satisfied = true;
     double missed = 0;
     for (auto& l : g.summary.labels)
@@ -367,6 +396,21 @@ BodyMeasurements measure_height_and_weight(const Eigen::MatrixX3d& V, const Eige
   return b;
 }
 
+namespace {
+
+// The template moved onto V by the inverse of the rigid motion that fits V onto the template:
+// normals of V against it are those of the fitted V against the template (same count).
+Eigen::MatrixX3d template_on_body(const BodyModel& model, const Eigen::MatrixX3d& V) {
+  const Eigen::MatrixX3d& R = model.tmpl->rest_vertices();
+  const RigidMotion m = fit_rigid_motion(V, R);
+  RigidMotion inv;
+  inv.R = m.R.transpose();
+  inv.t = -(m.R.transpose() * m.t);
+  return apply(inv, R);
+}
+
+}  // namespace
+
 int flipped_triangle_count(const BodyModel& model, const Eigen::MatrixX3d& V) {
   const Eigen::MatrixX3d& R = model.tmpl->rest_vertices();
   const Eigen::MatrixX3i& F = model.tmpl->faces();
@@ -376,6 +420,10 @@ int flipped_triangle_count(const BodyModel& model, const Eigen::MatrixX3d& V) {
   for (int f = 0; f < F.rows(); ++f)
     if (n1.row(f).dot(n0.row(f)) < 0) ++flipped;
   return flipped;
+}
+
+FoldRepairSummary repair_body_folds(const BodyModel& model, Eigen::MatrixX3d& V, const FoldRepairOptions& options) {
+  return repair_folds(V, template_on_body(model, V), model.tmpl->faces(), options);
 }
 
 double rms_vertex_distance(const Eigen::MatrixX3d& a, const Eigen::MatrixX3d& b) {

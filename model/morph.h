@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "core/fold_repair.h"
 #include "core/measure.h"
 #include "encoding/relative_rotation_decoder.h"
 #include "model/body_model.h"
@@ -137,6 +138,11 @@ struct GenerateOptions {
   // GeneratedBody::measured with the girths (measure_body, convex-hull sections: about a third
   // of a body's time); false = height, volume and weight only (the rest NaN).
   bool measure_girths = true;
+  // Fold repair after decoding (repair_body_folds): a decoded body can fold a few tiny
+  // triangles (toes, eyelids: 0.1-5 mm², a median of 4 and up to 42 per body); they are
+  // re-solved from the template's local shape, and the labels are measured AFTER the repair.
+  bool repair_folds = true;
+  FoldRepairOptions fold_repair;
   // Morph settings; generation accepts 1 kg / 1 cm around exact targets (every decode costs,
   // and a crowd "of 65 kg" is checked at ± 2 kg), morphing keeps the tighter 0.25.
   MorphOptions morph = [] {
@@ -155,6 +161,7 @@ struct GeneratedBody {
   MorphSummary summary;
   int attempts = 0;
   bool satisfied = false;
+  FoldRepairSummary folds;         // the fold repair (GenerateOptions::repair_folds)
 };
 
 // One body; `seed` makes it reproducible. Conditions may use "sex" with 0 = female, 1 = male.
@@ -170,6 +177,13 @@ BodyMeasurements measure_height_and_weight(const Eigen::MatrixX3d& V, const Eige
 // (after a rigid fit of V onto the template), and the relative encoding residual
 // ‖encode(V) − x‖ / ‖x − x̄‖ (how far the decoder had to deviate from the requested encoding).
 int flipped_triangle_count(const BodyModel& model, const Eigen::MatrixX3d& V);
+
+// Repairs the triangles flipped_triangle_count counts, in place (core/fold_repair.h against the
+// template rigidly fitted onto V, with the reference's local shape rotated and scaled to V's):
+// afterwards flipped_triangle_count(model, V) == summary.flipped_after <= flipped_before.
+//   V #V by 3 (mm, modified in place).
+FoldRepairSummary repair_body_folds(const BodyModel& model, Eigen::MatrixX3d& V,
+                                    const FoldRepairOptions& options = {});
 
 // Root-mean-square vertex distance between two bodies after a rigid fit of b onto a (mm).
 double rms_vertex_distance(const Eigen::MatrixX3d& a, const Eigen::MatrixX3d& b);
