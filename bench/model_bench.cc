@@ -4,6 +4,8 @@
 //    160..180 cm; girths 0 = `--no-girths`. Process CPU per body (cpu_ms_per_body), the same in
 //    units of one decode timed in the same process (body_in_decodes), decodes per body, and the
 //    final measurement and the OBJ apart. Model built in-process from 30 MakeHuman bodies.
+//  * BM_GenerateFoldRepairCost: generation with and without the fold repair on the same seeds,
+//    alternating in one process (CPU ratio), the repair alone, flips per body before and after.
 //  * BM_GenerateCrowdParallel/<girths>/<threads>: batches of 16 bodies through generate_crowd
 //    (model/generate_crowd.h: parallel bodies, OBJ files, labels.csv), wall and process CPU.
 //  * BM_MeasureBanded, BM_WriteObj: measure_body cutting only each band's triangles vs every triangle, and the to_chars OBJ
@@ -136,6 +138,48 @@ void BM_GenerateBodies(benchmark::State& state) {
   std::filesystem::remove(out);
 }
 BENCHMARK(BM_GenerateBodies)->Args({0, 1})->Args({1, 1})->Args({1, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The fold repair's cost (GenerateOptions::repair_folds, model/morph.h): the same seeds generated
+// with and without it, alternating in one process (process CPU; ratio = with / without, the
+// load-independent figure), and repair_body_folds alone on the unrepaired body; the flipped
+// triangles per body before and after the repair (mean and worst over the iterations).
+void BM_GenerateFoldRepairCost(benchmark::State& state) {
+  auto model = bench_model();
+  ShapeMorpher morpher(model);
+  const std::vector<LabelCondition> cond = bench_conditions(true);
+  GenerateOptions with, without;
+  without.repair_folds = false;
+  uint64_t seed = 1;
+  double cpu_with = 0, cpu_without = 0, cpu_repair = 0, before = 0, after = 0, worst_before = 0, worst_after = 0;
+  for (auto _ : state) {
+    const double t0 = process_cpu_seconds();
+    GeneratedBody a = generate_body(morpher, cond, seed, without);
+    const double t1 = process_cpu_seconds();
+    GeneratedBody b = generate_body(morpher, cond, seed, with);
+    const double t2 = process_cpu_seconds();
+    FoldRepairSummary r = repair_body_folds(*model, a.V);
+    const double t3 = process_cpu_seconds();
+    ++seed;
+    cpu_without += t1 - t0;
+    cpu_with += t2 - t1;
+    cpu_repair += t3 - t2;
+    before += r.flipped_before;
+    const int left = flipped_triangle_count(*model, b.V);
+    after += left;
+    worst_before = std::max(worst_before, double(r.flipped_before));
+    worst_after = std::max(worst_after, double(left));
+  }
+  const double n = static_cast<double>(state.iterations());
+  state.counters["cpu_ms_without"] = 1e3 * cpu_without / n;
+  state.counters["cpu_ms_with"] = 1e3 * cpu_with / n;
+  state.counters["ratio_with_to_without"] = cpu_with / cpu_without;
+  state.counters["repair_ms"] = 1e3 * cpu_repair / n;
+  state.counters["flipped_before_mean"] = before / n;
+  state.counters["flipped_before_max"] = worst_before;
+  state.counters["flipped_after_mean"] = after / n;
+  state.counters["flipped_after_max"] = worst_after;
+}
+BENCHMARK(BM_GenerateFoldRepairCost)->Iterations(20)->Unit(benchmark::kMillisecond);
 
 // The crowd as `bodymodel generate` makes it (generate_crowd, model/generate_crowd.h): bodies
 // in parallel on `threads` TBB workers, each written to its own OBJ, labels.csv at the end.

@@ -135,8 +135,13 @@ BODYMODEL_VERB(add_model_generate_verb) {
     };
     fmt::print("bodies                 {} ({} generated, {} skipped as already written)\n", n, s.generated, s.skipped);
     fmt::print("constraints met        {} of {} (as measured on each output)\n", s.constraints_met, n);
-    fmt::print("flipped triangles      {} in total ({:.4f}% of all triangles)\n", s.flipped_triangles,
+    fmt::print("flipped triangles      {} in total, at most {} in a body ({:.4f}% of all triangles), against the "
+               "template after a rigid fit\n",
+               s.flipped_triangles, s.max_flipped_triangles,
                100.0 * s.flipped_triangles / (double(n) * model->tmpl->triangle_count()));
+    if (s.generated > 0)
+      fmt::print("fold repair            {} flipped triangles of the {} bodies made were repaired after decoding\n",
+                 s.repaired_triangles, s.generated);
     fmt::print("diversity              mean pairwise RMS vertex distance {:.1f} mm (first {} bodies)\n",
                mean_pairwise(crowd), k);
     fmt::print("                       vs {:.1f} mm between the model's {} training subjects{}\n",
