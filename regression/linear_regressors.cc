@@ -2,12 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numeric>
 
 #include "core/error.h"
 #include "regression/cross_validation.h"
 #include "regression/prefix_linear.h"
+#include "regression/stacking.h"
 
 namespace bodymodel {
 
@@ -143,10 +145,10 @@ void FilteredLinearRegressor::fit(const Eigen::MatrixXd& X, const Eigen::VectorX
   check_regression_input(X, y, groups, 3, "filtered_linear");
   features_ = static_cast<int>(X.cols());
   const int cap = options_.max_components <= 0 ? features_ : std::min(options_.max_components, features_);
-  int m = 0;
+  weights_ = Eigen::VectorXd::Zero(cap);
   inner_curve_.resize(0);
   if (options_.fixed_components > 0) {
-    m = std::min(options_.fixed_components, features_);
+    weights_(std::min(options_.fixed_components, cap) - 1) = 1;
   } else {
     // Inner grouped cross-validation on these (training) rows only.
     int subjects = static_cast<int>(X.rows());
@@ -167,20 +169,42 @@ void FilteredLinearRegressor::fit(const Eigen::MatrixXd& X, const Eigen::VectorX
       for (int k = 1; k <= cap; ++k) allowed[k - 1] = k <= static_cast<int>(X.rows()) - 2 || k == features_;
       if (std::find(allowed.begin(), allowed.end(), true) == allowed.end()) allowed.clear();
     }
-    m = choose_component_count(residuals, options_.selection, allowed);
+    if (options_.selection == CountSelection::stacked) {
+      if (allowed.empty()) allowed.assign(cap, true);
+      const Eigen::ArrayXd mse = inner_curve_.array().square();
+      double best = std::numeric_limits<double>::infinity();
+      for (int k = 0; k < cap; ++k)
+        if (allowed[k]) best = std::min(best, mse(k));
+      for (int k = 0; k < cap; ++k) allowed[k] = allowed[k] && mse(k) <= options_.competitive_factor * best;
+      weights_ = stacking_weights(residuals, allowed);
+      // Weights below 1e-6 are round-off of the non-negative solve: dropped, the rest rescaled.
+      weights_ = (weights_.array() < 1e-6).select(0.0, weights_);
+      weights_ /= weights_.sum();
+    } else {
+      weights_(choose_component_count(residuals, options_.selection, allowed) - 1) = 1;
+    }
   }
+  // The combined model: Σ_m w_m (eq. 10 on the top m components), again linear.
   const std::vector<int> order = rank_components(X, y, options_.ranking);
-  kept_.assign(order.begin(), order.begin() + m);
-  fit_ = fit_linear(select_columns(X, order, m), y);
   full_gradient_ = Eigen::VectorXd::Zero(features_);
-  for (int k = 0; k < m; ++k) full_gradient_(kept_[k]) = fit_.gradient(k);
+  offset_ = 0;
+  int largest = 0;
+  for (int m = 1; m <= cap; ++m) {
+    const double w = weights_(m - 1);
+    if (w <= 0) continue;
+    const LinearFit f = fit_linear(select_columns(X, order, m), y);
+    offset_ += w * f.offset;
+    for (int k = 0; k < m; ++k) full_gradient_(order[k]) += w * f.gradient(k);
+    largest = m;
+  }
+  kept_.assign(order.begin(), order.begin() + largest);
 }
 
 double FilteredLinearRegressor::predict(const Eigen::VectorXd& x) const {
   if (x.size() != features_)
     throw InputError("filtered_linear: expected " + std::to_string(features_) + " features, found " +
                      std::to_string(x.size()));
-  return fit_.offset + full_gradient_.dot(x);
+  return offset_ + full_gradient_.dot(x);
 }
 
 Eigen::VectorXd FilteredLinearRegressor::gradient(const Eigen::VectorXd& x) const {
@@ -195,7 +219,16 @@ std::unique_ptr<Regressor> FilteredLinearRegressor::clone() const {
 }
 
 std::string FilteredLinearRegressor::describe() const {
-  return "kept " + std::to_string(kept_.size()) + " of " + std::to_string(features_) + " components";
+  std::string counts;
+  int used = 0;
+  for (Eigen::Index m = 0; m < weights_.size(); ++m)
+    if (weights_(m) > 0) {
+      char part[48];
+      std::snprintf(part, sizeof part, "%s%d (%.2f)", used++ ? " + " : "", static_cast<int>(m) + 1, weights_(m));
+      counts += part;
+    }
+  if (used <= 1) return "kept " + std::to_string(kept_.size()) + " of " + std::to_string(features_) + " components";
+  return "stacked counts " + counts + " of " + std::to_string(features_) + " components";
 }
 
 }  // namespace bodymodel

@@ -29,6 +29,13 @@ std::unique_ptr<Regressor> make_regressor(const std::string& name) {
   if (name == "filtered_linear_10fold") {  // count by inner 10-fold CV (the earlier default)
     FilteredLinearRegressor::Options o;
     o.inner_folds = 10;
+    o.selection = CountSelection::minimum;
+    o.name = name;
+    return std::make_unique<FilteredLinearRegressor>(o);
+  }
+  if (name == "filtered_linear_select") {  // one count: the leave-one-out minimum (no stacking)
+    FilteredLinearRegressor::Options o;
+    o.selection = CountSelection::minimum;
     o.name = name;
     return std::make_unique<FilteredLinearRegressor>(o);
   }
@@ -36,7 +43,7 @@ std::unique_ptr<Regressor> make_regressor(const std::string& name) {
   if (name == "gaussian_process") return std::make_unique<GaussianProcessRegressor>();
   std::string known;
   for (const auto& n : regressor_names()) known += (known.empty() ? "" : ", ") + n;
-  known += ", filtered_linear_by_s, filtered_linear_10fold";
+  known += ", filtered_linear_by_s, filtered_linear_10fold, filtered_linear_select";
   throw InputError("unknown regressor '" + name + "' (expected one of " + known + ")");
 }
 

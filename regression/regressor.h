@@ -43,8 +43,9 @@ class Regressor {
 
 // The regressors the project provides, in report order:
 //   simple_linear    eq. 10 on all components
-//   filtered_linear  eq. 10 on the components most correlated with the label (count by inner
-//                    leave-one-subject-out cross-validation)
+//   filtered_linear  eq. 10 on the components most correlated with the label: the fits on the
+//                    top m components for every m, combined by stacking on their inner
+//                    leave-one-subject-out predictions (regression/stacking.h)
 //   svr              ε-SVR with an RBF kernel (libsvm), C/ε/γ by inner CV
 //   gaussian_process GP regression, RBF + linear kernel, hyper-parameters by marginal likelihood
 std::vector<std::string> regressor_names();
@@ -52,7 +53,9 @@ std::vector<std::string> regressor_names();
 // A regressor with default options by name; throws InputError listing the known names. Besides
 // regressor_names(), "filtered_linear_by_s" ranks components by |s_j| of the eq. 10 fit on all
 // components (the paper's wording taken literally) instead of by correlation, and
-// "filtered_linear_10fold" chooses the count by inner 10-fold cross-validation (for comparison).
+// "filtered_linear_10fold" chooses the count by inner 10-fold cross-validation and
+// "filtered_linear_select" keeps the one count with the lowest leave-one-out error (no stacking),
+// both for comparison.
 std::unique_ptr<Regressor> make_regressor(const std::string& name);
 
 // Checks shared by every fit: X rows == y size == groups size (when given), all finite, at least

@@ -122,12 +122,32 @@ TEST(Regressors, FilteredBeatsSimpleWhenMostFeaturesAreNoise) {
   const auto filtered = cross_validate(FilteredLinearRegressor(), X, y, {}, cv);
   EXPECT_LT(filtered.rmse, 0.6 * simple.rmse);
   EXPECT_LT(filtered.rmse, 0.5);  // noise σ 0.3
-  FilteredLinearRegressor f;
+  // One count (the leave-one-out minimum): a few components, the informative ones among them.
+  FilteredLinearRegressor::Options one;
+  one.selection = CountSelection::minimum;
+  FilteredLinearRegressor f(one);
   f.fit(X, y);
   ASSERT_GE(f.kept_components().size(), 3u);
   EXPECT_LE(f.kept_components().size(), 20u);  // of 50
   const std::set<int> kept(f.kept_components().begin(), f.kept_components().end());
   for (int informative : {4, 17, 30}) EXPECT_EQ(kept.count(informative), 1u) << informative;
+  // Stacked (the default): more than half the weight on fits of at most 20 components, which
+  // hold the informative ones; the 47 noise components get far less coefficient mass than in
+  // eq. 10 on everything.
+  FilteredLinearRegressor stacked;
+  stacked.fit(X, y);
+  SimpleLinearRegressor all;
+  all.fit(X, y);
+  EXPECT_NEAR(stacked.count_weights().sum(), 1.0, 1e-12);
+  EXPECT_GT(stacked.count_weights().head(20).sum(), 0.5) << stacked.describe();
+  const Eigen::VectorXd g = stacked.gradient(X.row(0).transpose()), g_all = all.gradient(X.row(0).transpose());
+  double noise_mass = g.cwiseAbs().sum(), noise_mass_all = g_all.cwiseAbs().sum();
+  for (int informative : {4, 17, 30}) {
+    EXPECT_NEAR(g(informative), informative == 4 ? 2.0 : informative == 17 ? -1.0 : 0.5, 0.15) << informative;
+    noise_mass -= std::abs(g(informative));
+    noise_mass_all -= std::abs(g_all(informative));
+  }
+  EXPECT_LT(noise_mass, 0.6 * noise_mass_all);  // Σ |coefficient| over the 47 noise components
 }
 
 TEST(CrossCheck, SimpleLinearMatchesNormalEquationsOnTheSameFolds) {
