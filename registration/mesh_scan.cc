@@ -6,6 +6,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/error.h"
+#include "core/fold_repair.h"
 #include "core/geometry.h"
 #include "core/io/atomic_write.h"
 #include "core/point_index.h"
@@ -130,51 +131,15 @@ int unfold_triangles(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& reference_V,
   if (V.rows() != reference_V.rows())
     throw InputError("unfold: the mesh has " + std::to_string(V.rows()) +
                      " vertices, the reference " + std::to_string(reference_V.rows()));
-  const Eigen::Index n = V.rows();
-  std::vector<std::vector<int>> nb(n);
-  for (Eigen::Index f = 0; f < F.rows(); ++f)
-    for (int k = 0; k < 3; ++k) {
-      nb[F(f, k)].push_back(F(f, (k + 1) % 3));
-      nb[F(f, k)].push_back(F(f, (k + 2) % 3));
-    }
-  for (auto& l : nb) {
-    std::sort(l.begin(), l.end());
-    l.erase(std::unique(l.begin(), l.end()), l.end());
-  }
-  auto folded = [&] {
-    const Eigen::MatrixX3d a = face_normals(V, F), b = face_normals(reference_V, F);
-    std::vector<int> out;
-    for (Eigen::Index f = 0; f < F.rows(); ++f)
-      if (a.row(f).dot(b.row(f)) < 0) out.push_back(int(f));
-    return out;
-  };
-  std::vector<int> bad = folded();
-  for (int round = 0; round < options.max_rounds && !bad.empty(); ++round) {
-    std::vector<char> in(n, 0);
-    for (int f : bad)
-      for (int k = 0; k < 3; ++k) in[F(f, k)] = 1;
-    for (int r = 0; r < options.rings + round; ++r) {
-      std::vector<char> grown = in;
-      for (Eigen::Index i = 0; i < n; ++i)
-        if (in[i])
-          for (int j : nb[i]) grown[j] = 1;
-      in.swap(grown);
-    }
-    Eigen::MatrixX3d D = V - reference_V;
-    for (int it = 0; it < options.smoothing_iterations; ++it) {
-      Eigen::MatrixX3d next = D;
-      for (Eigen::Index i = 0; i < n; ++i) {
-        if (!in[i] || nb[i].empty()) continue;
-        Eigen::RowVector3d sum = Eigen::RowVector3d::Zero();
-        for (int j : nb[i]) sum += D.row(j);
-        next.row(i) = sum / double(nb[i].size());
-      }
-      D.swap(next);
-    }
-    V = reference_V + D;
-    bad = folded();
-  }
-  return int(bad.size());
+  // The single fold repair (core/fold_repair.h). Its region solve is the harmonic fill above
+  // solved exactly (umbrella Laplacian of V = that of the reference inside the region, the
+  // border fixed), so smoothing_iterations is not used; the reference's coordinates are rotated
+  // and scaled to the region's border, and a solve is kept only where it removes folds.
+  FoldRepairOptions o;
+  o.rings = options.rings;
+  o.passes = options.max_rounds;
+  o.max_region_vertices = int(V.rows());
+  return repair_folds(V, reference_V, F, o).flipped_after;
 }
 
 MeshScanDistance mesh_scan_distance(const Eigen::MatrixX3d& reg_V, const Eigen::MatrixX3i& reg_F,

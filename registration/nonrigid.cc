@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/error.h"
+#include "core/fold_repair.h"
 #include "core/geometry.h"
 
 namespace bodymodel {
@@ -127,69 +128,15 @@ InverseCorrespondences inverse_correspondences(const Eigen::MatrixX3d& V,
 
 int repair_flipped_triangles(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_ref,
                              const Eigen::MatrixX3i& F, int rings, int passes) {
-  const int n = int(V.rows());
-  if (V_ref.rows() != n) throw InputError("repair_flipped_triangles: V and V_ref differ in size");
-  std::vector<std::vector<int>> nbr(n);
-  {
-    const Eigen::MatrixX2i E = unique_edges(F);
-    for (Eigen::Index e = 0; e < E.rows(); ++e) {
-      nbr[E(e, 0)].push_back(E(e, 1));
-      nbr[E(e, 1)].push_back(E(e, 0));
-    }
-  }
-  // Umbrella Laplacian coordinates of the reference.
-  Eigen::MatrixX3d delta(n, 3);
-  for (int i = 0; i < n; ++i) {
-    Eigen::RowVector3d d = double(nbr[i].size()) * V_ref.row(i);
-    for (int j : nbr[i]) d -= V_ref.row(j);
-    delta.row(i) = d;
-  }
-  const Eigen::MatrixX3d Nref = face_normals(V_ref, F);
-  int first = -1;
-  for (int pass = 0; pass < passes; ++pass) {
-    const Eigen::MatrixX3d N = face_normals(V, F);
-    std::vector<char> in(n, 0);
-    int flipped = 0;
-    for (Eigen::Index f = 0; f < F.rows(); ++f)
-      if (N.row(f).dot(Nref.row(f)) < 0) {
-        ++flipped;
-        for (int c = 0; c < 3; ++c) in[F(f, c)] = 1;
-      }
-    if (first < 0) first = flipped;
-    if (flipped == 0) break;
-    for (int r = 0; r < rings + pass; ++r) {  // a wider region on each further pass
-      std::vector<char> grown = in;
-      for (int i = 0; i < n; ++i)
-        if (in[i])
-          for (int j : nbr[i]) grown[j] = 1;
-      in.swap(grown);
-    }
-    std::vector<int> id(n, -1), region;
-    for (int i = 0; i < n; ++i)
-      if (in[i]) id[i] = int(region.size()), region.push_back(i);
-    const int m = int(region.size());
-    std::vector<Eigen::Triplet<double>> t;
-    Eigen::MatrixX3d b(m, 3);
-    const double eps = 1e-6;  // keeps a region without fixed neighbours non-singular
-    for (int k = 0; k < m; ++k) {
-      const int i = region[k];
-      t.emplace_back(k, k, double(nbr[i].size()) + eps);
-      Eigen::RowVector3d rhs = delta.row(i) + eps * V.row(i);
-      for (int j : nbr[i]) {
-        if (id[j] >= 0) t.emplace_back(k, id[j], -1.0);
-        else rhs += V.row(j);
-      }
-      b.row(k) = rhs;
-    }
-    SparseMatrixd A(m, m);
-    A.setFromTriplets(t.begin(), t.end());
-    Eigen::SimplicialLDLT<SparseMatrixd> ldlt(A);
-    if (ldlt.info() != Eigen::Success) break;
-    const Eigen::MatrixX3d X = ldlt.solve(b);
-    if (!X.allFinite()) break;
-    for (int k = 0; k < m; ++k) V.row(region[k]) = X.row(k);
-  }
-  return std::max(first, 0);
+  if (V_ref.rows() != V.rows()) throw InputError("repair_flipped_triangles: V and V_ref differ in size");
+  // The single fold repair (core/fold_repair.h): the reference's local shape, rotated and scaled
+  // to the region's border, kept only where it leaves fewer flipped triangles; no region size cap
+  // (hands of a registration can fold over thousands of vertices).
+  FoldRepairOptions o;
+  o.rings = rings;
+  o.passes = passes;
+  o.max_region_vertices = int(V.rows());
+  return repair_folds(V, V_ref, F, o).flipped_before;
 }
 
 struct NonrigidRegistration::Impl {
@@ -311,6 +258,45 @@ Eigen::MatrixX3d NonrigidRegistration::fit(const Eigen::MatrixX3d& V_init,
   NonrigidSummary sum;
   const double eps = 1e-9;  // keeps components without data or landmarks non-singular
   Eigen::MatrixXd B(4 * n, 3);
+  // Preconditioned conjugate gradients on A·X = B (3 right-hand sides, each its own CG) with the
+  // last numeric factorisation as the preconditioner, from X. On success X holds the solution.
+  bool have_factor = false;
+  auto reuse_solve = [&](const Eigen::MatrixXd& Bm, Eigen::MatrixXd& Xm, int* its) -> bool {
+    const Eigen::RowVector3d bnorm = Bm.colwise().norm();
+    Eigen::MatrixXd Xc = Xm;
+    Eigen::MatrixXd R = Bm - I.A * Xc;
+    auto converged = [&](const Eigen::MatrixXd& Rm) {
+      for (int k = 0; k < 3; ++k)
+        if (Rm.col(k).norm() > o.reuse_tolerance * std::max(bnorm(k), 1e-300)) return false;
+      return true;
+    };
+    if (converged(R)) return true;
+    Eigen::MatrixXd Z = I.solver.solve(R);
+    Eigen::MatrixXd P = Z;
+    Eigen::RowVector3d rz = (R.array() * Z.array()).colwise().sum();
+    for (int it = 1; it <= o.reuse_max_iterations; ++it) {
+      *its = it;
+      const Eigen::MatrixXd AP = I.A * P;
+      const Eigen::RowVector3d pap = (P.array() * AP.array()).colwise().sum();
+      for (int k = 0; k < 3; ++k) {
+        if (!(pap(k) > 0)) return false;
+        const double a = rz(k) / pap(k);
+        Xc.col(k) += a * P.col(k);
+        R.col(k) -= a * AP.col(k);
+      }
+      if (converged(R)) {
+        if (!Xc.allFinite()) return false;
+        Xm = std::move(Xc);
+        return true;
+      }
+      Z = I.solver.solve(R);
+      const Eigen::RowVector3d rz_new = (R.array() * Z.array()).colwise().sum();
+      for (int k = 0; k < 3; ++k)
+        P.col(k) = Z.col(k) + (rz(k) != 0 ? rz_new(k) / rz(k) : 0.0) * P.col(k);
+      rz = rz_new;
+    }
+    return false;
+  };
   for (size_t step = 0; step < betas.size(); ++step) {
     report_progress(progress, double(step) / double(betas.size()), "non-rigid fit");
     const double beta = betas[step], gamma = o.landmark_factor * beta, alpha = o.alpha;
@@ -339,15 +325,25 @@ Eigen::MatrixX3d NonrigidRegistration::fit(const Eigen::MatrixX3d& V_init,
     }
     for (const Landmark& l : landmarks) add_block(l.vertex, gamma, l.target.transpose());
 
-    I.solver.factorize(I.A);
-    if (I.solver.info() != Eigen::Success)
-      throw NumericalError("non-rigid registration: factorisation failed at step " +
-                           std::to_string(step) + " (β = " + std::to_string(beta) + ")");
-    Eigen::MatrixXd Xn = I.solver.solve(B);
-    if (I.solver.info() != Eigen::Success || !Xn.allFinite())
-      throw NumericalError("non-rigid registration: solve failed at step " +
-                           std::to_string(step));
-    X = std::move(Xn);
+    bool solved = false;
+    if (have_factor && o.reuse_max_iterations > 0) {
+      int its = 0;
+      solved = reuse_solve(B, X, &its);
+      sum.reuse_iterations += its;
+    }
+    if (!solved) {
+      I.solver.factorize(I.A);
+      if (I.solver.info() != Eigen::Success)
+        throw NumericalError("non-rigid registration: factorisation failed at step " +
+                             std::to_string(step) + " (β = " + std::to_string(beta) + ")");
+      have_factor = true;
+      ++sum.factorizations;
+      Eigen::MatrixXd Xn = I.solver.solve(B);
+      if (I.solver.info() != Eigen::Success || !Xn.allFinite())
+        throw NumericalError("non-rigid registration: solve failed at step " +
+                             std::to_string(step));
+      X = std::move(Xn);
+    }
     sum.solve_seconds +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
     V = deformed(X);
