@@ -238,7 +238,7 @@ BODYMODEL_VERB(add_eval_regressors_verb) {
   cmd->add_option("--folds", a->folds, "Cross-validation folds (subjects grouped)")->capture_default_str();
   cmd->add_option("--labels", a->labels, "Comma-separated label names; 'pose:*' = every joint angle")
       ->capture_default_str();
-  cmd->add_option("--regressors", a->regressors, "Comma-separated: simple_linear, filtered_linear, svr, gaussian_process (also\nfiltered_linear_by_s: ranked by |s|; filtered_linear_10fold: count by inner 10-fold CV\ninstead of leave-one-subject-out)")
+  cmd->add_option("--regressors", a->regressors, "Comma-separated: simple_linear, filtered_linear (the nested fits on the most\ncorrelated components, stacked on their leave-one-subject-out predictions), svr,\ngaussian_process (also filtered_linear_select: the one count with the lowest leave-one-out\nerror; filtered_linear_by_s: ranked by |s|; filtered_linear_10fold: one count by inner\n10-fold CV)")
       ->capture_default_str();
   cmd->add_option("--out", a->out, "Report folder")->capture_default_str();
   cmd->add_option("--set", a->set, "shape (one row a subject) or full (every scan)")
