@@ -8,7 +8,7 @@
 //   cpu_s_per_scan  process CPU seconds per scan
 //   corr_mm         mean correspondence error vs the true vertices
 //   surf_mm         mean distance from the registered vertices to the true surface
-//   steps, pose_s, nonrigid_s  (last scan)
+//   steps, factorizations, cg_iterations, pose_s, nonrigid_s  (last scan)
 //
 //   registration_bench --benchmark_filter=Fast        (minutes)
 //   registration_bench                                (the paper schedule: 1500 solves a scan)
@@ -109,6 +109,8 @@ void run(benchmark::State& state, NonrigidSchedule schedule, int scans) {
   state.counters["pose_s"] = s[0].pose.seconds;
   state.counters["nonrigid_s"] = s[0].nonrigid.seconds;
   state.counters["steps"] = s[0].nonrigid.iterations;
+  state.counters["factorizations"] = s[0].nonrigid.factorizations;
+  state.counters["cg_iterations"] = s[0].nonrigid.reuse_iterations;
 }
 
 void BM_RegisterFast(benchmark::State& state) { run(state, NonrigidSchedule::fast, 1); }

@@ -75,6 +75,14 @@ struct NonrigidOptions {
   // min_weight_fraction × mean positive weight so Es stays positive semi-definite and every
   // edge keeps some stiffness (documented deviation: the paper does not say).
   double min_weight_fraction = 0.05;
+  // Reuse of the numeric factorisation (speed; not in the paper): a step first solves its system
+  // by conjugate gradients preconditioned with the last factorisation, warm-started from the
+  // previous transforms, and refactorises only when that does not reach a relative residual of
+  // reuse_tolerance within reuse_max_iterations. Consecutive steps differ by one β factor and
+  // a few changed correspondences, so most steps need a few triangular solves instead of a
+  // factorisation. reuse_max_iterations ≤ 0: factorise every step.
+  int reuse_max_iterations = 12;
+  double reuse_tolerance = 1e-7;
 };
 
 struct NonrigidSummary {
@@ -87,6 +95,8 @@ struct NonrigidSummary {
   double final_beta = 0.0;
   double correspondence_seconds = 0.0;  // time in the inverse search (all steps)
   double solve_seconds = 0.0;           // time in factorisation + solve (all steps)
+  int factorizations = 0;               // numeric factorisations (≤ iterations)
+  int reuse_iterations = 0;             // preconditioned CG iterations, all steps
 };
 
 // Median distance from a scan point to its nearest neighbour (from up to 2000 samples).
