@@ -13,6 +13,8 @@
 #include "regression/linear_regressors.h"
 #include "regression/prefix_linear.h"
 #include "regression/regressor.h"
+#include "regression/stacking.h"
+#include "core/error.h"
 
 namespace bodymodel {
 namespace {
@@ -102,6 +104,33 @@ TEST(FilteredSelection, TenFoldVariantIsAvailableForComparison) {
   EXPECT_NEAR(ten->predict(d.X.row(3).transpose()), y(3), 1e-6);
 }
 
+
+TEST(Stacking, WeightsOnTheSimplexMinimiseTheCombinedHeldOutError) {
+  // Candidates 0 and 1 err in opposite directions (their average is exact); candidate 2 is better
+  // alone than either but not allowed; candidate 3 is far worse; row 4 is untested (NaN).
+  Eigen::MatrixXd r(5, 4);
+  r << 1.0, -1.0, 0.1, 5.0,
+      -2.0, 2.0, 0.1, -4.0,
+       0.5, -0.5, -0.1, 6.0,
+       1.5, -1.5, 0.0, 3.0,
+       std::nan(""), 0.0, 0.0, 0.0;
+  const Eigen::VectorXd w = stacking_weights(r, {true, true, false, true});
+  ASSERT_EQ(w.size(), 4);
+  EXPECT_NEAR(w.sum(), 1.0, 1e-12);
+  EXPECT_NEAR(w(0), 0.5, 1e-6);
+  EXPECT_NEAR(w(1), 0.5, 1e-6);
+  EXPECT_EQ(w(2), 0.0);
+  EXPECT_LT(w(3), 1e-6);
+  EXPECT_LT((r.topRows(4) * w).norm(), 1e-5);
+  // Non-negative least squares: the unconstrained solution has a negative entry, NNLS clips it
+  // and refits the rest (exact here: b is the first column).
+  Eigen::MatrixXd A(3, 2);
+  A << 1, 1, 0, 1, 0, 0;
+  const Eigen::VectorXd x = lawson_hanson_nnls(A, Eigen::Vector3d(1, -1, 0));
+  EXPECT_NEAR(x(0), 1.0, 1e-12);
+  EXPECT_NEAR(x(1), 0.0, 1e-12);
+  EXPECT_THROW(stacking_weights(r, {false, false, false, false}), InputError);
+}
 
 // Every draw, every label: the stacked filtered model (the default) beats eq. 10 on all
 // components, where the single leave-one-out count does not always. Two labels like the synthetic
