@@ -17,6 +17,59 @@ double mean_vertex_error_after_rigid_fit(const Eigen::MatrixX3d& A, const Eigen:
   return (a - B).rowwise().norm().mean();
 }
 
+double restore_volume(Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, double target_volume, double tolerance,
+                      int max_steps) {
+  double h_total = 0;
+  if (!(target_volume > 0)) return 0;
+  for (int step = 0; step < max_steps; ++step) {
+    const double vol = signed_volume(V, F);
+    if (!(vol > 0)) break;
+    if (std::abs(vol - target_volume) <= tolerance * target_volume) break;
+    const double area = face_areas(V, F).sum();
+    if (!(area > 0)) break;
+    const double h = (target_volume - vol) / area;
+    const Eigen::MatrixX3d N = vertex_normals(V, F);
+    if (!N.allFinite()) break;
+    V += h * N;
+    h_total += h;
+  }
+  return h_total;
+}
+
+Eigen::VectorXd torso_weight(const ModelRig& rig) {
+  Eigen::VectorXd sel = Eigen::VectorXd::Zero(rig.bone_count());
+  for (int b = 0; b < rig.bone_count(); ++b) {
+    const std::string& n = rig.bone_names[b];
+    if (n == "root" || n.rfind("spine", 0) == 0 || n.rfind("pelvis", 0) == 0) sel(b) = 1;
+  }
+  return rig.weights * sel;
+}
+
+namespace {
+Eigen::MatrixX3d rows_of(const Eigen::MatrixX3d& A, const std::vector<int>& idx) {
+  Eigen::MatrixX3d out(idx.size(), 3);
+  for (size_t i = 0; i < idx.size(); ++i) out.row(i) = A.row(idx[i]);
+  return out;
+}
+}  // namespace
+
+TorsoOffset torso_offset(const Eigen::MatrixX3d& A, const Eigen::MatrixX3d& B, const Eigen::VectorXd& torso_w) {
+  TorsoOffset out;
+  std::vector<int> idx;
+  for (Eigen::Index v = 0; v < torso_w.size(); ++v)
+    if (torso_w(v) >= 0.9) idx.push_back(static_cast<int>(v));
+  if (idx.size() < 3) return out;
+  const Eigen::MatrixX3d placed = apply(fit_rigid_motion(A, B), A);
+  const Eigen::MatrixX3d a = rows_of(placed, idx), b = rows_of(B, idx);
+  const RigidMotion m = fit_rigid_motion(a, b);
+  const Eigen::RowVector3d c = a.colwise().mean();
+  out.translation_mm = ((m.R * c.transpose() + m.t) - c.transpose()).norm();
+  out.rotation_deg = Eigen::AngleAxisd(m.R).angle() * 180 / M_PI;
+  out.mean_distance_mm = (a - b).rowwise().norm().mean();
+  out.mean_distance_after_mm = (apply(m, a) - b).rowwise().norm().mean();
+  return out;
+}
+
 Eigen::MatrixX3d edit_with_handles(const BodyModel& model, RelativeRotationDecoder& decoder,
                                    const Eigen::MatrixX3d& V, const std::vector<VertexHandle>& handles,
                                    const EditOptions& o, EditSummary* summary) {
@@ -249,6 +302,7 @@ Eigen::MatrixX3d pose_morph(const BodyModel& model, RelativeRotationDecoder& dec
   Eigen::VectorXd xp = x + fm.pca.basis * z;
 
   PositionConstraints pc;
+  int anchors = 0;
   if (o.use_tip_constraints) {
     // Joint rotations are about world-aligned axes of the skeleton's rest frame (+y up, facing
     // +z, left–right along x): skin the body turned into that frame, then turn the targets back.
@@ -298,23 +352,68 @@ Eigen::MatrixX3d pose_morph(const BodyModel& model, RelativeRotationDecoder& dec
         }
       }
     }
+    std::vector<Eigen::RowVector3d> targets;
+    for (int v : verts) targets.push_back(posed.row(v));
+    std::vector<double> weights(verts.size(), DecoderOptions{}.constraint_weight);
+    if (o.anchor_torso && o.torso_anchors > 0) {
+      // The torso of the unconstrained pose-changed body, placed rigidly on the skinned torso.
+      const Eigen::VectorXd tw = torso_weight(model.rig);
+      std::vector<char> used(V.rows(), 0);
+      for (int v : verts) used[v] = 1;
+      std::vector<int> torso;
+      for (Eigen::Index v = 0; v < tw.size(); ++v)
+        if (tw(v) >= 0.9) torso.push_back(static_cast<int>(v));
+      if (torso.size() >= 3) {
+        const Eigen::MatrixX3d D0 = decoder.decode(model.encoding_of(xp));
+        Eigen::MatrixX3d a(torso.size(), 3), b(torso.size(), 3);
+        for (size_t i = 0; i < torso.size(); ++i) {
+          a.row(i) = D0.row(torso[i]);
+          b.row(i) = posed.row(torso[i]);
+        }
+        const Eigen::MatrixX3d placed = apply(fit_rigid_motion(a, b), a);
+        const size_t step = std::max<size_t>(1, torso.size() / o.torso_anchors);
+        for (size_t i = 0; i < torso.size(); i += step) {
+          if (used[torso[i]]) continue;
+          verts.push_back(torso[i]);
+          targets.push_back(placed.row(i));
+          weights.push_back(o.torso_anchor_weight);
+          anchors += 1;
+        }
+      }
+    }
     pc.vertices.resize(verts.size());
     pc.targets.resize(verts.size(), 3);
+    pc.weights.resize(verts.size());
     for (size_t i = 0; i < verts.size(); ++i) {
       pc.vertices(i) = verts[i];
-      pc.targets.row(i) = posed.row(verts[i]);
+      pc.targets.row(i) = targets[i];
+      pc.weights(i) = weights[i];
     }
+  }
+  Eigen::MatrixX3d out = pc.vertices.size() >= 3 ? decoder.decode(model.encoding_of(xp), pc)
+                                                  : decoder.decode(model.encoding_of(xp));
+  const Eigen::MatrixX3i& F = model.tmpl->faces();
+  const double v0 = signed_volume(V, F);
+  const double before = v0 > 0 ? signed_volume(out, F) / v0 : 1;
+  double offset = 0;
+  if (o.preserve_volume && v0 > 0) {
+    const double tol = std::clamp(o.volume_tolerance, 0.0, 0.5);
+    const double target = std::clamp(before, 1 - tol, 1 + tol) * v0;
+    if (target != before * v0) offset = restore_volume(out, F, target);
   }
   if (summary) {
     summary->pose_labels = npose;
     summary->kept_labels = nkeep;
-    summary->tip_vertices = static_cast<int>(pc.vertices.size());
+    summary->tip_vertices = static_cast<int>(pc.vertices.size()) - anchors;
+    summary->torso_anchors = anchors;
     summary->change_norm = z.norm();
     summary->transfer_examples = transfer.examples;
     summary->transfer_pose_distance = transfer.nearest_distance;
+    summary->volume_ratio_before = before;
+    summary->volume_ratio = v0 > 0 ? signed_volume(out, F) / v0 : 1;
+    summary->volume_offset_mm = offset;
   }
-  if (pc.vertices.size() >= 3) return decoder.decode(model.encoding_of(xp), pc);
-  return decoder.decode(model.encoding_of(xp));
+  return out;
 }
 
 Pose read_pose_csv(const std::string& path, const std::vector<std::string>& bones) {

@@ -19,6 +19,7 @@ struct PoseArgs {
   double damping = 1e-3;
   int transfer_neighbours = 8;
   bool every_bone = false;
+  bool no_torso = false, no_volume = false;
 };
 
 }  // namespace
@@ -44,6 +45,11 @@ BODYMODEL_VERB(add_model_pose_verb) {
                   "Training scans whose pose change is transferred before the linear correction (0 = the "
                   "paper's linear regression only)")
       ->capture_default_str();
+  cmd->add_flag("--no-torso-anchors", a->no_torso,
+                "Place the torso by the tip constraints only (the paper), not also rigidly where skinning "
+                "puts it");
+  cmd->add_flag("--no-volume", a->no_volume,
+                "Keep the decoded body's volume (default: offset along the normals to the input body's volume)");
   cmd->add_flag("--every-bone", a->every_bone,
                 "Also constrain a few vertices on every bone, placed by skinning (beyond the paper)");
   cmd->add_option("--out", a->out, "Output mesh (OBJ/PLY)")->required();
@@ -71,11 +77,27 @@ BODYMODEL_VERB(add_model_pose_verb) {
     o.damping = a->damping;
     o.transfer_neighbours = std::max(0, a->transfer_neighbours);
     o.constrain_every_bone = a->every_bone;
+    o.anchor_torso = !a->no_torso;
+    o.preserve_volume = !a->no_volume;
     PoseMorphSummary s;
     Eigen::MatrixX3d out = pose_morph(model, decoder, body.V, pose, o, &s);
     write_mesh(a->out, out, body.F);
-    fmt::print("joint-angle labels set {}, labels held {}, tip vertices {}, |z| = {:.3g}\n", s.pose_labels,
-               s.kept_labels, s.tip_vertices, s.change_norm);
+    fmt::print("joint-angle labels set {}, labels held {}, tip vertices {}, torso anchors {}, |z| = {:.3g}\n",
+               s.pose_labels, s.kept_labels, s.tip_vertices, s.torso_anchors, s.change_norm);
+    fmt::print("volume: decoded {:.2f} % of the input body's, result {:.2f} % (normal offset {:.2f} mm)\n",
+               100 * s.volume_ratio_before, 100 * s.volume_ratio, s.volume_offset_mm);
+    {
+      // Where skinning the body with the model's rig puts it (the reference for the torso).
+      const Eigen::Matrix3d G = canonical_rotation(model.rig, body.V);
+      const Eigen::MatrixX3d Vc = body.V * G.transpose();
+      const Eigen::MatrixX3d lbs =
+          linear_blend_skinning(Vc, model.rig.weights, forward_kinematics(model.rig.skeleton_for(Vc), pose)) * G;
+      const TorsoOffset t = torso_offset(out, lbs, torso_weight(model.rig));
+      fmt::print("torso vs the skinned body: {:.1f} mm, {:.2f} deg (mean torso distance {:.1f} mm, {:.1f} after "
+                 "a torso fit); mean vertex distance {:.1f} mm\n",
+                 t.translation_mm, t.rotation_deg, t.mean_distance_mm, t.mean_distance_after_mm,
+                 mean_vertex_error_after_rigid_fit(out, lbs));
+    }
     if (!a->truth.empty()) {
       Mesh t = read_mesh(a->truth);
       model.check_topology(t.V, t.F, "'" + a->truth + "'");
