@@ -3,10 +3,13 @@
 #include <ceres/ceres.h>
 #include <ceres/rotation.h>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <set>
 #include <tbb/parallel_for.h>
 
@@ -50,6 +53,28 @@ const std::vector<PoseParameter>& segment_pose_parameters() {
         for (int k = 1; k <= 3; ++k) fingers.push_back(b(("finger" + std::to_string(f) + "-" + std::to_string(k)).c_str()));
       p.push_back({fingers, false, 0.1});
       p.push_back({{b("finger1-1"), b("finger1-2"), b("finger1-3")}, false, 0.3});
+    }
+    return p;
+  }();
+  return params;
+}
+
+const std::vector<PoseParameter>& hand_stage_pose_parameters() {
+  static const std::vector<PoseParameter> params = [] {
+    std::vector<PoseParameter> p;
+    for (const auto& g : segment_pose_parameters())
+      if (g.bones[0].rfind("finger", 0) != 0) p.push_back(g);
+    for (const char* side : {".L", ".R"}) {
+      auto b = [&](const std::string& n) { return n + side; };
+      // One curl angle per finger shared by its three phalanges (a fist is ~70° per phalanx),
+      // the thumb a ball joint shared by its three bones; weak priors; hand stage only.
+      for (int f = 2; f <= 5; ++f) {
+        std::vector<std::string> finger;
+        for (int k = 1; k <= 3; ++k)
+          finger.push_back(b("finger" + std::to_string(f) + "-" + std::to_string(k)));
+        p.push_back({finger, false, 0.1, true, true});
+      }
+      p.push_back({{b("finger1-1"), b("finger1-2"), b("finger1-3")}, false, 0.3, true, false});
     }
     return p;
   }();
@@ -249,6 +274,16 @@ struct PriorResidual1 {
   }
 };
 
+// weight·(a − m): a finger's curl towards its hand's mean curl m.
+struct CouplingResidual {
+  double weight;
+  template <typename T>
+  bool operator()(const T* a, const T* m, T* r) const {
+    r[0] = T(weight) * (a[0] - m[0]);
+    return true;
+  }
+};
+
 Eigen::Vector3d to_angle_axis(const Eigen::Matrix3d& R) {
   Eigen::AngleAxisd a(R);
   return a.angle() * a.axis();
@@ -287,6 +322,9 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     std::vector<int> bones;
     bool twist = false;
     double prior = 1.0;
+    bool late = false;
+    bool curl = false;
+    bool one_dof() const { return twist || curl; }
   };
   std::vector<Param> params;
   std::vector<int> free_index(nb, -1);  // bone → its parameter, -1 fixed
@@ -302,6 +340,8 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
       Param prm;
       prm.twist = ps.twist;
       prm.prior = ps.prior;
+      prm.late = ps.late;
+      prm.curl = ps.curl && !ps.twist;
       for (const auto& name : ps.bones) {
         const int b = custom ? skeleton.index(name) : skeleton.find(name);
         if (b > 0 && free_index[b] < 0) prm.bones.push_back(b);
@@ -322,25 +362,102 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     if (d.norm() > 1e-12) bone_axis[b] = d.normalized();
   }
   for (const Param& prm : params)
-    if (prm.twist)
+    if (prm.one_dof())
       for (int b : prm.bones)
         if (bone_axis[b].squaredNorm() == 0)
-          throw InputError("pose fit: twist bone '" + skeleton.names[b] + "' has zero length");
+          throw InputError("pose fit: twist or curl bone '" + skeleton.names[b] +
+                           "' has zero length");
+  // Axis of each 1-DOF bone: its rest direction (twist) or its curl axis, rest direction ×
+  // palm normal. The palm normal is the least-variance direction of the heads and tails of
+  // the bones below the hand's wrist (the first ancestor named "wrist…", else the
+  // grandparent), thumb (finger1…) excluded.
+  std::vector<Eigen::Vector3d> dof_axis = bone_axis;
+  std::vector<int> hand_of(nb, -1);  // curl bone → its wrist bone
+  auto below = [&](int b, int a) {
+    for (; b >= 0; b = skeleton.parents[b])
+      if (b == a) return true;
+    return false;
+  };
+  for (const Param& prm : params) {
+    if (!prm.curl) continue;
+    for (int b : prm.bones) {
+      int w = skeleton.parents[b];
+      while (w > 0 && skeleton.names[w].rfind("wrist", 0) != 0) w = skeleton.parents[w];
+      if (w <= 0) w = std::max(0, skeleton.parents[std::max(0, skeleton.parents[b])]);
+      hand_of[b] = w;
+      std::vector<Eigen::Vector3d> pts;
+      for (int c = 0; c < nb; ++c)
+        if (c != w && below(c, w) && skeleton.names[c].rfind("finger1", 0) != 0) {
+          pts.push_back(skeleton.heads.row(c).transpose());
+          pts.push_back(skeleton.tails.row(c).transpose());
+        }
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (const auto& q : pts) mean += q;
+      mean /= std::max<size_t>(1, pts.size());
+      Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+      for (const auto& q : pts) C += (q - mean) * (q - mean).transpose();
+      const Eigen::Vector3d normal = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(C).eigenvectors().col(0);
+      const Eigen::Vector3d axis = bone_axis[b].cross(normal);
+      if (pts.size() < 6 || axis.norm() < 1e-6)
+        throw InputError("pose fit: cannot find a curl axis for bone '" + skeleton.names[b] +
+                         "' (expected a hand of several bones below its wrist)");
+      dof_axis[b] = axis.normalized();
+    }
+  }
 
   // Landmarks on parts the fit keeps rigid far from a fitted joint (less than half of the
   // vertex's weight on bones within two fixed bones of a fitted one: a fingertip with fixed
   // fingers) cannot follow the scan's pose of those parts and would drag the free joints (a
   // fingertip of a fist pulls the forearm); the non-rigid fit uses them instead. Toes and the
   // jaw, one or two rigid bones below the foot or head, do constrain those joints.
-  std::vector<int> rigid_depth(nb, 0);  // fixed bones from b up to its first fitted ancestor
-  for (int b = 1; b < nb; ++b)
-    rigid_depth[b] = free_index[b] >= 0 ? 0 : rigid_depth[skeleton.parents[b]] + 1;
+  // Counted twice: with the hand stage's (late) parameters fitted, and held at rest as they
+  // are in the body stages (a fist's fingertip landmark must not drag the forearm there).
+  std::vector<int> rigid_depth(nb, 0), rigid_depth_body(nb, 0);
+  std::vector<char> late_bone(nb, 0);  // bone of a late parameter or below one
+  for (int b = 1; b < nb; ++b) {
+    const int pb = skeleton.parents[b];
+    const bool fitted = free_index[b] >= 0;
+    const bool late = fitted && params[free_index[b]].late;
+    late_bone[b] = late || late_bone[pb];
+    rigid_depth[b] = fitted ? 0 : rigid_depth[pb] + 1;
+    rigid_depth_body[b] = fitted && !late ? 0 : rigid_depth_body[pb] + 1;
+  }
   std::vector<Landmark> landmarks;
+  std::vector<char> lm_body;  // landmark used in the landmark and body stages
   for (const Landmark& l : all_landmarks) {
-    double movable = 0;
-    for (SkinWeights::InnerIterator it(W, l.vertex); it; ++it)
+    double movable = 0, movable_body = 0;
+    for (SkinWeights::InnerIterator it(W, l.vertex); it; ++it) {
       if (it.col() == 0 || rigid_depth[it.col()] <= o.landmark_rigid_depth) movable += it.value();
-    if (movable >= 0.5) landmarks.push_back(l);
+      if (it.col() == 0 || rigid_depth_body[it.col()] <= o.landmark_rigid_depth)
+        movable_body += it.value();
+    }
+    if (movable >= 0.5) {
+      landmarks.push_back(l);
+      lm_body.push_back(movable_body >= 0.5);
+    }
+  }
+  const int body_landmarks = int(std::count(lm_body.begin(), lm_body.end(), 1));
+  // Hand-stage samples: template vertices weighted on a late bone; hand region: vertices
+  // mostly on late bones or on their parents (palm, wrist), whose closest scan points are the
+  // hand's.
+  std::vector<int> hand_samples;
+  std::vector<char> hand_region(n, 0);
+  {
+    std::vector<char> hand_bone(nb, 0);
+    for (int b = 1; b < nb; ++b)
+      if (late_bone[b]) hand_bone[b] = hand_bone[skeleton.parents[b]] = 1;
+    std::vector<int> cand;
+    for (int i = 0; i < n; ++i) {
+      double wl = 0, wh = 0;
+      for (SkinWeights::InnerIterator it(W, i); it; ++it) {
+        if (late_bone[it.col()]) wl += it.value();
+        if (hand_bone[it.col()]) wh += it.value();
+      }
+      if (wl > 0.25) cand.push_back(i);
+      hand_region[i] = wh >= 0.5;
+    }
+    const int hstride = std::max<int>(1, int(cand.size()) / std::max(1, o.hand_sample_vertices));
+    for (size_t k = 0; k < cand.size(); k += hstride) hand_samples.push_back(cand[k]);
   }
 
   // Sample vertices and their chains.
@@ -348,6 +465,17 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
   std::vector<int> samples;
   for (int i = 0; i < n; i += stride) samples.push_back(i);
   for (const Landmark& l : landmarks) samples.push_back(l.vertex);  // chains for landmarks too
+  const int hand_first = int(samples.size());
+  samples.insert(samples.end(), hand_samples.begin(), hand_samples.end());
+  // Samples mostly on late bones (fingers) do not pair in the body stages: held open, they cannot
+  // follow a fist and only shake the wrist (it cycled by 1° for 25 iterations on a fist).
+  std::vector<char> on_late(samples.size(), 0);
+  for (size_t si = 0; si < samples.size(); ++si) {
+    double wl = 0;
+    for (SkinWeights::InnerIterator it(W, samples[si]); it; ++it)
+      if (late_bone[it.col()]) wl += it.value();
+    on_late[si] = wl >= 0.5;
+  }
   std::vector<Chain> chains(samples.size());
   std::vector<std::vector<int>> chain_free(samples.size());  // parameter per chain block
   for (size_t si = 0; si < samples.size(); ++si) {
@@ -375,7 +503,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
         auto at = std::find(cf.begin(), cf.end(), k);
         if (at == cf.end()) at = cf.insert(cf.end(), k);
         ch.slot.push_back(3 + int(at - cf.begin()));
-        ch.twist_axis.push_back(params[k].twist ? bone_axis[b] : Eigen::Vector3d::Zero());
+        ch.twist_axis.push_back(params[k].one_dof() ? dof_axis[b] : Eigen::Vector3d::Zero());
       } else {
         ch.slot.push_back(-1);
         ch.twist_axis.push_back(Eigen::Vector3d::Zero());
@@ -399,11 +527,12 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     double s = 1.0;
     Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
     Eigen::Vector3d tau;
-    if (landmarks.size() >= 3) {
-      Eigen::Matrix3Xd A(3, landmarks.size()), B(3, landmarks.size());
-      for (size_t k = 0; k < landmarks.size(); ++k) {
-        A.col(k) = tpl.V.row(landmarks[k].vertex).transpose();
-        B.col(k) = landmarks[k].target;
+    if (body_landmarks >= 3) {
+      Eigen::Matrix3Xd A(3, body_landmarks), B(3, body_landmarks);
+      for (size_t k = 0, c = 0; k < landmarks.size(); ++k) {
+        if (!lm_body[k]) continue;
+        A.col(c) = tpl.V.row(landmarks[k].vertex).transpose();
+        B.col(c++) = landmarks[k].target;
       }
       if (o.initial_scale > 0) A *= o.initial_scale;
       const Eigen::Matrix4d T = Eigen::umeyama(A, B, o.fit_scale && !(o.initial_scale > 0));
@@ -428,7 +557,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
   }
 
   auto param_rotation = [&](int k, int b) {
-    return params[k].twist ? from_angle_axis(joint_aa[k][0] * bone_axis[b])
+    return params[k].one_dof() ? from_angle_axis(joint_aa[k][0] * dof_axis[b])
                            : from_angle_axis(joint_aa[k]);
   };
   auto current_pose = [&] {
@@ -445,10 +574,10 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
   const double cos_min = std::cos(o.max_normal_angle_deg * M_PI / 180.0);
   PoseFitSummary sum;
   sum.landmarks_used = int(landmarks.size());
-  const int nsamples = int(samples.size()) - int(landmarks.size());
+  const int nsamples = hand_first - int(landmarks.size());
   // First the landmarks alone pose the body (they are reliable and far-reaching; surface
   // correspondences of a template in the wrong pose are not), then the ICP iterations.
-  const int lm_iters = landmarks.size() >= 3 ? o.landmark_iterations : 0;
+  const int lm_iters = body_landmarks >= 3 ? o.landmark_iterations : 0;
   const int total_iters = lm_iters + o.max_icp_iterations;
   std::vector<Eigen::Vector3d> anchor;  // joint parameters after the landmark-only solves
   for (int iter = 0; iter < total_iters; ++iter) {
@@ -464,6 +593,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     std::vector<int> match(nsamples, -1);
     if (data) tbb::parallel_for(0, nsamples, [&](int si) {
       const int i = samples[si];
+      if (on_late[si]) return;
       double d2 = 0;
       const int j = scan_index.nearest(V.row(i).transpose(), &d2);
       if (j < 0 || d2 > dmax * dmax) return;
@@ -489,7 +619,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
         const int j = k * sstride;
         double d2 = 0;
         const int si = sample_index.nearest(scan.P.row(j).transpose(), &d2);
-        if (si < 0 || d2 > dmax * dmax) return;
+        if (si < 0 || d2 > dmax * dmax || on_late[si]) return;
         if (scan.has_normals()) {
           const double c = scan.N.row(j).dot(VN.row(samples[si]));
           if ((o.unsigned_normals ? std::abs(c) : c) < cos_min) return;
@@ -523,7 +653,9 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     problem.AddParameterBlock(root_aa.data(), 3);
     problem.AddParameterBlock(trans.data(), 3);
     for (int k = 0; k < nfree; ++k)
-      problem.AddParameterBlock(joint_aa[k].data(), params[k].twist ? 1 : 3);
+      problem.AddParameterBlock(joint_aa[k].data(), params[k].one_dof() ? 1 : 3);
+    for (int k = 0; k < nfree; ++k)
+      if (params[k].late) problem.SetParameterBlockConstant(joint_aa[k].data());
     if (!o.fit_scale) problem.SetParameterBlockConstant(&scale);
     else problem.SetParameterLowerBound(&scale, 0, 0.2);
     int matched = 0;
@@ -531,7 +663,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
                          double weight, double plane_weight, double point_weight,
                          ceres::LossFunction* loss) {
       std::vector<int> sizes;
-      for (int k : chain_free[si]) sizes.push_back(params[k].twist ? 1 : 3);
+      for (int k : chain_free[si]) sizes.push_back(params[k].one_dof() ? 1 : 3);
       auto* cost = new PointResidual(&chains[si], &skeleton, tpl.V.row(samples[si]).transpose(),
                                      target, normal, weight, plane_weight, point_weight, sizes);
       std::vector<double*> blocks = {&scale, root_aa.data(), trans.data()};
@@ -565,6 +697,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     }
     double l2 = 0;
     for (size_t k = 0; k < landmarks.size(); ++k) {
+      if (!lm_body[k]) continue;
       const int si = nsamples + int(k);
       l2 += (V.row(landmarks[k].vertex).transpose() - landmarks[k].target).squaredNorm();
       add_point(si, landmarks[k].target, Eigen::Vector3d::Zero(),
@@ -577,7 +710,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
                : std::pow(o.landmark_prior_factor,
                           lm_iters > 1 ? double(lm_iters - 1 - iter) / double(lm_iters - 1) : 1.0);
       const double w = std::sqrt(anneal * o.pose_prior * params[k].prior * double(params[k].bones.size()));
-      if (params[k].twist)
+      if (params[k].one_dof())
         problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual1, 1, 1>(
                                      new PriorResidual1{w}),
                                  nullptr, joint_aa[k].data());
@@ -585,9 +718,9 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
         problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual, 3, 3>(
                                      new PriorResidual{w}),
                                  nullptr, joint_aa[k].data());
-      if (data && !anchor.empty() && o.anchor_prior > 0) {
+      if (data && !anchor.empty() && o.anchor_prior > 0 && !params[k].late) {
         const double wa = std::sqrt(o.anchor_prior * double(params[k].bones.size()));
-        if (params[k].twist)
+        if (params[k].one_dof())
           problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual1, 1, 1>(
                                        new PriorResidual1{wa, anchor[k][0]}),
                                    nullptr, joint_aa[k].data());
@@ -599,8 +732,8 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     }
     sum.rms = matched ? std::sqrt(d2sum / matched) : 0.0;
     sum.matched_samples = matched;
-    sum.landmark_rms = landmarks.empty() ? 0.0 : std::sqrt(l2 / landmarks.size());
-    if (data && matched + int(landmarks.size()) < 10)
+    sum.landmark_rms = body_landmarks == 0 ? 0.0 : std::sqrt(l2 / body_landmarks);
+    if (data && matched + body_landmarks < 10)
       throw InputError("pose fit: only " + std::to_string(matched) +
                        " template samples found a scan point within " + std::to_string(dmax) +
                        " mm and 30° — the scan does not overlap the template (wrong unit or "
@@ -622,8 +755,8 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
                          .trace();
     max_deg = std::acos(std::clamp((max_deg - 1) / 2, -1.0, 1.0)) * 180 / M_PI;
     for (int k = 0; k < nfree; ++k) {
-      const Eigen::Vector3d a = params[k].twist ? Eigen::Vector3d(joint_aa[k][0], 0, 0) : joint_aa[k];
-      const Eigen::Vector3d b = params[k].twist ? Eigen::Vector3d(old_joints[k][0], 0, 0) : old_joints[k];
+      const Eigen::Vector3d a = params[k].one_dof() ? Eigen::Vector3d(joint_aa[k][0], 0, 0) : joint_aa[k];
+      const Eigen::Vector3d b = params[k].one_dof() ? Eigen::Vector3d(old_joints[k][0], 0, 0) : old_joints[k];
       const Eigen::Matrix3d D = from_angle_axis(a) * from_angle_axis(b).transpose();
       max_deg = std::max(max_deg,
                          std::acos(std::clamp((D.trace() - 1) / 2, -1.0, 1.0)) * 180 / M_PI);
@@ -634,6 +767,183 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
         dmm < o.convergence_mm) {
       sum.converged = true;
       break;
+    }
+  }
+  // Hand stage: the late parameters (finger curls, thumbs) against the hand's scan points,
+  // the body held where it converged.
+  std::vector<int> late_params;
+  for (int k = 0; k < nfree; ++k)
+    if (params[k].late) late_params.push_back(k);
+  // With hand_wrists, the wrists (the fitted parameters right above the late ones) are refitted
+  // with them: the body stage places a hand by few, mostly forearm, correspondences.
+  std::vector<char> hand_free(nfree, 0);
+  for (int k : late_params) {
+    hand_free[k] = 1;
+    if (!o.hand_wrists) continue;
+    int a = skeleton.parents[params[k].bones[0]];
+    while (a > 0 && free_index[a] < 0) a = skeleton.parents[a];
+    if (a > 0 && !params[free_index[a]].late) hand_free[free_index[a]] = 1;
+  }
+  std::vector<int> hand_params;
+  for (int k = 0; k < nfree; ++k)
+    if (hand_free[k]) hand_params.push_back(k);
+  if (!late_params.empty() && !hand_samples.empty() && o.hand_iterations > 0) {
+    const int nh = int(hand_samples.size());
+    // Coupling groups: the curl parameters of one hand.
+    std::map<int, std::vector<int>> coupled;  // wrist bone → curl parameters
+    for (int k : late_params)
+      if (params[k].curl) coupled[hand_of[params[k].bones[0]]].push_back(k);
+    for (int hiter = 0; hiter < o.hand_iterations; ++hiter) {
+      report_progress(progress, 0.95, "pose fit: hands");
+      const Eigen::MatrixX3d V = pose_template(tpl.V, skeleton, W, scale, current_pose());
+      const Eigen::MatrixX3d VN = vertex_normals(V, tpl.F);
+      const double dmax = std::max(o.hand_max_distance,
+                                   o.hand_initial_max_distance * std::pow(0.5, hiter));
+      // Scan points of the hand: within dmax of the posed hand's box and closest to a hand
+      // vertex of the posed template.
+      Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+      Eigen::Vector3d hi = -lo;
+      for (int i = 0; i < n; ++i)
+        if (hand_region[i]) {
+          lo = lo.cwiseMin(V.row(i).transpose());
+          hi = hi.cwiseMax(V.row(i).transpose());
+        }
+      lo.array() -= dmax;
+      hi.array() += dmax;
+      PointIndex vertex_index(V);
+      std::vector<int> cand;
+      for (Eigen::Index j = 0; j < scan.P.rows(); ++j) {
+        const Eigen::Vector3d q = scan.P.row(j).transpose();
+        if ((q.array() >= lo.array()).all() && (q.array() <= hi.array()).all()) cand.push_back(int(j));
+      }
+      std::vector<char> is_hand(cand.size(), 0);
+      tbb::parallel_for(0, int(cand.size()), [&](int c) {
+        const int i = vertex_index.nearest(scan.P.row(cand[c]).transpose());
+        is_hand[c] = i >= 0 && hand_region[i];
+      });
+      std::vector<int> hand_points;
+      for (size_t c = 0; c < cand.size(); ++c)
+        if (is_hand[c]) hand_points.push_back(cand[c]);
+      if (hand_points.size() < 10) break;
+      Eigen::MatrixX3d HP(hand_points.size(), 3);
+      for (size_t c = 0; c < hand_points.size(); ++c) HP.row(c) = scan.P.row(hand_points[c]);
+      PointIndex hand_index(HP);
+      Eigen::MatrixX3d SV(nh, 3);
+      for (int h = 0; h < nh; ++h) SV.row(h) = V.row(hand_samples[h]);
+      PointIndex sample_index(SV);
+      auto normal_ok = [&](int j, int i) {
+        if (!scan.has_normals()) return true;
+        const double c = scan.N.row(j).dot(VN.row(i));
+        return (o.unsigned_normals ? std::abs(c) : c) >= cos_min;
+      };
+      std::vector<int> fwd(nh, -1);
+      tbb::parallel_for(0, nh, [&](int h) {
+        double d2 = 0;
+        const int c = hand_index.nearest(SV.row(h).transpose(), &d2);
+        if (c >= 0 && d2 <= dmax * dmax && normal_ok(hand_points[c], hand_samples[h]))
+          fwd[h] = hand_points[c];
+      });
+      const int hp = int(hand_points.size());
+      const int bstride = std::max(1, hp / std::max(1, nh));
+      std::vector<int> bwd((hp + bstride - 1) / bstride, -1);
+      tbb::parallel_for(0, int(bwd.size()), [&](int k) {
+        const int j = hand_points[k * bstride];
+        double d2 = 0;
+        const int h = sample_index.nearest(scan.P.row(j).transpose(), &d2);
+        if (h >= 0 && d2 <= dmax * dmax && normal_ok(j, hand_samples[h])) bwd[k] = h;
+      });
+      ceres::Problem problem;
+      problem.AddParameterBlock(&scale, 1);
+      problem.AddParameterBlock(root_aa.data(), 3);
+      problem.AddParameterBlock(trans.data(), 3);
+      for (int k = 0; k < nfree; ++k)
+        problem.AddParameterBlock(joint_aa[k].data(), params[k].one_dof() ? 1 : 3);
+      problem.SetParameterBlockConstant(&scale);
+      problem.SetParameterBlockConstant(root_aa.data());
+      problem.SetParameterBlockConstant(trans.data());
+      for (int k = 0; k < nfree; ++k)
+        if (!hand_free[k]) problem.SetParameterBlockConstant(joint_aa[k].data());
+      auto add_point = [&](int si, const Eigen::Vector3d& target, const Eigen::Vector3d& normal,
+                           double weight, double plane_weight, double point_weight,
+                           ceres::LossFunction* loss) {
+        std::vector<int> sizes;
+        for (int k : chain_free[si]) sizes.push_back(params[k].one_dof() ? 1 : 3);
+        auto* cost = new PointResidual(&chains[si], &skeleton, tpl.V.row(samples[si]).transpose(),
+                                       target, normal, weight, plane_weight, point_weight, sizes);
+        std::vector<double*> blocks = {&scale, root_aa.data(), trans.data()};
+        for (int k : chain_free[si]) blocks.push_back(joint_aa[k].data());
+        problem.AddResidualBlock(cost, loss, blocks);
+      };
+      int matched = 0;
+      double d2sum = 0;
+      for (int h = 0; h < nh; ++h) {
+        if (fwd[h] < 0) continue;
+        const Eigen::Vector3d target = scan.P.row(fwd[h]).transpose();
+        d2sum += (SV.row(h).transpose() - target).squaredNorm();
+        ++matched;
+        const Eigen::Vector3d normal =
+            scan.has_normals() ? Eigen::Vector3d(scan.N.row(fwd[h])) : Eigen::Vector3d::Zero();
+        add_point(hand_first + h, target, normal, 1.0, 1.0, o.point_to_point_weight,
+                  new ceres::HuberLoss(o.robust_scale));
+      }
+      int nback = 0;
+      for (int b : bwd) nback += b >= 0;
+      if (nback > 0) {
+        const double w = std::sqrt(double(std::max(matched, 1)) / nback);
+        for (size_t k = 0; k < bwd.size(); ++k) {
+          if (bwd[k] < 0) continue;
+          const int j = hand_points[k * bstride];
+          const Eigen::Vector3d normal =
+              scan.has_normals() ? Eigen::Vector3d(scan.N.row(j)) : Eigen::Vector3d::Zero();
+          add_point(hand_first + bwd[k], scan.P.row(j).transpose(), normal, w, 1.0,
+                    o.point_to_point_weight, new ceres::HuberLoss(o.robust_scale));
+        }
+      }
+      if (matched + nback < 10) break;
+      for (size_t k = 0; k < landmarks.size(); ++k)
+        if (!lm_body[k])
+          add_point(nsamples + int(k), landmarks[k].target, Eigen::Vector3d::Zero(),
+                    o.landmark_weight * std::sqrt(double(nh) / 100.0), 0.0, 1.0, nullptr);
+      for (int k : hand_params) {
+        const double w = std::sqrt(o.pose_prior * params[k].prior * double(params[k].bones.size()));
+        if (params[k].one_dof())
+          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual1, 1, 1>(
+                                       new PriorResidual1{w}),
+                                   nullptr, joint_aa[k].data());
+        else
+          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual, 3, 3>(
+                                       new PriorResidual{w}),
+                                   nullptr, joint_aa[k].data());
+      }
+      // Each finger's curl towards its hand's mean curl (the mean a free variable).
+      std::vector<double> means;
+      means.reserve(coupled.size());
+      if (o.finger_coupling > 0)
+        for (const auto& [wrist, ks] : coupled) {
+          if (ks.size() < 2) continue;
+          double m = 0;
+          for (int k : ks) m += joint_aa[k][0];
+          means.push_back(m / ks.size());
+          for (int k : ks)
+            problem.AddResidualBlock(
+                new ceres::AutoDiffCostFunction<CouplingResidual, 1, 1, 1>(new CouplingResidual{
+                    std::sqrt(o.finger_coupling * double(params[k].bones.size()))}),
+                nullptr, joint_aa[k].data(), &means.back());
+        }
+      std::vector<Eigen::Vector3d> old = joint_aa;
+      ceres::Solver::Options so;
+      so.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+      so.max_num_iterations = o.solver_iterations;
+      so.num_threads = o.threads;
+      so.logging_type = ceres::SILENT;
+      ceres::Solver::Summary cs;
+      ceres::Solve(so, &problem, &cs);
+      sum.hand_iterations = hiter + 1;
+      sum.hand_rms = matched ? std::sqrt(d2sum / matched) : 0.0;
+      double max_deg = 0;
+      for (int k : hand_params)
+        max_deg = std::max(max_deg, (joint_aa[k] - old[k]).norm() * 180.0 / M_PI);
+      if (dmax <= o.hand_max_distance && max_deg < o.convergence_deg) break;
     }
   }
   PoseFitResult result;
