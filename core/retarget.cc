@@ -36,6 +36,13 @@ bool is_limb_chain(const std::vector<std::string>& targets) {
 
 }  // namespace
 
+RetargetOptions RetargetOptions::for_animation() {
+  RetargetOptions o;
+  o.first_bone_twist = 0.5;
+  o.drive_fingers = false;
+  return o;
+}
+
 RetargetMap RetargetMap::poser_cmu() {
   RetargetMap m;
   auto add = [&](std::string source, std::vector<std::string> targets) {
@@ -134,6 +141,7 @@ Retargeter::Retargeter(const BvhMotion& clip, const Skeleton& target, const Reta
     if (entry_of[j]) continue;  // first entry wins
     std::vector<std::string> present;
     for (const auto& t : e.targets) {
+      if (!options.drive_fingers && (starts_with(t, "finger") || starts_with(t, "metacarpal"))) continue;
       const int b = target_.find(t);
       if (b >= 0 && driver_[b] < 0) {
         driver_[b] = j;
@@ -150,6 +158,17 @@ Retargeter::Retargeter(const BvhMotion& clip, const Skeleton& target, const Reta
     if (spine)
       for (const auto& t : present) spread_[target_.find(t)] = static_cast<int>(present.size());
   }
+
+  // Limb two-bone chains whose twist is split (RetargetOptions::first_bone_twist).
+  twist_child_.assign(nb, -1);
+  for (const char* pair : {"upperarm01", "lowerarm01", "upperleg01", "lowerleg01"})
+    for (const char* side : {".L", ".R"}) {
+      std::string first = std::string(pair) + side, second = first;
+      second[second.size() - 3] = '2';
+      const int b1 = target_.find(first), b2 = target_.find(second);
+      if (b1 >= 0 && b2 >= 0 && target_.parents[b2] == b1 && driver_[b1] >= 0 && driver_[b2] == driver_[b1])
+        twist_child_[b1] = b2;
+    }
 
   // Rest positions of the source joints (file units, hm08 axes).
   const Eigen::MatrixX3d P = (clip_.rest_positions() * C_.transpose()).eval();
@@ -260,6 +279,22 @@ Pose Retargeter::pose(int frame) const {
       } else {
         Q[b] = G[j] * correction_[j];
         pose.rotations[b] = Qp.transpose() * Q[b];
+        if (twist_child_[b] >= 0 && options_.first_bone_twist < 1) {
+          // First bone of a limb's two-bone chain: swing and part of the twist (the second
+          // bone, driven by the same joint, then takes the rest: its world rotation is
+          // unchanged).
+          const Eigen::Vector3d a = (target_.tails.row(b) - target_.heads.row(b)).transpose().normalized();
+          const Eigen::Quaterniond q(pose.rotations[b]);
+          Eigen::Quaterniond t(q.w(), 0, 0, 0);
+          t.vec() = q.vec().dot(a) * a;
+          if (t.norm() > 1e-12) {
+            t.normalize();
+            const Eigen::Quaterniond s = q * t.conjugate();
+            const Eigen::Quaterniond tf = Eigen::Quaterniond::Identity().slerp(options_.first_bone_twist, t);
+            pose.rotations[b] = (s * tf).normalized().toRotationMatrix();
+            Q[b] = Qp * pose.rotations[b];
+          }
+        }
       }
     } else {
       Q[b] = p >= 0 ? Q[p] : Eigen::Matrix3d::Identity();

@@ -76,6 +76,28 @@ struct RetargetOptions {
   // before session 3, kept for comparison).
   enum class RestCorrection { limbs, all_chains };
   RestCorrection rest_correction = RestCorrection::limbs;
+  // The two options below are off by default (the synthetic database, `skin apply` and the
+  // encoding tests keep the poses they were measured with); for_animation() turns them on for
+  // `bodymodel animate`, `character` and `crowd` (tools/pipeline/).
+  //
+  // Twist split of the limbs' two-bone chains (upperarm01/02, lowerarm01/02, upperleg01/02,
+  // lowerleg01/02: MakeHuman's second bone is a twist bone). The chain's rotation relative to
+  // its parent, R = S·T (T: twist about the first bone's rest axis, S: the swing), is shared as
+  // first bone S·T^f, second bone T^(1−f); the chain ends as before. f = 1 puts all of the
+  // twist at the shoulder/hip, where linear blend skinning collapses the armpit and groin: the
+  // CMU walks hold the humerus 20–53° internally rotated against hm08's A-pose roll, and that
+  // twist at upperarm01 flipped 5–7 armpit triangles per arm in every frame (0 in MakeHuman's
+  // standing poses, twist −18..7°). 0.5 halves it (animated demo character, both CMU walks:
+  // flipped triangles in all frames 911 → 540 and 2048 → 1995 with its SSD).
+  double first_bone_twist = 1;
+  // Fingers and thumbs (finger*, metacarpal*) follow the clip. CMU captures no finger
+  // articulation: its thumb and finger joints are estimated from one or two hand markers, and
+  // 12_03's thumb swings 54° (twist 37°), folding the thumb. Off: they keep their rest pose
+  // relative to the hand.
+  bool drive_fingers = true;
+
+  // first_bone_twist 0.5, drive_fingers false.
+  static RetargetOptions for_animation();
 };
 
 // Drives `target` (the MakeHuman default skeleton, any body shape) with `clip`.
@@ -105,6 +127,7 @@ class Retargeter {
   std::vector<int> driver_;                // #target bones: driving source joint or −1
   std::vector<int> spread_;                // #target bones: length of the spine/neck chain whose
                                            // bend this bone shares (0 = not shared)
+  std::vector<int> twist_child_;            // #target bones: second bone of a twist-split limb chain or −1
   std::vector<Eigen::Matrix3d> correction_;  // #source joints: rest correction A
   double scale_ = 1;
   double rest_hip_height_ = 0;             // source units, above its lowest rest joint

@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -21,7 +23,7 @@ namespace bodymodel {
 namespace fs = std::filesystem;
 
 ClipPoses retarget_clip(const BvhMotion& clip, const Skeleton& skeleton, const fs::path& makehuman_dir,
-                        bool with_translation, const std::string& what) {
+                        bool with_translation, const std::string& what, RetargetOptions ro) {
   ClipPoses out;
   out.frame_time = clip.frame_time > 0 ? clip.frame_time : 1.0 / 30;
   int named = 0;
@@ -59,7 +61,6 @@ ClipPoses retarget_clip(const BvhMotion& clip, const Skeleton& skeleton, const f
   for (const auto& j : clip.joints)
     if (!sources.count(j.name)) out.ignored_joints.push_back(j.name);
   out.mapping = map.entries.size() == poser.entries.size() ? "Poser/DAZ CMU map" : "rig/cmu_mb.mhskel map";
-  RetargetOptions ro;
   ro.apply_root_translation = with_translation;
   out.poses = Retargeter(clip, skeleton, map, ro).all_poses();
   return out;
@@ -112,11 +113,14 @@ AnimateResult animate_character(const CharacterRigFile& ch, const ClipPoses& cli
     sheet_at.push_back(static_cast<int>(std::lround(double(k) * (res.frames - 1) / std::max(1, o.sheet_frames - 1))));
   auto t0 = std::chrono::steady_clock::now();
   double skin_seconds = 0;
+  std::string details =
+      "frame,clip_frame,kind,element,bone,value,bone_angle_deg,parent,parent_angle_deg\n";
+  auto angle_deg = [](const Eigen::Matrix3d& R) { return Eigen::AngleAxisd(R).angle() * 180 / M_PI; };
   for (int i = 0; i < res.frames; ++i) {
     // Undriven bones follow their parent; skin in the root's frame, then place (see
     // relative_to_root: MWE is not invariant to a global rigid motion).
-    const BoneTransforms M =
-        forward_kinematics(ch.skeleton, restrict_pose(clip.poses[res.source_frames[i]], ch.driven));
+    const Pose pose = restrict_pose(clip.poses[res.source_frames[i]], ch.driven);
+    const BoneTransforms M = forward_kinematics(ch.skeleton, pose);
     Eigen::Affine3d G;
     const BoneTransforms L = relative_to_root(M, ch.skeleton, &G);
     auto ts = std::chrono::steady_clock::now();
@@ -126,7 +130,31 @@ AnimateResult animate_character(const CharacterRigFile& ch, const ClipPoses& cli
     if (!X.allFinite())
       throw NumericalError(fmt::format("frame {} of the clip gave non-finite vertices", res.source_frames[i]));
     res.rig.push_back(checker.check(X, M));
-    res.lbs.push_back(checker.check(evaluate_rig(ch.lbs, M), M));
+    const Eigen::MatrixX3d XS = evaluate_rig(ch.lbs, M);
+    res.lbs.push_back(checker.check(XS, M));
+    if (o.details) {
+      auto row = [&](const char* kind, int element, int bone, double value) {
+        const int p = ch.skeleton.parents[bone];
+        details += fmt::format("{},{},{},{},{},{:.4f},{:.1f},{},{:.1f}\n", i, res.source_frames[i], kind, element,
+                               ch.skeleton.names[bone], value, angle_deg(pose.rotations[bone]),
+                               p >= 0 ? ch.skeleton.names[p] : "", p >= 0 ? angle_deg(pose.rotations[p]) : 0.0);
+      };
+      // Joint angles of the driven bones: value = twist about the bone's own axis (deg).
+      for (int b = 0; b < ch.skeleton.bone_count(); ++b) {
+        if (!ch.driven[b] || ch.skeleton.parents[b] < 0) continue;
+        const Eigen::Quaterniond q(pose.rotations[b]);
+        const Eigen::Vector3d axis = (ch.skeleton.tails.row(b) - ch.skeleton.heads.row(b)).transpose().normalized();
+        const double twist = 2 * std::atan2(q.vec().dot(axis), q.w()) * 180 / M_PI;
+        row("joint", -1, b, twist);
+      }
+      for (int f : checker.flipped_faces(X, M)) row("flip", f, checker.dominant_bone_of_face(f), 1);
+      for (int f : checker.flipped_faces(XS, M)) row("flip_ssd", f, checker.dominant_bone_of_face(f), 1);
+      for (Eigen::Index e = 0; e < checker.edges().rows(); ++e) {
+        const int a = checker.edges()(e, 0), b = checker.edges()(e, 1);
+        const double r = (X.row(a) - X.row(b)).norm() / checker.rest_length(static_cast<int>(e));
+        if (r > o.details_edge_ratio) row("edge", static_cast<int>(e), checker.dominant_bone_of_vertex(a), r);
+      }
+    }
     res.template_lbs.push_back(checker.check(evaluate_rig(ch.template_lbs, M), M));
     if (o.format != "none") write_mesh(dir / fmt::format("frame_{:04d}.{}", i, o.format), X, ch.F);
     if (std::find(sheet_at.begin(), sheet_at.end(), i) != sheet_at.end()) sheet.push_back(X);
@@ -149,6 +177,7 @@ AnimateResult animate_character(const CharacterRigFile& ch, const ClipPoses& cli
                        ch.skeleton.names[checker.dominant_bone_of_vertex(a)]);
   }
   write_text_file(dir / "animation.csv", csv);
+  if (o.details) write_text_file(dir / "details.csv", details);
   if (!sheet.empty()) {
     // Frames side by side; each centred horizontally (a walk travels), common scale.
     render_row(sheet, ch.F, {}, 200, 400).save_png(dir / "frames.png");

@@ -10,6 +10,7 @@
 
 #include "core/io/bvh.h"
 #include "core/progress.h"
+#include "core/retarget.h"
 #include "core/skeleton.h"
 #include "tools/pipeline/character_file.h"
 #include "tools/pipeline/deformation_check.h"
@@ -24,9 +25,11 @@ struct ClipPoses {
 };
 
 // Throws InputError naming `what` and listing the clip joints that no map knows when the clip
-// cannot be mapped onto the MakeHuman skeleton.
+// cannot be mapped onto the MakeHuman skeleton. `options` for clips that need a retarget map
+// (its apply_root_translation is set from with_translation).
 ClipPoses retarget_clip(const BvhMotion& clip, const Skeleton& skeleton, const std::filesystem::path& makehuman_dir,
-                        bool with_translation, const std::string& what);
+                        bool with_translation, const std::string& what,
+                        RetargetOptions options = RetargetOptions::for_animation());
 
 struct AnimateOptions {
   double fps = 30;                // output frame rate (frames of the clip are sampled)
@@ -34,6 +37,10 @@ struct AnimateOptions {
   std::string format = "ply";     // frame meshes: ply, obj, or none
   bool write_glb = true;          // animated.glb (SSD rig + the clip), when the writer exists
   int sheet_frames = 6;           // frames.png: this many frames side by side (0 = none)
+  // details.csv: every flipped triangle (rig and its SSD) and every edge stretched beyond
+  // details_edge_ratio, with its dominant bone and that bone's (and its parent's) joint angle.
+  bool details = false;
+  double details_edge_ratio = 2.5;
 };
 
 struct AnimateResult {

@@ -59,12 +59,18 @@ FrameCheck DeformationChecker::check(const Eigen::MatrixX3d& X, const BoneTransf
     std::nth_element(ratios.begin(), ratios.begin() + static_cast<long>(k), ratios.end());
     c.p99_edge_ratio = ratios[k];
   }
+  c.flipped = static_cast<int>(flipped_faces(X, M).size());
+  return c;
+}
+
+std::vector<int> DeformationChecker::flipped_faces(const Eigen::MatrixX3d& X, const BoneTransforms& M) const {
+  std::vector<int> out;
   const Eigen::MatrixX3d N = face_normals(X, F_);
   for (Eigen::Index f = 0; f < F_.rows(); ++f) {
     const Eigen::Vector3d ref = M[dominant_bone_(f)].linear() * rest_normals_.row(f).transpose();
-    if (N.row(f).dot(ref) < 0) ++c.flipped;
+    if (N.row(f).dot(ref) < 0) out.push_back(static_cast<int>(f));
   }
-  return c;
+  return out;
 }
 
 }  // namespace bodymodel

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <vector>
 
 #include "core/skeleton.h"
 #include "skinning/skinning_rig.h"
@@ -29,6 +30,10 @@ class DeformationChecker {
   double rest_length(int edge) const { return rest_length_(edge); }
   // Bone with the largest weight at vertex v in the SSD rig given to the constructor.
   int dominant_bone_of_vertex(int v) const { return vertex_bone_(v); }
+  // Bone with the largest summed corner weight of triangle f (its flip reference).
+  int dominant_bone_of_face(int f) const { return dominant_bone_(f); }
+  // Indices of the triangles that check() counts as flipped.
+  std::vector<int> flipped_faces(const Eigen::MatrixX3d& X, const BoneTransforms& M) const;
 
  private:
   Eigen::MatrixX3i F_;

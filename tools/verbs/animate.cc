@@ -17,7 +17,7 @@ namespace {
 struct AnimateArgs {
   std::string rig, bvh, out;
   AnimateOptions options;
-  bool force = false, no_translation = false;
+  bool force = false, no_translation = false, whole_limb_twist = false, drive_fingers = false;
 };
 
 }  // namespace
@@ -37,13 +37,26 @@ BODYMODEL_VERB(add_animate_verb) {
   cmd->add_option("--fps", a->options.fps, "Output frame rate (the clip is sampled)")->capture_default_str();
   cmd->add_option("--max-frames", a->options.max_frames, "At most this many frames (0 = all)")->capture_default_str();
   cmd->add_option("--format", a->options.format, "Frame meshes: ply, obj or none")->capture_default_str();
+  cmd->add_flag("--details", a->options.details,
+                "Also write OUT/details.csv: each flipped triangle and each edge over --details-ratio x rest, "
+                "per frame, with its dominant bone and joint angles");
+  cmd->add_option("--details-ratio", a->options.details_edge_ratio, "Edge ratio listed by --details")
+      ->capture_default_str();
+  cmd->add_flag("--whole-limb-twist", a->whole_limb_twist,
+                "Retarget: the limb's whole twist at its first bone (upperarm01, upperleg01, ...), as before "
+                "the twist split (for comparison)");
+  cmd->add_flag("--drive-fingers", a->drive_fingers,
+                "Retarget: fingers and thumbs follow the clip (CMU's are estimated from one or two hand markers)");
   cmd->add_flag("--no-translation", a->no_translation, "Keep the root in place (no travel)");
   cmd->add_flag("--force", a->force, "Replace an existing output folder");
   cmd->callback([a] {
     StagedFolder out(a->out, a->force);
     CharacterRigFile ch = load_character_rig(a->rig);
     BvhMotion clip = read_bvh(a->bvh);
-    ClipPoses poses = retarget_clip(clip, ch.skeleton, data_file("makehuman"), !a->no_translation, a->bvh);
+    RetargetOptions ro = RetargetOptions::for_animation();
+    if (a->whole_limb_twist) ro.first_bone_twist = 1;
+    if (a->drive_fingers) ro.drive_fingers = true;
+    ClipPoses poses = retarget_clip(clip, ch.skeleton, data_file("makehuman"), !a->no_translation, a->bvh, ro);
     cli::info(fmt::format("{}: {} frames at {:.0f} fps, mapped by {}", a->bvh, poses.poses.size(),
                           1 / poses.frame_time, poses.mapping));
     if (!poses.ignored_joints.empty()) {
