@@ -32,7 +32,25 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
     if (po.initial_scale <= 0 && !r.proportions.segment.empty())
       po.initial_scale = r.proportions.global_scale;
   }
-  const int fits = 1 + int(options.pose_alternatives.size());
+  const bool given_start = options.start_vertices.rows() > 0 || options.start_pose.has_value();
+  if (options.start_vertices.rows() > 0) {
+    if (options.start_vertices.rows() != tpl.mesh.V.rows() || !options.start_vertices.allFinite())
+      throw InputError(what + ": the start vertices have " +
+                       std::to_string(options.start_vertices.rows()) +
+                       " rows or are not finite, expected " + std::to_string(tpl.mesh.V.rows()) +
+                       " finite rows");
+    r.pose.V = options.start_vertices;
+    r.pose.pose = Pose::rest(int(skeleton.names.size()));  // unknown: written as the rest pose
+  } else if (options.start_pose) {
+    const PoseRecord& p = *options.start_pose;
+    r.pose.scale = p.scale;
+    r.pose.pose = p.pose;
+    r.pose.V = pose_template(rest.V, skeleton, tpl.weights, p.scale, p.pose);
+    r.pose.V = ((r.pose.V * p.global_rotation.transpose()).rowwise() +
+                p.global_translation.transpose())
+                   .eval();
+  }
+  const int fits = given_start ? 0 : 1 + int(options.pose_alternatives.size());
   for (int k = 0; k < fits; ++k) {
     PoseFitOptions pk = k == 0 ? po : options.pose_alternatives[k - 1];
     if (k > 0) {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,7 @@
 #include "registration/landmarks.h"
 #include "registration/nonrigid.h"
 #include "registration/pose_fit.h"
+#include "registration/pose_io.h"
 #include "registration/proportions.h"
 #include "registration/scan.h"
 
@@ -40,6 +42,13 @@ struct RegistrationOptions {
   // from its local shape (repair_flipped_triangles, this many vertex rings around them).
   // ≤ 0 rings: off.
   int repair_flipped_rings = 2;
+  // Evaluation only (diagnosis of the non-rigid stage on synthetic data; never for real scans):
+  // skip the pose fit and start the non-rigid fit from
+  //  - start_vertices (#V by 3, template topology, mm) if non-empty, e.g. the true mesh, so the
+  //    result's error is the non-rigid stage's own drift; else
+  //  - start_pose: the (proportioned) template posed with this record (e.g. the truth's pose).
+  Eigen::MatrixX3d start_vertices;
+  std::optional<PoseRecord> start_pose;
 };
 
 struct RegistrationSummary {

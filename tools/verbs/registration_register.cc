@@ -37,6 +37,7 @@ struct RegisterArgs {
   double fast_k_end = NonrigidOptions{}.fast_k_end;
   double transform_length = NonrigidOptions{}.normalization_length;
   double scan_unit_mm = 1.0;
+  std::string start_from_truth;  // evaluation only: "", "mesh" or "pose"
   bool force = false, pose_only = false, no_proportions = false;
 };
 
@@ -93,7 +94,7 @@ BODYMODEL_VERB(add_register_verb) {
       "skeleton pose fit (scale, global motion, joint rotations), then non-rigid fit.\n"
       "Writes OUT/<id>.ply (template topology, mm), OUT/<id>.pose.csv, OUT/registration.csv.\n"
       "Scans already registered are skipped (rerun or split into shards freely); a failed scan\n"
-      "is reported and skipped. Never reads DB/truth/.");
+      "is reported and skipped. Never reads DB/truth/ (except --start-from-truth, a diagnosis).");
   cmd->add_option("db", a->db, "Scan database folder (scans.csv, scans/)")->required();
   cmd->add_option("--out", a->out, "Output folder")->required();
   cmd->add_option("--jobs", a->jobs, "Scans registered in parallel")->capture_default_str();
@@ -128,6 +129,11 @@ BODYMODEL_VERB(add_register_verb) {
   cmd->add_flag("--no-proportions", a->no_proportions,
                 "Keep the template's limb proportions (global scale only) instead of stretching "
                 "its segments to the landmark distances");
+  cmd->add_option("--start-from-truth", a->start_from_truth,
+                  "Evaluation only (synthetic databases): skip the pose fit and start the "
+                  "non-rigid fit from DB/truth/<id>.ply ('mesh': measures the non-rigid stage's "
+                  "own drift) or from the template posed with DB/truth/<id>.pose.csv ('pose')")
+      ->check(CLI::IsMember({"mesh", "pose"}));
   cmd->add_flag("--force", a->force, "Register again scans that are already done");
   cmd->callback([a] {
     const fs::path db = a->db, out = a->out;
@@ -222,8 +228,20 @@ BODYMODEL_VERB(add_register_verb) {
             update(id);
             return true;
           };
+          RegistrationOptions scan_options = options;
+          if (a->start_from_truth == "mesh") {
+            const fs::path truth = db / "truth" / (id + ".ply");
+            if (!fs::exists(truth))
+              throw InputError(truth.string() + ": --start-from-truth needs the true mesh, not found");
+            scan_options.start_vertices = read_mesh(truth).V;
+          } else if (a->start_from_truth == "pose") {
+            const fs::path truth = db / "truth" / (id + ".pose.csv");
+            if (!fs::exists(truth))
+              throw InputError(truth.string() + ": --start-from-truth needs the true pose, not found");
+            scan_options.start_pose = read_pose_csv(truth, tpl.skeleton);
+          }
           RegistrationResult r =
-              register_scan(tpl, scan, landmarks, options, scan_path.string(), &s, progress);
+              register_scan(tpl, scan, landmarks, scan_options, scan_path.string(), &s, progress);
           PoseRecord rec;
           rec.scale = r.pose.scale;
           rec.pose = r.pose.pose;
