@@ -23,8 +23,8 @@ namespace {
 
 constexpr const char* kLabelsHeader =
     "body,file,sex,height_cm,weight_kg,volume_l,waist_cm,hips_cm,chest_cm,neck_cm,body_fat_pct,"
-    "constraints_met,iterations,attempts,flipped_triangles";
-constexpr int kColumnMet = 11, kColumnFlipped = 14, kColumns = 15;
+    "constraints_met,iterations,attempts,flipped_triangles,flipped_before_repair";
+constexpr int kColumnMet = 11, kColumnFlipped = 14, kColumnBeforeRepair = 15, kColumns = 16;
 
 struct Fnv1a {
   uint64_t h = 1469598103934665603ull;
@@ -66,6 +66,8 @@ nlohmann::json settings_json(const std::string& fingerprint, const std::vector<L
           {"max_attempts", g.max_attempts},
           {"measure_girths", g.measure_girths},
           {"repair_folds", g.repair_folds},
+          {"fold_repair", {g.fold_repair.rings, g.fold_repair.passes, g.fold_repair.local_similarity,
+                           g.fold_repair.keep_only_improving, g.fold_repair.max_region_vertices}},
           {"max_iterations", g.morph.max_iterations},
           {"tolerance_cm", g.morph.tolerance_cm},
           {"tolerance_kg", g.morph.tolerance_kg},
@@ -192,13 +194,13 @@ GenerateCrowdSummary generate_crowd(std::shared_ptr<const BodyModel> model,
     write_mesh(out / summary.files[i], g.V, model->tmpl->faces());
     const BodyMeasurements& m = g.measured;
     auto num = [](double v) { return std::isfinite(v) ? fmt::format("{:.2f}", v) : std::string(); };
-    std::string row = fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}", i, summary.files[i], sex,
+    std::string row = fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}", i, summary.files[i], sex,
                                   num(m.height_cm), num(m.weight_kg), num(m.volume_l), num(m.waist_cm),
                                   num(m.hips_cm), num(m.chest_cm), num(m.neck_cm), num(m.body_fat_pct),
-                                  g.satisfied ? 1 : 0, g.summary.iterations, g.attempts, flipped);
+                                  g.satisfied ? 1 : 0, g.summary.iterations, g.attempts, flipped,
+                                  o.generate.repair_folds ? g.folds.flipped_before : flipped);
     std::lock_guard<std::mutex> lock(mutex);
     rows[i] = std::move(row);
-    summary.repaired_triangles += g.folds.flipped_before;
     ++done;
     const auto now = std::chrono::steady_clock::now();
     if (std::chrono::duration<double>(now - last_flush).count() >= o.labels_flush_seconds) {
@@ -222,6 +224,7 @@ GenerateCrowdSummary generate_crowd(std::shared_ptr<const BodyModel> model,
     const int flipped = std::atoi(cells[kColumnFlipped].c_str());
     summary.flipped_triangles += flipped;
     summary.max_flipped_triangles = std::max(summary.max_flipped_triangles, flipped);
+    summary.flipped_before_repair.push_back(std::atoi(cells[kColumnBeforeRepair].c_str()));
   }
   return summary;
 }

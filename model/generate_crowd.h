@@ -50,7 +50,7 @@ struct GenerateCrowdSummary {
   int constraints_met = 0;    // bodies meeting every condition as measured (of count)
   int flipped_triangles = 0;  // total over the crowd after the fold repair (flipped_triangle_count)
   int max_flipped_triangles = 0;    // ... of the worst body
-  int repaired_triangles = 0;       // flipped before the repair, total over the bodies made by this run
+  std::vector<int> flipped_before_repair;  // per body, as decoded (labels.csv flipped_before_repair)
   double seconds = 0;         // wall time of the generation (set-up excluded)
   std::vector<std::string> files;  // count mesh file names (relative to the folder)
 };

@@ -1,5 +1,7 @@
 // bodymodel generate model.npz --count 200 --where sex=female --where weight_kg=65
 //   --where height_cm=160..180 --seed 7 --out crowd/
+#include <algorithm>
+#include <numeric>
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -139,9 +141,14 @@ BODYMODEL_VERB(add_model_generate_verb) {
                "template after a rigid fit\n",
                s.flipped_triangles, s.max_flipped_triangles,
                100.0 * s.flipped_triangles / (double(n) * model->tmpl->triangle_count()));
-    if (s.generated > 0)
-      fmt::print("fold repair            {} flipped triangles of the {} bodies made were repaired after decoding\n",
-                 s.repaired_triangles, s.generated);
+    {
+      std::vector<int> b = s.flipped_before_repair;
+      std::sort(b.begin(), b.end());
+      const int total = std::accumulate(b.begin(), b.end(), 0);
+      if (!b.empty())
+        fmt::print("fold repair            {} flipped triangles repaired after decoding: median {}, at most {} in a body\n",
+                   total, 0.5 * (b[(b.size() - 1) / 2] + b[b.size() / 2]), b.back());
+    }
     fmt::print("diversity              mean pairwise RMS vertex distance {:.1f} mm (first {} bodies)\n",
                mean_pairwise(crowd), k);
     fmt::print("                       vs {:.1f} mm between the model's {} training subjects{}\n",
