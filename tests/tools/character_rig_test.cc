@@ -2,17 +2,20 @@
 // pose and a few poses (posed by linear blend skinning with MakeHuman's weights, as synth-db
 // poses its truth meshes; joint angles as pose labels), the full model built from them, a
 // character pose-morphed into a small range of motion and rigged (SSD, AS, MWE), then
-// `bodymodel animate` on a CMU clip with the saved rig.
+// `bodymodel animate` on every CMU clip with the saved rig.
 //   - MWE reproduces held-out pose morphs better than SSD (mean vertex error, mm);
-//   - `bodymodel animate` keeps every edge within 3 × its rest length (the check,
-//     tools/pipeline/deformation_check.h; measured on this body, MakeHuman's default: 02_02
-//     2.98 ×, 12_03 2.68 ×) and below the template weights' own stretch. Flipped triangles are
-//     NOT yet zero (30 / 36, in the groin crease and armpits where linear blend skinning
-//     folds): the test bounds them to 0.5 % of the triangles.
+//   - `bodymodel animate` on every clip of makehuman/motion/cmu/ (every 3rd frame: --fps 10)
+//     keeps every edge within 3 × its rest length (the check,
+//     tools/pipeline/deformation_check.h) and below the template weights' own stretch.
+//     Flipped triangles are NOT yet zero: after the retarget's limb twist split and undriven
+//     CMU fingers (core/retarget.h) the armpit (upperarm02, two triangles per arm) and the groin
+//     crease (spine05) still fold under linear blend skinning in most frames. The test bounds the
+//     worst frame (see kMaxFlipped) and requires fewer flips than the template weights.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -155,6 +158,11 @@ TEST(CharacterRig, MweReproducesHeldOutPoseMorphsBetterThanSsd) {
   EXPECT_LT(row(w.errors, "mwe", "train").mean_mm, row(w.errors, "smooth_lbs", "train").mean_mm);
 }
 
+// Flipped triangles in the worst frame of any clip (measured 18 / 18 / 22 on 02_02 / 03_03 /
+// 12_03; over the sampled frames the template weights flip 731 / 731 / 1345, the rig 295 / 295 /
+// 761).
+constexpr int kMaxFlipped = 32;
+
 TEST(CharacterRig, AnimateOnCmuClipsKeepsEdgesWithinThreeTimesRest) {
   const SmallWorld& w = world();
   const fs::path dir = fs::temp_directory_path() / ("bodymodel_character_test_" + std::to_string(::getpid()));
@@ -169,11 +177,16 @@ TEST(CharacterRig, AnimateOnCmuClipsKeepsEdgesWithinThreeTimesRest) {
   f.driven = w.examples.driven;
   f.character = {{"test", true}};
   save_character_rig(dir / "rig.npz", f);
-  for (const char* clip : {"02_02", "12_03"}) {
+  std::vector<fs::path> clips;
+  for (auto& e : fs::directory_iterator(makehuman().directory() / "motion" / "cmu"))
+    if (e.path().extension() == ".bvh") clips.push_back(e.path());
+  std::sort(clips.begin(), clips.end());
+  ASSERT_GE(clips.size(), 3u);
+  for (const fs::path& bvh : clips) {
+    const std::string clip = bvh.stem().string();
     SCOPED_TRACE(clip);
     const fs::path out = dir / clip;
-    const auto r = fixtures::run_cli("animate '" + (dir / "rig.npz").string() + "' --bvh '" +
-                                     (makehuman().directory() / "motion" / "cmu" / (std::string(clip) + ".bvh")).string() +
+    const auto r = fixtures::run_cli("animate '" + (dir / "rig.npz").string() + "' --bvh '" + bvh.string() +
                                      "' --out '" + out.string() + "' --fps 10 --format none");
     ASSERT_EQ(r.exit_code, 0) << r.output;
     std::ifstream csv(out / "animation.csv");
@@ -182,7 +195,7 @@ TEST(CharacterRig, AnimateOnCmuClipsKeepsEdgesWithinThreeTimesRest) {
     ASSERT_EQ(line.rfind("frame,clip_frame,time_s,max_edge_ratio,min_edge_ratio,flipped", 0), 0u) << line;
     int frames = 0;
     double worst = 0;
-    int flipped = 0;
+    int flipped = 0, flipped_total = 0, template_flipped_total = 0;
     double template_worst = 0;
     std::string where;
     while (std::getline(csv, line)) {
@@ -195,14 +208,18 @@ TEST(CharacterRig, AnimateOnCmuClipsKeepsEdgesWithinThreeTimesRest) {
       worst = std::max(worst, std::stod(c[3]));
       template_worst = std::max(template_worst, std::stod(c[8]));
       flipped = std::max(flipped, std::stoi(c[5]));
+      flipped_total += std::stoi(c[5]);
+      template_flipped_total += std::stoi(c[9]);
       ++frames;
     }
     EXPECT_GE(frames, 10);
     EXPECT_LE(worst, 3.0) << where;
     EXPECT_LT(worst, template_worst) << where;
-    EXPECT_LE(flipped, 0.005 * w.examples.F.rows()) << where;  // the target: 0
+    EXPECT_LE(flipped, kMaxFlipped) << where;  // the target: 0
+    EXPECT_LT(flipped_total, 0.75 * template_flipped_total);
     std::cout << clip << ": " << frames << " frames, max edge ratio " << worst << " (" << where
-              << "), template weights " << template_worst << ", flipped " << flipped << "\n";
+              << "), template weights " << template_worst << ", flipped worst frame " << flipped << ", total "
+              << flipped_total << " (template weights " << template_flipped_total << ")\n";
   }
   fs::remove_all(dir);
 }

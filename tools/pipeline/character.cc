@@ -110,6 +110,7 @@ std::vector<RangeOfMotionPose> range_of_motion(const Skeleton& skeleton, const f
   std::sort(clips.begin(), clips.end());
   for (auto& c : clips) {
     BvhMotion m = read_bvh(c);
+    // The database's retarget (default options), not for_animation: the model has seen these poses.
     Retargeter r(m, skeleton, RetargetMap::for_clip(m, makehuman_dir));
     const int n = m.frame_count();
     std::vector<int> train;
