@@ -32,6 +32,8 @@ struct PoseParameter {
   // palm normal from the rest bones of the hand the bone belongs to). Shared over the phalanges
   // of a group, so the finger closes as a whole.
   bool curl = false;
+  // Pulled towards the landmark-only solve's value (PoseFitOptions::anchor_prior) in the ICP.
+  bool anchored = true;
 };
 
 struct PoseFitOptions {
