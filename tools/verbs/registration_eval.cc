@@ -112,7 +112,7 @@ BODYMODEL_VERB(add_eval_registration_verb) {
     std::string csv =
         "scan_id,correspondence_mean_mm,correspondence_p95_mm,correspondence_max_mm,"
         "surface_mean_mm,surface_max_mm,hole_vertices,hole_mean_mm,hole_max_mm,"
-        "flipped_triangles,joint_median_deg,joint_max_deg\n";
+        "flipped_triangles,joint_median_deg,joint_max_deg,finger_median_deg\n";
     std::vector<double> scan_means, all_vertices, surface_means, hole_max, joint_all;
     std::vector<double> scan_joint_medians;
     std::vector<std::vector<double>> per_joint(joints.size()), per_swing(joints.size()),
@@ -177,7 +177,7 @@ BODYMODEL_VERB(add_eval_registration_verb) {
             ++flipped_by_region[best->first];
           }
       }
-      double jmed = std::nan(""), jmax = std::nan("");
+      double jmed = std::nan(""), jmax = std::nan(""), fmed = std::nan("");
       if (fs::exists(reg / (id + ".pose.csv")) && fs::exists(db / "truth" / (id + ".pose.csv"))) {
         const auto Qe = read_pose_csv(reg / (id + ".pose.csv"), sk).world_rotations(sk);
         const auto Qt = read_pose_csv(db / "truth" / (id + ".pose.csv"), sk).world_rotations(sk);
@@ -189,16 +189,19 @@ BODYMODEL_VERB(add_eval_registration_verb) {
           per_swing[j].push_back(sw);
           per_twist[j].push_back(tw);
         }
-        for (int b : fingertips) finger_all.push_back(rotation_angle_deg(Qe[b], Qt[b]));
+        std::vector<double> fe;
+        for (int b : fingertips) fe.push_back(rotation_angle_deg(Qe[b], Qt[b]));
+        finger_all.insert(finger_all.end(), fe.begin(), fe.end());
+        fmed = percentile(fe, 0.5);
         joint_all.insert(joint_all.end(), je.begin(), je.end());
         jmed = percentile(je, 0.5);
         jmax = *std::max_element(je.begin(), je.end());
         scan_joint_medians.push_back(jmed);
       }
-      csv += fmt::format("{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{:.3f},{:.3f},{},{:.3f},{:.3f}\n",
+      csv += fmt::format("{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{:.3f},{:.3f},{},{:.3f},{:.3f},{:.3f}\n",
                          id, e.correspondence_mean, percentile(verr, 0.95),
                          e.correspondence_max, e.surface_mean, e.surface_max, e.hole_vertices,
-                         e.hole_mean, e.hole_max, e.flipped_triangles, jmed, jmax);
+                         e.hole_mean, e.hole_max, e.flipped_triangles, jmed, jmax, fmed);
       ++evaluated;
     }
     bar.finish(fmt::format("{} scans evaluated", evaluated));
