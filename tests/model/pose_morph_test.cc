@@ -19,6 +19,7 @@
 #include "model/model_rig.h"
 #include "model/pose_edit.h"
 #include "model_test_util.h"
+#include "support/small_full_model.h"
 
 namespace bodymodel {
 namespace {
@@ -46,49 +47,19 @@ const PoseWorld& world() {
     auto out = std::make_unique<PoseWorld>();
     const MakeHuman& mh = test_makehuman();
     std::mt19937_64 rng(19);
-    ModelBuildInput in;
-    in.F = mh.body_faces();
-    in.subject_labels = {{"height_cm", "cm"}, {"weight_kg", "kg"}};
-    std::vector<Eigen::RowVector2d> rows;
-    std::vector<Pose> poses;
-    const int subjects = 8;
-    for (int s = 0; s < subjects; ++s) {
+    std::vector<bodymodel::testing::SmallFullModelSubject> subjects;
+    for (int s = 0; s < 8; ++s) {
       const MacroSettings ms = subject_settings(rng, s % 2 == 1);
       MakeHuman::Body b = mh.body(ms);
       if (out->pool.empty())
         for (const char* name : {"fight01", "run01", "standing02", "tpose", "standing05"})
           out->pool.push_back(bvh_frame_to_pose(read_bvh(mh.pose_file(name)), 0, b.skeleton));
       const double height = b.mesh.V.col(1).maxCoeff() - b.mesh.V.col(1).minCoeff();
-      const Eigen::RowVector2d labels(height / 10, 50 + 40 * ms.weight);
-      auto add = [&](const Eigen::MatrixX3d& V, const Pose& p, bool standard, int k) {
-        in.meshes.push_back(V);
-        in.scan_ids.push_back(fmt::format("s{}_p{}", s, k));
-        in.subject_ids.push_back(fmt::format("s{}", s));
-        in.is_standard_pose.push_back(standard);
-        rows.push_back(labels);
-        poses.push_back(p);
-      };
-      add(b.mesh.V, Pose::rest(b.skeleton.bone_count()), true, 0);
-      for (int k = 0; k < 4; ++k) {
-        const Pose& p = out->pool[(s + k) % out->pool.size()];
-        add(linear_blend_skinning(b.mesh.V, b.weights, forward_kinematics(b.skeleton, p)), p, false, k + 1);
-      }
+      std::vector<Pose> poses;
+      for (int k = 0; k < 4; ++k) poses.push_back(out->pool[(s + k) % out->pool.size()]);
+      subjects.push_back({std::move(b), height / 10, 50 + 40 * ms.weight, std::move(poses)});
     }
-    const Skeleton sk = mh.body(MacroSettings{}).skeleton;
-    for (int b = 0; b < sk.bone_count(); ++b)
-      for (const char* ax : {"rx", "ry", "rz"}) in.pose_labels.push_back({"pose:" + sk.names[b] + ":" + ax, "rad"});
-    const int S = static_cast<int>(in.meshes.size());
-    in.subject_label_values.resize(S, 2);
-    in.pose_label_values.resize(S, in.pose_labels.size());
-    for (int s = 0; s < S; ++s) {
-      in.subject_label_values.row(s) = rows[s];
-      for (int b = 0; b < sk.bone_count(); ++b)
-        in.pose_label_values.block(s, 3 * b, 1, 3) = rotation_vector_of(poses[s].rotations[b]).transpose();
-    }
-    BodyModel model = build_body_model(in);
-    ModelRigOptions ro;
-    ro.training_bodies = 8;
-    model.rig = fit_makehuman_rig(mh, ro);
+    BodyModel model = bodymodel::testing::build_small_full_model(mh, subjects);
     out->model = std::make_shared<const BodyModel>(std::move(model));
     for (int s = 0; s < 2; ++s) out->held_out.push_back(mh.body(subject_settings(rng, s % 2 == 1)));
     return out;

@@ -27,6 +27,7 @@
 #include "core/retarget.h"
 #include "model/model_rig.h"
 #include "support/run_cli.h"
+#include "support/small_full_model.h"
 #include "tools/pipeline/character.h"
 #include "tools/pipeline/character_file.h"
 
@@ -68,13 +69,9 @@ const SmallWorld& world() {
     const MakeHuman& mh = makehuman();
     std::mt19937_64 rng(7);
     std::uniform_real_distribution<double> u(0.2, 0.8);
-    ModelBuildInput in;
-    in.F = mh.body_faces();
-    in.subject_labels = {{"height_cm", "cm"}, {"weight_kg", "kg"}};
-    std::vector<Eigen::RowVector2d> subject_rows;
-    std::vector<Pose> poses;
     const int subjects = 10;
     std::vector<Pose> pool;
+    std::vector<bodymodel::testing::SmallFullModelSubject> rows;
     for (int s = 0; s < subjects; ++s) {
       MacroSettings ms;
       ms.gender = s % 2 ? 0.95 : 0.05;
@@ -84,38 +81,13 @@ const SmallWorld& world() {
       MakeHuman::Body b = mh.body(ms);
       if (pool.empty()) pool = model_pose_pool(b.skeleton);
       const double height = b.mesh.V.col(1).maxCoeff() - b.mesh.V.col(1).minCoeff();
-      const Eigen::RowVector2d labels(height / 10, 50 + 40 * ms.weight);
-      auto add = [&](const Eigen::MatrixX3d& V, const Pose& p, bool standard, int k) {
-        in.meshes.push_back(V);
-        in.scan_ids.push_back(fmt::format("s{}_p{}", s, k));
-        in.subject_ids.push_back(fmt::format("s{}", s));
-        in.is_standard_pose.push_back(standard);
-        subject_rows.push_back(labels);
-        poses.push_back(p);
-      };
-      add(b.mesh.V, Pose::rest(b.skeleton.bone_count()), true, 0);
       // Each subject in 4 poses of the pool (rotating through it).
-      for (int k = 0; k < 4; ++k) {
-        const Pose& p = pool[(s * 4 + k) % pool.size()];
-        add(linear_blend_skinning(b.mesh.V, b.weights, forward_kinematics(b.skeleton, p)), p, false, k + 1);
-      }
-      if (s == subjects - 1) out->body = mh.body(MacroSettings{}).mesh.V;
+      std::vector<Pose> poses;
+      for (int k = 0; k < 4; ++k) poses.push_back(pool[(s * 4 + k) % pool.size()]);
+      rows.push_back({std::move(b), height / 10, 50 + 40 * ms.weight, std::move(poses)});
     }
-    const Skeleton sk = mh.body(MacroSettings{}).skeleton;
-    for (int b = 0; b < sk.bone_count(); ++b)
-      for (const char* ax : {"rx", "ry", "rz"}) in.pose_labels.push_back({"pose:" + sk.names[b] + ":" + ax, "rad"});
-    const int S = static_cast<int>(in.meshes.size());
-    in.subject_label_values.resize(S, 2);
-    in.pose_label_values.resize(S, in.pose_labels.size());
-    for (int s = 0; s < S; ++s) {
-      in.subject_label_values.row(s) = subject_rows[s];
-      for (int b = 0; b < sk.bone_count(); ++b)
-        in.pose_label_values.block(s, 3 * b, 1, 3) = rotation_vector_of(poses[s].rotations[b]).transpose();
-    }
-    BodyModel model = build_body_model(in);
-    ModelRigOptions ro;
-    ro.training_bodies = 8;
-    model.rig = fit_makehuman_rig(mh, ro);
+    out->body = mh.body(MacroSettings{}).mesh.V;
+    BodyModel model = bodymodel::testing::build_small_full_model(mh, rows);
     out->model = std::make_shared<const BodyModel>(std::move(model));
 
     CharacterOptions o;
