@@ -157,7 +157,11 @@ FoldRepairSummary repair_folds(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_re
       }
       SparseMatrixd A(m, m);
       A.setFromTriplets(t.begin(), t.end());
-      Eigen::SimplicialLDLT<SparseMatrixd> ldlt(A);
+      // Natural (breadth-first growth) order: the regions are grown ring by ring, so their order is
+      // already banded. AMD is not used: under AddressSanitizer its permutation was allocated by a
+      // non-sanitised copy of Eigen's allocator (most likely one exported by a shared library) and freed by the sanitised
+      // one (heap-buffer-overflow in `bodymodel generate`); this solve allocates no permutation.
+      Eigen::SimplicialLDLT<SparseMatrixd, Eigen::Lower, Eigen::NaturalOrdering<int>> ldlt(A);
       Eigen::MatrixX3d X;
       if (ldlt.info() == Eigen::Success) X = ldlt.solve(b);
       ++summary.regions_solved;
