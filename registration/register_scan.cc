@@ -25,14 +25,17 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
   RegistrationResult r;
   Mesh rest = tpl.mesh;
   Skeleton skeleton = tpl.skeleton;
-  if (options.fit_proportions && landmarks.size() >= 3) {
+  const bool given_start = options.start_vertices.rows() > 0 || options.start_pose.has_value();
+  const bool shape = tpl.shape_space.has_value() && options.fit_shape && !given_start &&
+                     options.shape_rounds > 0;
+  if (options.fit_proportions && landmarks.size() >= 3 &&
+      (!shape || options.proportions_with_shape)) {
     r.proportions = estimate_proportions(tpl.mesh.V, landmarks, options.proportions);
     apply_proportions(tpl.mesh.V, tpl.skeleton, tpl.weights, r.proportions, options.proportions,
                       &rest.V, &skeleton);
     if (po.initial_scale <= 0 && !r.proportions.segment.empty())
       po.initial_scale = r.proportions.global_scale;
   }
-  const bool given_start = options.start_vertices.rows() > 0 || options.start_pose.has_value();
   if (options.start_vertices.rows() > 0) {
     if (options.start_vertices.rows() != tpl.mesh.V.rows() || !options.start_vertices.allFinite())
       throw InputError(what + ": the start vertices have " +
@@ -50,26 +53,77 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
                 p.global_translation.transpose())
                    .eval();
   }
+  // The pose fits (`pose` and its alternatives) on the current rest template, keeping the best.
   const int fits = given_start ? 0 : 1 + int(options.pose_alternatives.size());
-  for (int k = 0; k < fits; ++k) {
-    PoseFitOptions pk = k == 0 ? po : options.pose_alternatives[k - 1];
-    if (k > 0) {
-      pk.unsigned_normals = po.unsigned_normals;
-      if (pk.initial_scale <= 0) pk.initial_scale = po.initial_scale;
+  const int rounds = shape ? options.shape_rounds : 1;
+  auto fit_poses = [&](int round) {
+    for (int k = 0; k < fits; ++k) {
+      PoseFitOptions pk = k == 0 ? po : options.pose_alternatives[k - 1];
+      if (k > 0) {
+        pk.unsigned_normals = po.unsigned_normals;
+        if (pk.initial_scale <= 0 || round > 0) pk.initial_scale = po.initial_scale;
+        if (round > 0) pk.fit_scale = po.fit_scale;
+      }
+      const double a = pose_share * (round * fits + k) / (rounds * fits);
+      const double b = pose_share * (round * fits + k + 1) / (rounds * fits);
+      PoseFitSummary sk;
+      PoseFitResult rk = fit_pose(rest, skeleton, tpl.weights, scan, landmarks, pk, &sk, sub(a, b));
+      if (k == 0 || sk.two_sided_mm < sum.pose.two_sided_mm) {
+        r.pose = std::move(rk);
+        sum.pose = sk;
+        sum.pose_choice = k;
+      }
     }
-    PoseFitSummary sk;
-    PoseFitResult rk = fit_pose(rest, skeleton, tpl.weights, scan, landmarks, pk, &sk,
-                                sub(pose_share * k / fits, pose_share * (k + 1) / fits));
-    if (k == 0 || sk.two_sided_mm < sum.pose.two_sided_mm) {
-      r.pose = std::move(rk);
-      sum.pose = sk;
-      sum.pose_choice = k;
+  };
+  if (!shape) {
+    fit_poses(0);
+  } else {
+    const MakeHuman& mh = *tpl.shape_space;
+    ShapeFitOptions so = options.shape;
+    so.unsigned_normals = po.unsigned_normals;
+    MacroSettings settings = tpl.shape_start;
+    for (int round = 0; round < rounds; ++round) {
+      fit_poses(round);
+      ShapeFitSummary ss;
+      ShapeFitResult sr = fit_shape(mh, settings, r.pose.scale, r.pose.pose, scan, landmarks, so, &ss);
+      double moved = 0;
+      for (const auto& n : so.sliders)
+        moved = std::max(moved, std::abs(macro_slider(sr.settings, n) - macro_slider(settings, n)));
+      settings = sr.settings;
+      r.pose.V = std::move(sr.V);
+      r.pose.scale = sr.scale;
+      r.pose.pose = std::move(sr.pose);
+      rest.V = sr.body.mesh.V;
+      skeleton = std::move(sr.body.skeleton);
+      if (options.fit_proportions && options.proportions_with_shape && landmarks.size() >= 3) {
+        r.proportions = estimate_proportions(rest.V, landmarks, options.proportions);
+        // The segment ratios relative to the shaped body; its size is the shape fit's scale.
+        Eigen::MatrixX3d Vp;
+        Skeleton sp;
+        apply_proportions(rest.V, skeleton, tpl.weights, r.proportions, options.proportions, &Vp,
+                          &sp);
+        rest.V = std::move(Vp);
+        skeleton = std::move(sp);
+      }
+      sum.shape = ss;
+      sum.shape_seconds += ss.seconds;
+      sum.shape_rounds = round + 1;
+      po.initial_scale = r.pose.scale;
+      if (options.shape_fixes_scale) po.fit_scale = false;
+      if (moved < options.shape_convergence) break;
+    }
+    r.shape = settings;
+    if (options.proportions_with_shape && !r.proportions.segment.empty()) {
+      // The last shape fit's pose is on the unproportioned body: pose the proportioned one.
+      fit_poses(rounds - 1);
     }
   }
+  r.rest = rest;
   if (options.skip_nonrigid) {
     r.V = r.pose.V;
   } else {
-    NonrigidRegistration reg(tpl.mesh, no);
+    // Cotangent weights of the template the pose was fitted on (the shaped body with a shape fit).
+    NonrigidRegistration reg(shape && options.nonrigid_on_shaped_rest ? rest : tpl.mesh, no);
     r.V = reg.fit(r.pose.V, scan, landmarks, &sum.nonrigid, sub(pose_share, 1.0));
     if (options.repair_flipped_rings > 0)
       sum.folded_triangles =

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "core/makehuman.h"
 #include "core/mesh.h"
 #include "core/progress.h"
 #include "core/skeleton.h"
@@ -16,6 +17,7 @@
 #include "registration/pose_io.h"
 #include "registration/proportions.h"
 #include "registration/scan.h"
+#include "registration/shape_fit.h"
 
 namespace bodymodel {
 
@@ -24,6 +26,12 @@ struct RegistrationTemplate {
   Mesh mesh;
   Skeleton skeleton;
   SkinWeights weights;
+  // Optional shape space: the template is shape_space->body(shape_start) (mesh, skeleton and
+  // weights above must be that body). With it, register_scan fits the macro sliders in the
+  // pose stage (RegistrationOptions::fit_shape); without it, the global scale and the
+  // landmark proportions stand in.
+  std::optional<MakeHuman> shape_space;
+  MacroSettings shape_start;
 };
 
 struct RegistrationOptions {
@@ -37,6 +45,20 @@ struct RegistrationOptions {
   // (registration/proportions.h); needs ≥ 3 landmarks.
   bool fit_proportions = true;
   ProportionOptions proportions;
+  // With a shape space in the template: alternate pose fit and shape fit (registration/
+  // shape_fit.h) up to shape_rounds times, until no slider moves more than shape_convergence,
+  // then start the non-rigid fit from the shaped, posed template. The proportions are then not
+  // applied (the sliders carry them) unless proportions_with_shape.
+  bool fit_shape = true;
+  ShapeFitOptions shape;
+  int shape_rounds = 3;
+  double shape_convergence = 0.01;
+  bool proportions_with_shape = false;
+  // After the first shape fit, the pose fits keep the shape fit's global scale (the height
+  // slider carries the size) instead of fitting their own.
+  bool shape_fixes_scale = true;
+  // The non-rigid fit's cotangent weights from the shaped body (else the template's).
+  bool nonrigid_on_shaped_rest = true;
   bool skip_nonrigid = false;  // stop after the pose fit
   // After the non-rigid fit, triangles folded against the pose-fitted template are re-solved
   // from its local shape (repair_flipped_triangles, this many vertex rings around them).
@@ -58,12 +80,17 @@ struct RegistrationSummary {
   NonrigidSummary nonrigid;
   double seconds = 0.0;
   int folded_triangles = 0;  // flipped against the pose-fitted template before the repair
+  int shape_rounds = 0;      // pose ↔ shape alternations done (0: no shape fit)
+  ShapeFitSummary shape;     // the last shape fit
+  double shape_seconds = 0.0;  // all shape fits
 };
 
 struct RegistrationResult {
   Eigen::MatrixX3d V;     // #V by 3 registered template vertices (template topology, mm)
   PoseFitResult pose;     // scale, joint rotations and the posed template
   Proportions proportions;  // segment ratios applied to the template (empty if none)
+  std::optional<MacroSettings> shape;  // fitted sliders (with a shape fit)
+  Mesh rest;                // the rest template the pose was fitted on (shaped/proportioned, mm)
 };
 
 // Registers `scan` (modified: normals checked/estimated) with `landmarks` (template vertex →

@@ -46,7 +46,7 @@ TEST_P(VlasicRegistration, MeetsTheDistanceBoundWithoutFolds) {
   const auto t0 = std::chrono::steady_clock::now();
   MakeHuman mh = MakeHuman::load();
   MakeHuman::Body body = mh.body(MacroSettings{});
-  const RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights};
+  const RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, {}, {}};
 
   Mesh mesh = read_mesh(frame);
   mesh.V *= 1000.0;  // metres → mm

@@ -35,7 +35,7 @@ double angle_deg(const Eigen::Matrix3d& A, const Eigen::Matrix3d& B) {
 TEST(RegisterScan, EndToEndSubjectInKnownPose) {
   MakeHuman mh = MakeHuman::load();
   const MakeHuman::Body tb = mh.body(MacroSettings{});
-  const RegistrationTemplate tpl{tb.mesh, tb.skeleton, tb.weights};
+  const RegistrationTemplate tpl{tb.mesh, tb.skeleton, tb.weights, {}, {}};
   MacroSettings ms;
   ms.gender = 1.0;
   ms.height = 0.7;

@@ -155,7 +155,7 @@ BODYMODEL_VERB(add_register_mesh_verb) {
 
     MakeHuman mh = MakeHuman::load();
     MakeHuman::Body body = mh.body(MacroSettings{});
-    const RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights};
+    const RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, {}, {}};
     RegistrationOptions options;
     options.nonrigid.schedule =
         a->schedule == "paper" ? NonrigidSchedule::paper : NonrigidSchedule::fast;

@@ -20,6 +20,7 @@
 #include "core/io/mesh_io.h"
 #include "core/landmarks.h"
 #include "core/makehuman.h"
+#include <nlohmann/json.hpp>
 #include "registration/pose_io.h"
 #include "registration/register_scan.h"
 #include "tools/console.h"
@@ -38,7 +39,9 @@ struct RegisterArgs {
   double transform_length = NonrigidOptions{}.normalization_length;
   double scan_unit_mm = 1.0;
   std::string start_from_truth;  // evaluation only: "", "mesh" or "pose"
-  bool force = false, pose_only = false, no_proportions = false;
+  bool force = false, pose_only = false, no_proportions = false, no_shape_fit = false;
+  bool proportions_with_shape = false;
+  std::string hand_stage = "off";  // regflip lane: finger curls fitted after the body
 };
 
 std::vector<std::string> read_scan_ids(const fs::path& csv) {
@@ -69,7 +72,8 @@ std::string summary_header() {
   return "scan_id,points,normals_estimated,landmarks,pose_icp_iterations,pose_rms_mm,"
          "pose_landmark_rms_mm,scale,nonrigid_iterations,data_rms_mm,landmark_rms_mm,"
          "matched_vertices,plane_matches,pose_seconds,nonrigid_seconds,seconds,pose_two_sided_mm,"
-         "pose_joints,folded_triangles_repaired\n";
+         "pose_joints,folded_triangles_repaired,shape_rounds,shape_seconds,shape_gender,shape_age,"
+         "shape_muscle,shape_weight,shape_height,shape_proportions,shape_cup\n";
 }
 
 void rebuild_registration_csv(const fs::path& out) {
@@ -126,9 +130,21 @@ BODYMODEL_VERB(add_register_verb) {
                   "to the scan)")
       ->check(CLI::IsMember({"segment", "bone", "best"}))
       ->capture_default_str();
+  cmd->add_option("--hand-stage", a->hand_stage,
+                  "Fingers: 'on' fits one curl per finger and the thumbs after the body "
+                  "(hand_stage_pose_parameters), 'off' one grasp rotation per hand with the body")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
   cmd->add_flag("--no-proportions", a->no_proportions,
                 "Keep the template's limb proportions (global scale only) instead of stretching "
                 "its segments to the landmark distances");
+  cmd->add_flag("--no-shape-fit", a->no_shape_fit,
+                "Keep the default MakeHuman body's shape (global scale and landmark proportions "
+                "only) instead of fitting the macro sliders (gender, age, muscle, weight, "
+                "height, proportions, cup) in the pose stage");
+  cmd->add_flag("--proportions-with-shape", a->proportions_with_shape,
+                "With the shape fit, also stretch the shaped body's segments to the landmark "
+                "distances");
   cmd->add_option("--start-from-truth", a->start_from_truth,
                   "Evaluation only (synthetic databases): skip the pose fit and start the "
                   "non-rigid fit from DB/truth/<id>.ply ('mesh': measures the non-rigid stage's "
@@ -178,7 +194,8 @@ BODYMODEL_VERB(add_register_verb) {
 
     MakeHuman mh = MakeHuman::load();
     MakeHuman::Body body = mh.body(MacroSettings{});
-    RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights};
+    RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, {}, {}};
+    if (!a->no_shape_fit) tpl.shape_space = mh;
     RegistrationOptions options;
     options.nonrigid.schedule =
         a->schedule == "paper" ? NonrigidSchedule::paper : NonrigidSchedule::fast;
@@ -187,12 +204,20 @@ BODYMODEL_VERB(add_register_verb) {
     options.nonrigid.normalization_length = a->transform_length;
     options.skip_nonrigid = a->pose_only;
     options.fit_proportions = !a->no_proportions;
+    options.fit_shape = !a->no_shape_fit;
+    options.proportions_with_shape = a->proportions_with_shape;
+    if (const char* e = std::getenv("BM_SHAPE_TEMPLATE_COT")) options.nonrigid_on_shaped_rest = false;
     if (a->pose_joints == "bone") options.pose.parameters = bone_pose_parameters();
     if (a->pose_joints == "segment") options.pose.parameters = segment_pose_parameters();
     if (a->pose_joints == "best") {
       options.pose.parameters = segment_pose_parameters();
       options.pose_alternatives.push_back(options.pose);
       options.pose_alternatives.back().parameters = bone_pose_parameters();
+    }
+    if (a->hand_stage == "on") {
+      if (options.pose.parameters.empty()) options.pose.parameters = default_pose_parameters();
+      options.pose.parameters = with_hand_stage(options.pose.parameters);
+      for (auto& alt : options.pose_alternatives) alt.parameters = with_hand_stage(alt.parameters);
     }
 
     std::vector<std::string> pose_joint_names = {a->pose_joints, "bone"};
@@ -247,16 +272,24 @@ BODYMODEL_VERB(add_register_verb) {
           rec.pose = r.pose.pose;
           write_mesh(out / (id + ".ply"), r.V, tpl.mesh.F);
           write_pose_csv(out / (id + ".pose.csv"), tpl.skeleton, rec);
+          std::string shape_cols = ",0,0,,,,,,,";
+          if (r.shape) {
+            const MacroSettings& m = *r.shape;
+            write_text_file(out / (id + ".shape.json"), m.to_json().dump(2) + "\n");
+            shape_cols = fmt::format(",{},{:.2f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f}",
+                                     s.shape_rounds, s.shape_seconds, m.gender, m.age, m.muscle,
+                                     m.weight, m.height, m.proportions, m.cup);
+          }
           write_text_file(
               out / (id + ".summary.csv"),
               fmt::format("{},{},{},{},{},{:.4f},{:.4f},{:.6f},{},{:.4f},{:.4f},{},{},{:.2f},{:.2f},"
-                          "{:.2f},{:.3f},{},{}\n",
+                          "{:.2f},{:.3f},{},{}{}\n",
                           id, scan.P.rows(), s.scan.normals_estimated ? 1 : 0, landmarks.size(),
                           s.pose.icp_iterations, s.pose.rms, s.pose.landmark_rms, r.pose.scale,
                           s.nonrigid.iterations, s.nonrigid.data_rms, s.nonrigid.landmark_rms,
                           s.nonrigid.matched_vertices, s.nonrigid.plane_matches, s.pose.seconds,
                           s.nonrigid.seconds, s.seconds, s.pose.two_sided_mm,
-                          pose_joint_names[s.pose_choice], s.folded_triangles));
+                          pose_joint_names[s.pose_choice], s.folded_triangles, shape_cols));
           std::lock_guard<std::mutex> lock(mutex);
           if (s.scan.normals_estimated)
             cli::info(id + ": the scan has no normals; estimated them (unoriented)");
