@@ -6,6 +6,7 @@
 #include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -79,10 +80,17 @@ int count_flipped_triangles(const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V
   return count;
 }
 
-FoldRepairSummary repair_folds(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_ref, const Eigen::MatrixX3i& F,
-                               const FoldRepairOptions& o) {
-  check_input(V, V_ref, F);
+namespace {
+
+// The repair of repair_folds with the flip test `is_flipped(V, f)` as a parameter.
+FoldRepairSummary repair_folds_impl(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_ref, const Eigen::MatrixX3i& F,
+                                    const FoldRepairOptions& o,
+                                    const std::function<bool(const Eigen::MatrixX3d&, Eigen::Index)>& flipped_in,
+                                    const std::vector<Eigen::Matrix3d>* vertex_frames = nullptr) {
   FoldRepairSummary summary;
+  auto flipped = [&](const Eigen::MatrixX3d& X, const Eigen::MatrixX3d&, const Eigen::MatrixX3i&, Eigen::Index f) {
+    return flipped_in(X, f);
+  };
   const int n = int(V.rows());
   std::vector<int> bad;
   for (Eigen::Index f = 0; f < F.rows(); ++f)
@@ -147,7 +155,8 @@ FoldRepairSummary repair_folds(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_re
         const int i = region[k];
         Eigen::Vector3d delta = double(nbr[i].size()) * V_ref.row(i).transpose();
         for (int j : nbr[i]) delta -= V_ref.row(j).transpose();
-        Eigen::RowVector3d rhs = (M * delta).transpose() + eps * V.row(i);
+        const Eigen::Matrix3d& Mi = vertex_frames ? (*vertex_frames)[i] : M;
+        Eigen::RowVector3d rhs = (Mi * delta).transpose() + eps * V.row(i);
         t.emplace_back(k, k, double(nbr[i].size()) + eps);
         for (int j : nbr[i]) {
           if (id[j] >= 0) t.emplace_back(k, id[j], -1.0);
@@ -193,6 +202,62 @@ FoldRepairSummary repair_folds(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_re
   summary.flipped_after = int(bad.size());
   summary.vertices_moved = int(std::count(moved.begin(), moved.end(), 1));
   return summary;
+}
+
+}  // namespace
+
+FoldRepairSummary repair_folds(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_ref, const Eigen::MatrixX3i& F,
+                               const FoldRepairOptions& o) {
+  check_input(V, V_ref, F);
+  return repair_folds_impl(V, V_ref, F, o,
+                           [&](const Eigen::MatrixX3d& X, Eigen::Index f) { return flipped(X, V_ref, F, f); });
+}
+
+namespace {
+
+void check_normals(const Eigen::MatrixX3d& N_ref, const Eigen::MatrixX3i& F) {
+  if (N_ref.rows() != F.rows())
+    throw InputError("fold repair: " + std::to_string(N_ref.rows()) + " reference normals for " +
+                     std::to_string(F.rows()) + " triangles");
+}
+
+}  // namespace
+
+FoldRepairSummary repair_folds_against_normals(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_ref,
+                                               const Eigen::MatrixX3d& N_ref, const Eigen::MatrixX3i& F,
+                                               const FoldRepairOptions& o) {
+  check_input(V, V_ref, F);
+  check_normals(N_ref, F);
+  return repair_folds_impl(V, V_ref, F, o, [&](const Eigen::MatrixX3d& X, Eigen::Index f) {
+    return cross_of(X, F, f).dot(N_ref.row(f).transpose()) < 0;
+  });
+}
+
+FoldRepairSummary repair_folds_against_normals(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_ref,
+                                               const Eigen::MatrixX3d& N_ref,
+                                               const std::vector<Eigen::Matrix3d>& vertex_frames,
+                                               const Eigen::MatrixX3i& F, const FoldRepairOptions& o) {
+  check_input(V, V_ref, F);
+  check_normals(N_ref, F);
+  if (vertex_frames.size() != static_cast<size_t>(V.rows()))
+    throw InputError("fold repair: " + std::to_string(vertex_frames.size()) + " vertex frames for " +
+                     std::to_string(V.rows()) + " vertices");
+  for (const auto& R : vertex_frames)
+    if (!R.allFinite()) throw InputError("fold repair: a vertex frame is not finite");
+  return repair_folds_impl(
+      V, V_ref, F, o,
+      [&](const Eigen::MatrixX3d& X, Eigen::Index f) { return cross_of(X, F, f).dot(N_ref.row(f).transpose()) < 0; },
+      &vertex_frames);
+}
+
+int count_flipped_triangles_against_normals(const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& N_ref,
+                                            const Eigen::MatrixX3i& F) {
+  check_input(V, V, F);
+  check_normals(N_ref, F);
+  int count = 0;
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    if (cross_of(V, F, f).dot(N_ref.row(f).transpose()) < 0) ++count;
+  return count;
 }
 
 }  // namespace bodymodel

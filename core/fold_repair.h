@@ -16,6 +16,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <vector>
 
 namespace bodymodel {
 
@@ -54,5 +55,28 @@ int count_flipped_triangles(const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V
 //   V #V by 3 (modified in place), V_ref #V by 3, F #F by 3.
 FoldRepairSummary repair_folds(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_ref,
                                const Eigen::MatrixX3i& F, const FoldRepairOptions& options = {});
+
+// The same repair with "flipped" judged against given reference face normals instead of V_ref's:
+// triangle f is flipped when its normal in V has a negative dot product with N_ref.row(f). For
+// meshes without a fold-free reference of the same shape, e.g. a posed body (pose morph): N_ref
+// = each triangle's rest normal turned by the rotation of the bone that mostly carries it (the
+// flip test of animation frames), V_ref = the rest body, whose local shape the Procrustes fit of
+// each region's border rotates and scales into place (local_similarity should be true).
+//   V #V by 3 (modified in place), V_ref #V by 3, N_ref #F by 3 (any length), F #F by 3.
+FoldRepairSummary repair_folds_against_normals(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_ref,
+                                               const Eigen::MatrixX3d& N_ref, const Eigen::MatrixX3i& F,
+                                               const FoldRepairOptions& options = {});
+// The same with each vertex's reference Laplacian coordinate mapped by its own frame instead of
+// the region's Procrustes fit: vertex_frames[i] (#V 3 by 3 maps, V_ref's frame → V's) e.g. the
+// blended bone rotation of vertex i in an animation frame, so that a region spanning two bones
+// (armpit, groin) gets each side's rest shape turned with its own bone.
+//   V #V by 3 (modified in place), V_ref #V by 3, N_ref #F by 3, vertex_frames #V, F #F by 3.
+FoldRepairSummary repair_folds_against_normals(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_ref,
+                                               const Eigen::MatrixX3d& N_ref,
+                                               const std::vector<Eigen::Matrix3d>& vertex_frames,
+                                               const Eigen::MatrixX3i& F, const FoldRepairOptions& options = {});
+// Triangles of V whose normal has a negative dot product with N_ref.row(f).
+int count_flipped_triangles_against_normals(const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& N_ref,
+                                            const Eigen::MatrixX3i& F);
 
 }  // namespace bodymodel

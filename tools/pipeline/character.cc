@@ -17,6 +17,7 @@
 #include "core/io/bvh.h"
 #include "core/retarget.h"
 #include "encoding/relative_rotation_decoder.h"
+#include "tools/pipeline/deformation_check.h"
 
 namespace bodymodel {
 
@@ -169,6 +170,28 @@ CharacterExamples make_character_examples(const BodyModel& model, const Eigen::M
   ex.transforms.resize(P);
   ex.meshes.resize(P);
   for (int p = 0; p < P; ++p) ex.transforms[p] = forward_kinematics(ex.skeleton, ex.poses[p].pose);
+  ex.flipped_before.assign(P, 0);
+  ex.flipped_after.assign(P, 0);
+
+  // Flip reference: each triangle's rest normal turned by its dominant bone (the smoothed template
+  // weights AS and MWE build on, as `animate` checks its frames).
+  const Eigen::MatrixXd Wt = merge_undriven_weights(Eigen::MatrixXd(ex.template_weights), ex.skeleton, ex.driven);
+  const DeformationChecker checker(
+      V, ex.F, lbs_rig_from_weights(V, smooth_skin_weights(Wt, ex.F, o.weight_smoothing_steps), o.max_influences));
+  const Eigen::MatrixX3d rest_normals = face_normals(V, ex.F);
+  auto repair = [&](int p, Eigen::MatrixX3d& X) {
+    Eigen::MatrixX3d N(ex.F.rows(), 3);
+    for (Eigen::Index f = 0; f < ex.F.rows(); ++f)
+      N.row(f) = (ex.transforms[p][checker.dominant_bone_of_face(static_cast<int>(f))].linear() *
+                  rest_normals.row(f).transpose()).transpose();
+    if (o.repair_folds) {
+      const FoldRepairSummary s = repair_folds_against_normals(X, V, N, ex.F, o.fold_repair);
+      ex.flipped_before[p] = s.flipped_before;
+      ex.flipped_after[p] = s.flipped_after;
+    } else {
+      ex.flipped_before[p] = ex.flipped_after[p] = count_flipped_triangles_against_normals(X, N, ex.F);
+    }
+  };
 
   // Morphs (every non-blend pose but the rest), in parallel with a decoder per thread.
   std::vector<int> morphs, blends;
@@ -202,6 +225,7 @@ CharacterExamples make_character_examples(const BodyModel& model, const Eigen::M
       // The morph is defined up to a rigid motion: place it where skinning puts the body.
       Eigen::MatrixX3d target = linear_blend_skinning(V, model.rig.weights, ex.transforms[p]);
       ex.meshes[p] = apply(fit_rigid_motion(D, target), D);
+      repair(p, ex.meshes[p]);
       tick(ex.poses[p].name);
     });
     if (cancelled) return;
@@ -215,6 +239,7 @@ CharacterExamples make_character_examples(const BodyModel& model, const Eigen::M
       Eigen::MatrixX3d D = decoder().decode(interpolate(ea, eb, rp.t));
       Eigen::MatrixX3d target = linear_blend_skinning(V, model.rig.weights, ex.transforms[blends[i]]);
       ex.meshes[blends[i]] = apply(fit_rigid_motion(D, target), D);
+      repair(blends[i], ex.meshes[blends[i]]);
       tick(rp.name);
     });
   });
@@ -392,6 +417,25 @@ std::vector<RigErrorRow> evaluate_character_rigs(const CharacterExamples& ex, co
       rows.push_back(row);
     }
   return rows;
+}
+
+PoseErrors per_pose_errors(const CharacterExamples& ex, const CharacterRigs& rigs) {
+  const SkinningRig* methods[] = {&rigs.template_lbs, &rigs.smooth_lbs, &rigs.lbs, &rigs.as, &rigs.mwe};
+  const int P = static_cast<int>(ex.poses.size());
+  PoseErrors e;
+  e.mean_mm.resize(P, 5);
+  e.max_mm.resize(P, 5);
+  e.max_vertex.resize(P, 5);
+  tbb::parallel_for(0, P, [&](int p) {
+    for (int m = 0; m < 5; ++m) {
+      const Eigen::VectorXd v = vertex_errors(*methods[m], ex.transforms[p], ex.meshes[p]);
+      e.mean_mm(p, m) = v.mean();
+      Eigen::Index i = 0;
+      e.max_mm(p, m) = v.maxCoeff(&i);
+      e.max_vertex(p, m) = static_cast<int>(i);
+    }
+  });
+  return e;
 }
 
 Eigen::VectorXd held_out_vertex_error(const CharacterExamples& ex, const SkinningRig& rig) {

@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "core/fold_repair.h"
 #include "core/progress.h"
 #include "core/skeleton.h"
 #include "model/body_model.h"
@@ -97,17 +98,20 @@ Eigen::VectorXd mwe_refinement_mask(const Eigen::MatrixXd& W, const Skeleton& sk
 
 struct CharacterOptions {
   RangeOfMotionOptions range_of_motion;
-  // The paper's pose morph (tips only, decoded volume) for now: with the torso anchored and the
-  // volume kept (model/pose_edit.h defaults) every rig's error against the morphs drops (40-subject
-  // model, held-out mean: MWE 42.6 -> 39.8 mm, fitted SSD 43.6 -> 40.6) but on the in-test
-  // 10-subject character the fitted SSD then ties MWE (15.29 vs 15.30 mm), so
-  // CharacterRig.MweReproducesHeldOutPoseMorphsBetterThanSsd would fail. Switch once MWE is
-  // re-tuned on those morphs.
-  PoseMorphOptions pose_morph = [] {
-    PoseMorphOptions p;
-    p.anchor_torso = false;
-    p.preserve_volume = false;
-    return p;
+  // The model's pose morph with its defaults (model/pose_edit.h: torso anchored where skinning
+  // places it, volume kept within 1 % of the body's), which measured 8.8 / 16.2 mm (mean / worst)
+  // against true posed scans vs 12.0 / 28.4 mm for the paper's tips-only morph.
+  PoseMorphOptions pose_morph;
+  // Fold repair of every pose morph and in-between before any rig sees it (core/fold_repair.h,
+  // repair_folds_against_normals): a triangle is flipped when its normal points against its
+  // rest normal turned by the bone that mostly carries it (the flip test of `animate`,
+  // tools/pipeline/deformation_check.h); each flipped area is re-solved from the rest body's
+  // local shape. Without it the morphs fold the armpit and groin and the rigs learn the folds.
+  bool repair_folds = true;
+  FoldRepairOptions fold_repair = [] {
+    FoldRepairOptions f;
+    f.passes = 8;   // as generate (model/morph.h)
+    return f;
   }();
   int max_influences = 4;           // slots per vertex (the template weights' largest ones)
   // The SSD rig Animation Space and MWE build on (their prior / delta-space base): the template's
@@ -149,6 +153,10 @@ struct CharacterExamples {
   // Both in the root's frame (relative_to_root): the root bone's map is the identity.
   std::vector<BoneTransforms> transforms; // #P forward kinematics of each (restricted) pose
   std::vector<Eigen::MatrixX3d> meshes;   // #P pose morphs, #V by 3, mm
+  // Flipped triangles of each pose (#P) before and after the fold repair (the flip test of
+  // `animate`: normal against the rest normal turned by the triangle's dominant bone of the
+  // smoothed template weights). Equal when the repair is off.
+  std::vector<int> flipped_before, flipped_after;
   double seconds = 0;
 };
 
@@ -183,6 +191,14 @@ struct RigErrorRow {
 std::vector<RigErrorRow> evaluate_character_rigs(const CharacterExamples& ex, const CharacterRigs& rigs);
 // Per-vertex mean error (mm) of `rig` over the held-out poses: #V.
 Eigen::VectorXd held_out_vertex_error(const CharacterExamples& ex, const SkinningRig& rig);
+
+// Per pose (#P rows) and rig (columns template_lbs, smooth_lbs, lbs, as, mwe): mean and max vertex
+// error (mm) against the pose's morph.
+struct PoseErrors {
+  Eigen::MatrixXd mean_mm, max_mm;   // #P by 5
+  Eigen::MatrixXi max_vertex;        // #P by 5: the vertex of the max
+};
+PoseErrors per_pose_errors(const CharacterExamples& ex, const CharacterRigs& rigs);
 
 // fit.csv text: method,split,poses,mean_mm,max_mm,rms_mm,p95_mm
 std::string rig_errors_csv(const std::vector<RigErrorRow>& rows);

@@ -78,11 +78,27 @@ CharacterJobResult write_character(const BodyModel& model, const Eigen::MatrixX3
 
   write_mesh(dir / "body.obj", V, ex.F);
   write_text_file(dir / "fit.csv", rig_errors_csv(res.errors));
-  std::string poses = "pose,split,made_by\n";
-  for (auto& p : ex.poses)
-    poses += fmt::format("{},{},{}\n", p.name, p.held_out ? "held_out" : "train",
+  const PoseErrors pe = per_pose_errors(ex, rigs);
+  std::string poses =
+      "pose,split,made_by,flipped_before_repair,flipped,lbs_mean_mm,lbs_max_mm,smooth_lbs_mean_mm,smooth_lbs_max_mm,"
+      "as_mean_mm,as_max_mm,mwe_mean_mm,mwe_max_mm,mwe_max_vertex,mwe_max_bone\n";
+  for (size_t i = 0; i < ex.poses.size(); ++i) {
+    const auto& p = ex.poses[i];
+    poses += fmt::format("{},{},{},{},{}", p.name, p.held_out ? "held_out" : "train",
                          p.name == "rest" ? "the body" : p.blend_a >= 0 ? "encoding-space interpolation"
-                                                                        : "pose morph");
+                                                                        : "pose morph",
+                         ex.flipped_before[i], ex.flipped_after[i]);
+    for (int m : {2, 1, 3, 4}) poses += fmt::format(",{:.3f},{:.3f}", pe.mean_mm(i, m), pe.max_mm(i, m));
+    // The bone carrying the MWE's worst vertex most (template weights).
+    const int v = pe.max_vertex(i, 4);
+    Eigen::Index bone = 0;
+    Eigen::VectorXd(ex.template_weights.row(v).transpose()).maxCoeff(&bone);
+    poses += fmt::format(",{},{}\n", v, ex.skeleton.names[bone]);
+  }
+  for (size_t i = 0; i < ex.poses.size(); ++i) {
+    res.flipped_before_repair += ex.flipped_before[i];
+    res.flipped_after_repair += ex.flipped_after[i];
+  }
   write_text_file(dir / "poses.csv", poses);
 
   const BodyMeasurements m = measure_body(V, ex.F);

@@ -3,7 +3,8 @@
 //   rig.npz         the MWE rig with skeleton (tools/pipeline/character_file.h)
 //   fit.csv         vertex errors (mm) of template SSD, fitted SSD, AS and MWE against the
 //                   model's pose morphs, training and held-out poses
-//   poses.csv       the range of motion: name, split, how it was made
+//   poses.csv       the range of motion: name, split, how it was made, flipped triangles before
+//                   and after the fold repair, each rig's mean and max error (mm) on the pose
 //   skinning_error.png  held-out pose with the largest SSD error: pose morph | SSD | AS | MWE,
 //                   per-vertex error on a fixed colour scale (skinning_error_scale_mm)
 //   character.glb   the SSD rig as glTF 2.0 (when the glTF writer is available)
@@ -33,6 +34,8 @@ struct CharacterJobResult {
   nlohmann::json character;     // what went into rig.npz's 'character' key
   int training_poses = 0, held_out_poses = 0;
   double examples_seconds = 0, fit_seconds = 0;
+  // Flipped triangles summed over the range of motion before and after the fold repair.
+  int flipped_before_repair = 0, flipped_after_repair = 0;
   bool wrote_glb = false;
   std::string glb_note;         // why not, when not
 };
