@@ -63,25 +63,31 @@ const std::vector<PoseParameter>& segment_pose_parameters() {
   return params;
 }
 
-const std::vector<PoseParameter>& hand_stage_pose_parameters() {
-  static const std::vector<PoseParameter> params = [] {
-    std::vector<PoseParameter> p;
-    for (const auto& g : segment_pose_parameters())
-      if (g.bones[0].rfind("finger", 0) != 0) p.push_back(g);
-    for (const char* side : {".L", ".R"}) {
-      auto b = [&](const std::string& n) { return n + side; };
-      // One curl angle per finger shared by its three phalanges (a fist is ~70° per phalanx),
-      // the thumb a ball joint shared by its three bones; weak priors; hand stage only.
-      for (int f = 2; f <= 5; ++f) {
-        std::vector<std::string> finger;
-        for (int k = 1; k <= 3; ++k)
-          finger.push_back(b("finger" + std::to_string(f) + "-" + std::to_string(k)));
-        p.push_back({finger, false, 0.1, true, true});
-      }
-      p.push_back({{b("finger1-1"), b("finger1-2"), b("finger1-3")}, false, 0.3, true, false});
+std::vector<PoseParameter> with_hand_stage(const std::vector<PoseParameter>& parameters) {
+  std::vector<PoseParameter> p;
+  for (const auto& g : parameters)
+    if (g.bones.empty() || g.bones[0].rfind("finger", 0) != 0) p.push_back(g);
+  for (const char* side : {".L", ".R"}) {
+    auto b = [&](const std::string& n) { return n + side; };
+    // One curl angle per finger shared by its three phalanges (a fist is ~70° per phalanx),
+    // the thumb a ball joint shared by its three bones; weak priors; hand stage only.
+    for (int f = 2; f <= 5; ++f) {
+      std::vector<std::string> finger;
+      for (int k = 1; k <= 3; ++k)
+        finger.push_back(b("finger" + std::to_string(f) + "-" + std::to_string(k)));
+      p.push_back({finger, false, 0.1, true, true});
     }
-    return p;
-  }();
+    // The thumb: a ball joint at its base only (finger1-1; the other two phalanges at rest),
+    // prior 1. Shared over its three bones (prior 0.3) it swung the whole thumb 38° off where
+    // a scan (CMU 12_03) turned only the base: 15 database scans, pose only, hand flips 416 → 332,
+    // distal phalanx median 16.4 → 14.5°.
+    p.push_back({{b("finger1-1")}, false, 1.0, true, false});
+  }
+  return p;
+}
+
+const std::vector<PoseParameter>& hand_stage_pose_parameters() {
+  static const std::vector<PoseParameter> params = with_hand_stage(segment_pose_parameters());
   return params;
 }
 
@@ -402,7 +408,18 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
       mean /= std::max<size_t>(1, pts.size());
       Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
       for (const auto& q : pts) C += (q - mean) * (q - mean).transpose();
-      const Eigen::Vector3d normal = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(C).eigenvectors().col(0);
+      Eigen::Vector3d normal = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(C).eigenvectors().col(0);
+      // Oriented to the palm side, where the thumb (finger1…) lies: a positive curl then moves
+      // the fingertip towards the palm (R(θ)d ≈ d cos θ + n sin θ), so the curl limits below
+      // tell flexion from hyperextension.
+      Eigen::Vector3d thumb = Eigen::Vector3d::Zero();
+      int thumb_points = 0;
+      for (int c = 0; c < nb; ++c)
+        if (c != w && below(c, w) && skeleton.names[c].rfind("finger1", 0) == 0) {
+          thumb += skeleton.heads.row(c).transpose() + skeleton.tails.row(c).transpose();
+          thumb_points += 2;
+        }
+      if (thumb_points > 0 && (thumb / thumb_points - mean).dot(normal) < 0) normal = -normal;
       const Eigen::Vector3d axis = bone_axis[b].cross(normal);
       if (pts.size() < 6 || axis.norm() < 1e-6)
         throw InputError("pose fit: cannot find a curl axis for bone '" + skeleton.names[b] +
@@ -576,6 +593,20 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
   };
 
 
+  // Residual of sample si (index into `samples`, with its chain) against a scan target, on the
+  // current parameter blocks; used by the body, landmark and hand stages.
+  auto add_sample = [&](ceres::Problem& problem, int si, const Eigen::Vector3d& target,
+                        const Eigen::Vector3d& normal, double weight, double plane_weight,
+                        double point_weight, ceres::LossFunction* loss) {
+    std::vector<int> sizes;
+    for (int k : chain_free[si]) sizes.push_back(params[k].one_dof() ? 1 : 3);
+    auto* cost = new PointResidual(&chains[si], &skeleton, tpl.V.row(samples[si]).transpose(),
+                                   target, normal, weight, plane_weight, point_weight, sizes);
+    std::vector<double*> blocks = {&scale, root_aa.data(), trans.data()};
+    for (int k : chain_free[si]) blocks.push_back(joint_aa[k].data());
+    problem.AddResidualBlock(cost, loss, blocks);
+  };
+
   PointIndex scan_index(scan.P);
   const double cos_min = std::cos(o.max_normal_angle_deg * M_PI / 180.0);
   PoseFitSummary sum;
@@ -665,17 +696,6 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     if (!o.fit_scale) problem.SetParameterBlockConstant(&scale);
     else problem.SetParameterLowerBound(&scale, 0, 0.2);
     int matched = 0;
-    auto add_point = [&](int si, const Eigen::Vector3d& target, const Eigen::Vector3d& normal,
-                         double weight, double plane_weight, double point_weight,
-                         ceres::LossFunction* loss) {
-      std::vector<int> sizes;
-      for (int k : chain_free[si]) sizes.push_back(params[k].one_dof() ? 1 : 3);
-      auto* cost = new PointResidual(&chains[si], &skeleton, tpl.V.row(samples[si]).transpose(),
-                                     target, normal, weight, plane_weight, point_weight, sizes);
-      std::vector<double*> blocks = {&scale, root_aa.data(), trans.data()};
-      for (int k : chain_free[si]) blocks.push_back(joint_aa[k].data());
-      problem.AddResidualBlock(cost, loss, blocks);
-    };
     double d2sum = 0;
     for (int si = 0; si < nsamples; ++si) {
       if (match[si] < 0) continue;
@@ -686,7 +706,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
       d2sum += d2;
       const Eigen::Vector3d normal = scan.has_normals() ? Eigen::Vector3d(scan.N.row(match[si]))
                                                         : Eigen::Vector3d::Zero();
-      add_point(si, target, normal, 1.0, 1.0, o.point_to_point_weight,
+      add_sample(problem, si, target, normal, 1.0, 1.0, o.point_to_point_weight,
                 new ceres::HuberLoss(o.robust_scale));
     }
     if (!back.empty()) {
@@ -697,7 +717,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
         if ((V.row(samples[si]).transpose() - target).norm() > trim_back) continue;
         const Eigen::Vector3d normal =
             scan.has_normals() ? Eigen::Vector3d(scan.N.row(j)) : Eigen::Vector3d::Zero();
-        add_point(si, target, normal, w, 1.0, o.point_to_point_weight,
+        add_sample(problem, si, target, normal, w, 1.0, o.point_to_point_weight,
                   new ceres::HuberLoss(o.robust_scale));
       }
     }
@@ -706,7 +726,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
       if (!lm_body[k]) continue;
       const int si = nsamples + int(k);
       l2 += (V.row(landmarks[k].vertex).transpose() - landmarks[k].target).squaredNorm();
-      add_point(si, landmarks[k].target, Eigen::Vector3d::Zero(),
+      add_sample(problem, si, landmarks[k].target, Eigen::Vector3d::Zero(),
                 o.landmark_weight * std::sqrt(double(nsamples) / 100.0), 0.0, 1.0, nullptr);
     }
     // Prior per bone: a tied group of g bones costs g times its shared rotation.
@@ -800,6 +820,14 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     std::map<int, std::vector<int>> coupled;  // wrist bone → curl parameters
     for (int k : late_params)
       if (params[k].curl) coupled[hand_of[params[k].bones[0]]].push_back(k);
+    // Phases: first (tied_hand_phase) the fingers of a hand curl as one (a grasp, robust where
+    // single fingers are poorly scanned, e.g. the inside of a fist), then each on its own,
+    // started there; the per-finger acceptance below reverts to the start of the last phase.
+    std::vector<Eigen::Vector3d> hand_start = joint_aa;
+    const int phases = o.tied_hand_phase ? 2 : 1;
+    for (int phase = 0; phase < phases; ++phase) {
+    const double coupling = phase + 1 < phases ? 1e8 : o.finger_coupling;
+    hand_start = joint_aa;
     for (int hiter = 0; hiter < o.hand_iterations; ++hiter) {
       report_progress(progress, 0.95, "pose fit: hands");
       const Eigen::MatrixX3d V = pose_template(tpl.V, skeleton, W, scale, current_pose());
@@ -870,18 +898,15 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
       problem.SetParameterBlockConstant(trans.data());
       for (int k = 0; k < nfree; ++k)
         if (!hand_free[k]) problem.SetParameterBlockConstant(joint_aa[k].data());
-      auto add_point = [&](int si, const Eigen::Vector3d& target, const Eigen::Vector3d& normal,
-                           double weight, double plane_weight, double point_weight,
-                           ceres::LossFunction* loss) {
-        std::vector<int> sizes;
-        for (int k : chain_free[si]) sizes.push_back(params[k].one_dof() ? 1 : 3);
-        auto* cost = new PointResidual(&chains[si], &skeleton, tpl.V.row(samples[si]).transpose(),
-                                       target, normal, weight, plane_weight, point_weight, sizes);
-        std::vector<double*> blocks = {&scale, root_aa.data(), trans.data()};
-        for (int k : chain_free[si]) blocks.push_back(joint_aa[k].data());
-        problem.AddResidualBlock(cost, loss, blocks);
-      };
-      int matched = 0;
+      if (o.curl_max_deg > o.curl_min_deg)
+        for (int k : hand_params)
+          if (params[k].curl) {
+            joint_aa[k][0] = std::clamp(joint_aa[k][0], o.curl_min_deg * M_PI / 180.0,
+                                        o.curl_max_deg * M_PI / 180.0);
+            problem.SetParameterLowerBound(joint_aa[k].data(), 0, o.curl_min_deg * M_PI / 180.0);
+            problem.SetParameterUpperBound(joint_aa[k].data(), 0, o.curl_max_deg * M_PI / 180.0);
+          }
+        int matched = 0;
       double d2sum = 0;
       for (int h = 0; h < nh; ++h) {
         if (fwd[h] < 0) continue;
@@ -890,7 +915,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
         ++matched;
         const Eigen::Vector3d normal =
             scan.has_normals() ? Eigen::Vector3d(scan.N.row(fwd[h])) : Eigen::Vector3d::Zero();
-        add_point(hand_first + h, target, normal, 1.0, 1.0, o.point_to_point_weight,
+        add_sample(problem, hand_first + h, target, normal, 1.0, 1.0, o.point_to_point_weight,
                   new ceres::HuberLoss(o.robust_scale));
       }
       int nback = 0;
@@ -902,14 +927,14 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
           const int j = hand_points[k * bstride];
           const Eigen::Vector3d normal =
               scan.has_normals() ? Eigen::Vector3d(scan.N.row(j)) : Eigen::Vector3d::Zero();
-          add_point(hand_first + bwd[k], scan.P.row(j).transpose(), normal, w, 1.0,
+          add_sample(problem, hand_first + bwd[k], scan.P.row(j).transpose(), normal, w, 1.0,
                     o.point_to_point_weight, new ceres::HuberLoss(o.robust_scale));
         }
       }
       if (matched + nback < 10) break;
       for (size_t k = 0; k < landmarks.size(); ++k)
         if (!lm_body[k])
-          add_point(nsamples + int(k), landmarks[k].target, Eigen::Vector3d::Zero(),
+          add_sample(problem, nsamples + int(k), landmarks[k].target, Eigen::Vector3d::Zero(),
                     o.landmark_weight * std::sqrt(double(nh) / 100.0), 0.0, 1.0, nullptr);
       for (int k : hand_params) {
         const double w = std::sqrt(o.pose_prior * params[k].prior * double(params[k].bones.size()));
@@ -925,7 +950,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
       // Each finger's curl towards its hand's mean curl (the mean a free variable).
       std::vector<double> means;
       means.reserve(coupled.size());
-      if (o.finger_coupling > 0)
+      if (coupling > 0)
         for (const auto& [wrist, ks] : coupled) {
           if (ks.size() < 2) continue;
           double m = 0;
@@ -934,7 +959,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
           for (int k : ks)
             problem.AddResidualBlock(
                 new ceres::AutoDiffCostFunction<CouplingResidual, 1, 1, 1>(new CouplingResidual{
-                    std::sqrt(o.finger_coupling * double(params[k].bones.size()))}),
+                    std::sqrt(coupling * double(params[k].bones.size()))}),
                 nullptr, joint_aa[k].data(), &means.back());
         }
       std::vector<Eigen::Vector3d> old = joint_aa;
@@ -945,12 +970,89 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
       so.logging_type = ceres::SILENT;
       ceres::Solver::Summary cs;
       ceres::Solve(so, &problem, &cs);
-      sum.hand_iterations = hiter + 1;
+      ++sum.hand_iterations;
       sum.hand_rms = matched ? std::sqrt(d2sum / matched) : 0.0;
       double max_deg = 0;
       for (int k : hand_params)
         max_deg = std::max(max_deg, (joint_aa[k] - old[k]).norm() * 180.0 / M_PI);
       if (dmax <= o.hand_max_distance && max_deg < o.convergence_deg) break;
+    }
+    }
+    if (o.hand_accept_cap > 0 && sum.hand_iterations > 0) {
+      // Per-finger acceptance: a hand parameter keeps its fitted value only if that lowers the
+      // hand's two-sided distance to the scan (capped at hand_accept_cap), else it goes back to
+      // where the hand stage started it (the rest pose's fingers). Scan holes between fingers
+      // and fingers touching the body give the hand stage correspondences that curl a straight
+      // finger; the distance of the whole result is what tells.
+      std::vector<int> hv;
+      for (int i = 0; i < n; ++i)
+        if (hand_region[i]) hv.push_back(i);
+      const double cap = o.hand_accept_cap;
+      // The scan points compared: closest (over the whole posed template) to a hand vertex in
+      // the start or the fitted pose, and within cap of it.
+      std::vector<char> in_set(scan.P.rows(), 0);
+      auto collect = [&](const Eigen::MatrixX3d& V) {
+        Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+        Eigen::Vector3d hi = -lo;
+        for (int i : hv) {
+          lo = lo.cwiseMin(V.row(i).transpose());
+          hi = hi.cwiseMax(V.row(i).transpose());
+        }
+        lo.array() -= cap;
+        hi.array() += cap;
+        PointIndex vertex_index(V);
+        tbb::parallel_for(0, int(scan.P.rows()), [&](int j) {
+          const Eigen::Vector3d q = scan.P.row(j).transpose();
+          if (!((q.array() >= lo.array()).all() && (q.array() <= hi.array()).all())) return;
+          double d2 = 0;
+          const int i = vertex_index.nearest(q, &d2);
+          if (i >= 0 && hand_region[i] && d2 <= cap * cap) in_set[j] = 1;
+        });
+      };
+      std::vector<Eigen::Vector3d> fitted = joint_aa;
+      for (int k : hand_params) joint_aa[k] = hand_start[k];
+      collect(pose_template(tpl.V, skeleton, W, scale, current_pose()));
+      joint_aa = fitted;
+      collect(pose_template(tpl.V, skeleton, W, scale, current_pose()));
+      std::vector<int> set;
+      for (Eigen::Index j = 0; j < scan.P.rows(); ++j)
+        if (in_set[j]) set.push_back(int(j));
+      auto hand_cost = [&] {
+        const Eigen::MatrixX3d V = pose_template(tpl.V, skeleton, W, scale, current_pose());
+        Eigen::MatrixX3d H(hv.size(), 3);
+        for (size_t c = 0; c < hv.size(); ++c) H.row(c) = V.row(hv[c]);
+        PointIndex hand_index(H);
+        std::vector<double> a(set.size()), b(hv.size());
+        tbb::parallel_for(0, int(set.size()), [&](int c) {
+          double d2 = 0;
+          hand_index.nearest(scan.P.row(set[c]).transpose(), &d2);
+          a[c] = std::min(std::sqrt(d2), cap);
+        });
+        tbb::parallel_for(0, int(hv.size()), [&](int c) {
+          double d2 = 0;
+          scan_index.nearest(H.row(c).transpose(), &d2);
+          b[c] = std::min(std::sqrt(d2), cap);
+        });
+        double sa = 0, sb = 0;
+        for (double x : a) sa += x;
+        for (double x : b) sb += x;
+        return 0.5 * (sa / std::max<size_t>(1, a.size()) + sb / std::max<size_t>(1, b.size()));
+      };
+      double best = hand_cost();
+      sum.hand_accept_before = best;
+      for (int k : hand_params) {
+        if (joint_aa[k] == hand_start[k]) continue;
+        const Eigen::Vector3d keep = joint_aa[k];
+        joint_aa[k] = hand_start[k];
+        const double c = hand_cost();
+        if (c < best) {
+          best = c;
+          ++sum.hand_reverted;
+        } else {
+          joint_aa[k] = keep;
+        }
+      }
+      sum.hand_accept_after = best;
     }
   }
   PoseFitResult result;

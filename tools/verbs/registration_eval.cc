@@ -112,7 +112,7 @@ BODYMODEL_VERB(add_eval_registration_verb) {
     std::string csv =
         "scan_id,correspondence_mean_mm,correspondence_p95_mm,correspondence_max_mm,"
         "surface_mean_mm,surface_max_mm,hole_vertices,hole_mean_mm,hole_max_mm,"
-        "flipped_triangles,joint_median_deg,joint_max_deg,finger_median_deg\n";
+        "flipped_triangles,joint_median_deg,joint_max_deg,finger_median_deg,flipped_hands\n";
     std::vector<double> scan_means, all_vertices, surface_means, hole_max, joint_all;
     std::vector<double> scan_joint_medians;
     std::vector<std::vector<double>> per_joint(joints.size()), per_swing(joints.size()),
@@ -131,8 +131,8 @@ BODYMODEL_VERB(add_eval_registration_verb) {
     std::vector<double> finger_all;
     int flipped_total = 0, evaluated = 0, missing = 0;
     std::map<std::string, int> flipped_by_region;
-    std::vector<std::string> vertex_region;
-    if (a->flipped_regions) {
+    std::vector<std::string> vertex_region;  // always: the per-scan flipped_hands column
+    {
       const SkinWeights& W = body.weights;
       vertex_region.assign(W.rows(), "torso/pelvis");
       for (int i = 0; i < W.outerSize(); ++i) {
@@ -165,7 +165,8 @@ BODYMODEL_VERB(add_eval_registration_verb) {
       hole_max.push_back(e.hole_max);
       worst_hole = std::max(worst_hole, e.hole_max);
       flipped_total += e.flipped_triangles;
-      if (a->flipped_regions) {
+      int flipped_hands = 0;
+      {
         const Eigen::MatrixX3d Nr = face_normals(r.V, t.F), Nt = face_normals(t.V, t.F);
         for (Eigen::Index f = 0; f < t.F.rows(); ++f)
           if (Nr.row(f).dot(Nt.row(f)) < 0) {
@@ -175,6 +176,7 @@ BODYMODEL_VERB(add_eval_registration_verb) {
             auto best = std::max_element(votes.begin(), votes.end(),
                                          [](const auto& x, const auto& y) { return x.second < y.second; });
             ++flipped_by_region[best->first];
+            flipped_hands += best->first == "hands";
           }
       }
       double jmed = std::nan(""), jmax = std::nan(""), fmed = std::nan("");
@@ -198,10 +200,10 @@ BODYMODEL_VERB(add_eval_registration_verb) {
         jmax = *std::max_element(je.begin(), je.end());
         scan_joint_medians.push_back(jmed);
       }
-      csv += fmt::format("{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{:.3f},{:.3f},{},{:.3f},{:.3f},{:.3f}\n",
+      csv += fmt::format("{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{:.3f},{:.3f},{},{:.3f},{:.3f},{:.3f},{}\n",
                          id, e.correspondence_mean, percentile(verr, 0.95),
                          e.correspondence_max, e.surface_mean, e.surface_max, e.hole_vertices,
-                         e.hole_mean, e.hole_max, e.flipped_triangles, jmed, jmax, fmed);
+                         e.hole_mean, e.hole_max, e.flipped_triangles, jmed, jmax, fmed, flipped_hands);
       ++evaluated;
     }
     bar.finish(fmt::format("{} scans evaluated", evaluated));
