@@ -183,10 +183,24 @@ FoldRepairSummary repair_folds_impl(Eigen::MatrixX3d& V, const Eigen::MatrixX3d&
         touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
         int before = 0, after = 0;
         for (int f : touched) before += flipped(V, V_ref, F, f);
+        // Largest edge ratio to V_ref over the touched triangles (only with max_edge_ratio).
+        auto worst_ratio = [&]() {
+          double w = 0;
+          for (int f : touched)
+            for (int c = 0; c < 3; ++c) {
+              const int a = F(f, c), b2 = F(f, (c + 1) % 3);
+              const double r0 = (V_ref.row(a) - V_ref.row(b2)).norm();
+              if (r0 > 0) w = std::max(w, (V.row(a) - V.row(b2)).norm() / r0);
+            }
+          return w;
+        };
+        const double ratio_before = o.max_edge_ratio > 0 ? worst_ratio() : 0;
         Eigen::MatrixX3d old(m, 3);
         for (int k = 0; k < m; ++k) old.row(k) = V.row(region[k]), V.row(region[k]) = X.row(k);
         for (int f : touched) after += flipped(V, V_ref, F, f);
-        if (after < before || !o.keep_only_improving) {
+        const bool stretched = o.max_edge_ratio > 0 && after < before &&
+                               worst_ratio() > std::max(o.max_edge_ratio, ratio_before);
+        if ((after < before && !stretched) || !o.keep_only_improving) {
           ++summary.regions_kept;
           for (int i : region) moved[i] = 1;
         } else {

@@ -32,6 +32,10 @@ struct FoldRepairOptions {
   bool keep_only_improving = true;
   // Regions with more vertices than this are left alone (a broken decode is not a fold).
   int max_region_vertices = 4000;
+  // > 0: a solve is also refused when an edge of the triangles it touches ends longer than this
+  // times its length in V_ref and longer than it was (animation frames: the exploded-triangle
+  // bound of 3x rest). 0 = no edge test.
+  double max_edge_ratio = 0;
 };
 
 struct FoldRepairSummary {

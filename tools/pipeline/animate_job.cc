@@ -78,6 +78,37 @@ SkinWeights skin_weights_of(const SkinningRig& lbs) {
   return W;
 }
 
+FoldRepairOptions AnimateOptions::default_animation_repair() {
+  FoldRepairOptions o;
+  o.rings = 2;
+  o.passes = 8;  // as `generate`: wide creases need regions grown over several passes
+  // A solve that would stretch an edge beyond 3x rest (the exploded-triangle bound of
+  // animation.csv) and beyond what it was is refused (a later pass tries a wider region).
+  o.max_edge_ratio = 3;
+  return o;
+}
+
+std::vector<Eigen::Matrix3d> blended_vertex_rotations(const SkinningRig& lbs, const BoneTransforms& M) {
+  std::vector<Eigen::Quaterniond> q(M.size());
+  for (size_t b = 0; b < M.size(); ++b) q[b] = Eigen::Quaterniond(Eigen::Matrix3d(M[b].linear())).normalized();
+  std::vector<Eigen::Matrix3d> out(lbs.vertex_count(), Eigen::Matrix3d::Identity());
+  for (int v = 0; v < lbs.vertex_count(); ++v) {
+    Eigen::Vector4d sum = Eigen::Vector4d::Zero();
+    Eigen::Vector4d first = Eigen::Vector4d::Zero();
+    for (int k = 0; k < lbs.max_influences(); ++k) {
+      const int b = lbs.influences(v, k);
+      const double w = lbs.coefficients(v, k);
+      if (b < 0 || !(w > 0) || b >= static_cast<int>(q.size())) continue;
+      Eigen::Vector4d c = q[b].coeffs();
+      if (first.isZero()) first = c;
+      if (c.dot(first) < 0) c = -c;  // same hemisphere (q and −q are one rotation)
+      sum += w * c;
+    }
+    if (sum.norm() > 1e-12) out[v] = Eigen::Quaterniond(sum.normalized()).toRotationMatrix();
+  }
+  return out;
+}
+
 double AnimateResult::max_edge_ratio(const std::vector<FrameCheck>& c) const {
   double m = 0;
   for (auto& x : c) m = std::isnan(x.max_edge_ratio) ? x.max_edge_ratio : std::max(m, x.max_edge_ratio);
@@ -112,7 +143,6 @@ AnimateResult animate_character(const CharacterRigFile& ch, const ClipPoses& cli
   for (int k = 0; k < o.sheet_frames && res.frames > 0; ++k)
     sheet_at.push_back(static_cast<int>(std::lround(double(k) * (res.frames - 1) / std::max(1, o.sheet_frames - 1))));
   auto t0 = std::chrono::steady_clock::now();
-  double skin_seconds = 0;
   std::string details =
       "frame,clip_frame,kind,element,bone,value,bone_angle_deg,parent,parent_angle_deg\n";
   auto angle_deg = [](const Eigen::Matrix3d& R) { return Eigen::AngleAxisd(R).angle() * 180 / M_PI; };
@@ -125,11 +155,27 @@ AnimateResult animate_character(const CharacterRigFile& ch, const ClipPoses& cli
     const BoneTransforms L = relative_to_root(M, ch.skeleton, &G);
     auto ts = std::chrono::steady_clock::now();
     const Eigen::MatrixX3d XL = skinner.pose(L).cast<double>();
-    const Eigen::MatrixX3d X = ((XL * G.linear().transpose()).rowwise() + G.translation().transpose()).eval();
-    skin_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
+    Eigen::MatrixX3d X = ((XL * G.linear().transpose()).rowwise() + G.translation().transpose()).eval();
+    res.skin_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
     if (!X.allFinite())
       throw NumericalError(fmt::format("frame {} of the clip gave non-finite vertices", res.source_frames[i]));
-    res.rig.push_back(checker.check(X, M));
+    res.rig_before_repair.push_back(checker.check(X, M));
+    const Eigen::MatrixX3d X_skinned = o.details ? X : Eigen::MatrixX3d();
+    if (o.repair && res.rig_before_repair.back().flipped > 0) {
+      const auto tr = std::chrono::steady_clock::now();
+      const FoldRepairSummary s =
+          o.repair_vertex_rotations
+              ? repair_folds_against_normals(X, ch.rig.rest, checker.reference_normals(M),
+                                             blended_vertex_rotations(ch.lbs, M), ch.F, o.repair_options)
+              : repair_folds_against_normals(X, ch.rig.rest, checker.reference_normals(M), ch.F, o.repair_options);
+      res.repair_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
+      res.repaired_frames += s.regions_kept > 0;
+      if (!X.allFinite())
+        throw NumericalError(fmt::format("frame {}: the fold repair gave non-finite vertices", res.source_frames[i]));
+      res.rig.push_back(checker.check(X, M));
+    } else {
+      res.rig.push_back(res.rig_before_repair.back());
+    }
     const Eigen::MatrixX3d XS = evaluate_rig(ch.lbs, M);
     res.lbs.push_back(checker.check(XS, M));
     if (o.details) {
@@ -147,7 +193,9 @@ AnimateResult animate_character(const CharacterRigFile& ch, const ClipPoses& cli
         const double twist = 2 * std::atan2(q.vec().dot(axis), q.w()) * 180 / M_PI;
         row("joint", -1, b, twist);
       }
-      for (int f : checker.flipped_faces(X, M)) row("flip", f, checker.dominant_bone_of_face(f), 1);
+      for (int f : checker.flipped_faces(X_skinned, M)) row("flip", f, checker.dominant_bone_of_face(f), 1);
+      if (o.repair)
+        for (int f : checker.flipped_faces(X, M)) row("flip_after_repair", f, checker.dominant_bone_of_face(f), 1);
       for (int f : checker.flipped_faces(XS, M)) row("flip_ssd", f, checker.dominant_bone_of_face(f), 1);
       for (Eigen::Index e = 0; e < checker.edges().rows(); ++e) {
         const int a = checker.edges()(e, 0), b = checker.edges()(e, 1);
@@ -165,16 +213,18 @@ AnimateResult animate_character(const CharacterRigFile& ch, const ClipPoses& cli
   std::string csv =
       "frame,clip_frame,time_s,max_edge_ratio,min_edge_ratio,flipped,lbs_max_edge_ratio,lbs_flipped,"
       "template_max_edge_ratio,template_flipped,p99_edge_ratio,worst_vertex_a,worst_vertex_b,worst_rest_mm,"
-      "worst_bone\n";
+      "worst_bone,flipped_before_repair,max_edge_ratio_before_repair,p99_edge_ratio_before_repair\n";
   for (int i = 0; i < res.frames; ++i) {
     const FrameCheck& c = res.rig[i];
     const int e = std::max(c.worst_edge, 0);
     const int a = checker.edges()(e, 0), b = checker.edges()(e, 1);
-    csv += fmt::format("{},{},{:.4f},{:.4f},{:.4f},{},{:.4f},{},{:.4f},{},{:.4f},{},{},{:.3f},{}\n", i,
+    const FrameCheck& u = res.rig_before_repair[i];
+    csv += fmt::format("{},{},{:.4f},{:.4f},{:.4f},{},{:.4f},{},{:.4f},{},{:.4f},{},{},{:.3f},{},{},{:.4f},{:.4f}\n", i,
                        res.source_frames[i], i * res.frame_time, c.max_edge_ratio, c.min_edge_ratio, c.flipped,
                        res.lbs[i].max_edge_ratio, res.lbs[i].flipped, res.template_lbs[i].max_edge_ratio,
                        res.template_lbs[i].flipped, c.p99_edge_ratio, a, b, checker.rest_length(e),
-                       ch.skeleton.names[checker.dominant_bone_of_vertex(a)]);
+                       ch.skeleton.names[checker.dominant_bone_of_vertex(a)], u.flipped, u.max_edge_ratio,
+                       u.p99_edge_ratio);
   }
   write_text_file(dir / "animation.csv", csv);
   if (o.details) write_text_file(dir / "details.csv", details);
@@ -182,7 +232,6 @@ AnimateResult animate_character(const CharacterRigFile& ch, const ClipPoses& cli
     // Frames side by side; each centred horizontally (a walk travels), common scale.
     render_row(sheet, ch.F, {}, 200, 400).save_png(dir / "frames.png");
   }
-  (void)skin_seconds;
   if (o.write_glb && res.frames > 0) {
     GltfAnimation anim;
     anim.name = "clip";

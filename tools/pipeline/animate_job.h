@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "core/fold_repair.h"
 #include "core/io/bvh.h"
 #include "core/progress.h"
 #include "core/retarget.h"
@@ -41,15 +42,37 @@ struct AnimateOptions {
   // details_edge_ratio, with its dominant bone and that bone's (and its parent's) joint angle.
   bool details = false;
   double details_edge_ratio = 2.5;
+  // Fold repair of every frame with flipped triangles (core/fold_repair.h,
+  // repair_folds_against_normals): each flipped area of the skinned frame, grown by a few rings,
+  // is re-solved from the rest mesh's local shape rotated and scaled onto the area's border; the
+  // flip test is the check's (rest normal turned by the triangle's dominant bone), and a solve is
+  // kept only where it leaves fewer flips, so the count never grows. A post-process of the
+  // frames (.ply/.obj, frames.png, animation.csv): the glb's LBS rig is not repaired. The
+  // remaining folds are LBS creases at the armpit (upperarm01/02) and groin (spine05) at ordinary
+  // angles of a walk (arms down 40-45 deg from the A-pose, thighs 20-30 deg forward); the SSD base
+  // makes them as often as the MWE rig.
+  bool repair = true;
+  // The rest shape's Laplacian coordinates turned per vertex by its blended bone rotation (SSD
+  // weights) instead of one Procrustes fit per region's border. Off: the blended rotations
+  // rebuild the LBS crease they are meant to repair (demo character 02_02: worst frame 10 -> 7
+  // flipped with them, 10 -> 0 with the region fit).
+  bool repair_vertex_rotations = false;
+  FoldRepairOptions repair_options = default_animation_repair();
+  static FoldRepairOptions default_animation_repair();
 };
 
 struct AnimateResult {
   int frames = 0;
   double frame_time = 0;               // seconds between output frames
   std::vector<int> source_frames;      // clip frame of each output frame
-  std::vector<FrameCheck> rig, lbs, template_lbs;  // per output frame: the character's rig,
-                                                   // its fitted SSD, the template weights
-  double seconds = 0;                  // skinning + checks (excludes writing)
+  std::vector<FrameCheck> rig, lbs, template_lbs;  // per output frame: the character's rig
+                                                   // (after the fold repair, if on), its fitted
+                                                   // SSD, the template weights
+  std::vector<FrameCheck> rig_before_repair;       // the character's rig as skinned
+  int repaired_frames = 0;             // frames the repair changed
+  double seconds = 0;                  // skinning + checks + repair (excludes writing)
+  double skin_seconds = 0;             // the rig's skinning alone (runtime evaluator)
+  double repair_seconds = 0;           // the fold repair alone (flip references + solves)
   bool wrote_glb = false;
   // Worst over frames.
   double max_edge_ratio(const std::vector<FrameCheck>& c) const;
@@ -59,6 +82,10 @@ struct AnimateResult {
 AnimateResult animate_character(const CharacterRigFile& character, const ClipPoses& clip,
                                 const std::filesystem::path& dir, const AnimateOptions& options = {},
                                 const ProgressCallback& progress = {});
+
+// Rotation of each vertex in a frame: the normalised weighted sum of its bones' rotation
+// quaternions (SSD weights of `lbs`), #V. Used by the fold repair.
+std::vector<Eigen::Matrix3d> blended_vertex_rotations(const SkinningRig& lbs, const BoneTransforms& M);
 
 // SSD weights of an LBS rig as a sparse #V by #B matrix.
 SkinWeights skin_weights_of(const SkinningRig& lbs);

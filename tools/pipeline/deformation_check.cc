@@ -63,13 +63,19 @@ FrameCheck DeformationChecker::check(const Eigen::MatrixX3d& X, const BoneTransf
   return c;
 }
 
+Eigen::MatrixX3d DeformationChecker::reference_normals(const BoneTransforms& M) const {
+  Eigen::MatrixX3d R(F_.rows(), 3);
+  for (Eigen::Index f = 0; f < F_.rows(); ++f)
+    R.row(f) = (M[dominant_bone_(f)].linear() * rest_normals_.row(f).transpose()).transpose();
+  return R;
+}
+
 std::vector<int> DeformationChecker::flipped_faces(const Eigen::MatrixX3d& X, const BoneTransforms& M) const {
   std::vector<int> out;
   const Eigen::MatrixX3d N = face_normals(X, F_);
-  for (Eigen::Index f = 0; f < F_.rows(); ++f) {
-    const Eigen::Vector3d ref = M[dominant_bone_(f)].linear() * rest_normals_.row(f).transpose();
-    if (N.row(f).dot(ref) < 0) out.push_back(static_cast<int>(f));
-  }
+  const Eigen::MatrixX3d R = reference_normals(M);
+  for (Eigen::Index f = 0; f < F_.rows(); ++f)
+    if (N.row(f).dot(R.row(f)) < 0) out.push_back(static_cast<int>(f));
   return out;
 }
 

@@ -34,6 +34,9 @@ class DeformationChecker {
   int dominant_bone_of_face(int f) const { return dominant_bone_(f); }
   // Indices of the triangles that check() counts as flipped.
   std::vector<int> flipped_faces(const Eigen::MatrixX3d& X, const BoneTransforms& M) const;
+  // The flip references of a frame: each triangle's rest normal turned by the rotation of its
+  // dominant bone, #F by 3 (unit). Triangle f is flipped when its normal · row f < 0.
+  Eigen::MatrixX3d reference_normals(const BoneTransforms& M) const;
 
  private:
   Eigen::MatrixX3i F_;
