@@ -26,8 +26,9 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
   Mesh rest = tpl.mesh;
   Skeleton skeleton = tpl.skeleton;
   const bool given_start = options.start_vertices.rows() > 0 || options.start_pose.has_value();
-  const bool shape = tpl.shape_space.has_value() && options.fit_shape && !given_start &&
-                     options.shape_rounds > 0;
+  // With a given start pose (evaluation), the shape is fitted with that pose held.
+  const bool shape = tpl.shape_space.has_value() && options.fit_shape &&
+                     options.start_vertices.rows() == 0 && options.shape_rounds > 0;
   if (options.fit_proportions && landmarks.size() >= 3 &&
       (!shape || options.proportions_with_shape)) {
     r.proportions = estimate_proportions(tpl.mesh.V, landmarks, options.proportions);
@@ -48,6 +49,14 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
     const PoseRecord& p = *options.start_pose;
     r.pose.scale = p.scale;
     r.pose.pose = p.pose;
+    if (shape) {
+      // Fold the record's rigid placement into the root: Q₀ ← G·Q₀, and the posed root head
+      // G(h + t) + g = h + t' gives t' = G(h + t) + g − h (h: the scaled root head = h).
+      const Eigen::Vector3d h = skeleton.heads.row(0).transpose();
+      r.pose.pose.rotations[0] = p.global_rotation * p.pose.rotations[0];
+      r.pose.pose.root_translation =
+          p.global_rotation * (h + p.pose.root_translation) + p.global_translation - h;
+    }
     r.pose.V = pose_template(rest.V, skeleton, tpl.weights, p.scale, p.pose);
     r.pose.V = ((r.pose.V * p.global_rotation.transpose()).rowwise() +
                 p.global_translation.transpose())
@@ -83,7 +92,7 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
     so.unsigned_normals = po.unsigned_normals;
     MacroSettings settings = tpl.shape_start;
     for (int round = 0; round < rounds; ++round) {
-      fit_poses(round);
+      if (!given_start) fit_poses(round);
       ShapeFitSummary ss;
       ShapeFitResult sr = fit_shape(mh, settings, r.pose.scale, r.pose.pose, scan, landmarks, so, &ss);
       double moved = 0;
@@ -113,7 +122,7 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
       if (moved < options.shape_convergence) break;
     }
     r.shape = settings;
-    if (options.proportions_with_shape && !r.proportions.segment.empty()) {
+    if (options.proportions_with_shape && !r.proportions.segment.empty() && !given_start) {
       // The last shape fit's pose is on the unproportioned body: pose the proportioned one.
       fit_poses(rounds - 1);
     }

@@ -19,6 +19,7 @@
 #include "core/io/mesh_io.h"
 #include "core/landmarks.h"
 #include "core/makehuman.h"
+#include <nlohmann/json.hpp>
 #include "registration/detail_transfer.h"
 #include "registration/mesh_scan.h"
 #include "registration/pose_io.h"
@@ -41,6 +42,7 @@ struct RegisterMeshArgs {
   // β = 1 the fit folded 86 triangles of frame 1 of vlasic-jumping (eyelids, armpits) against
   // 31 at β = 3; those left are smoothed away (unfold_triangles): 8.6 mm two-sided, 0 folds.
   double fast_k_end = 3.0;
+  bool shape_fit = false;
   bool force = false, detail = false, pose_only = false, no_proportions = false,
        keep_folds = false;
   int pose_iterations = PoseFitOptions{}.max_icp_iterations;
@@ -111,6 +113,9 @@ BODYMODEL_VERB(add_register_mesh_verb) {
                 "is finer than the mesh: eyelids, armpits)");
   cmd->add_flag("--no-proportions", a->no_proportions,
                 "Keep the template's limb proportions (global scale only)");
+  cmd->add_flag("--shape-fit", a->shape_fit,
+                "Fit MakeHuman's macro sliders (gender, age, muscle, weight, height, proportions, "
+                "cup) in the pose stage, as 'register' does by default");
   cmd->add_option("--pose-iterations", a->pose_iterations,
                   "ICP iterations of the pose fit (0: landmarks only)")
       ->capture_default_str();
@@ -155,7 +160,8 @@ BODYMODEL_VERB(add_register_mesh_verb) {
 
     MakeHuman mh = MakeHuman::load();
     MakeHuman::Body body = mh.body(MacroSettings{});
-    const RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, {}, {}};
+    RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, {}, {}};
+    if (a->shape_fit) tpl.shape_space = mh;
     RegistrationOptions options;
     options.nonrigid.schedule =
         a->schedule == "paper" ? NonrigidSchedule::paper : NonrigidSchedule::fast;
@@ -214,6 +220,8 @@ BODYMODEL_VERB(add_register_mesh_verb) {
           rec.pose = r.pose.pose;
           write_mesh(out / (stem + ".ply"), r.V, tpl.mesh.F);
           write_pose_csv(out / (stem + ".pose.csv"), tpl.skeleton, rec);
+          if (r.shape)
+            write_text_file(out / (stem + ".shape.json"), r.shape->to_json().dump(2) + "\n");
           write_text_file(
               out / (stem + ".register-mesh.csv"),
               fmt::format("{},{},{},{:.6f},{},{:.4f},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},"

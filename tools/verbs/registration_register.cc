@@ -206,7 +206,6 @@ BODYMODEL_VERB(add_register_verb) {
     options.fit_proportions = !a->no_proportions;
     options.fit_shape = !a->no_shape_fit;
     options.proportions_with_shape = a->proportions_with_shape;
-    if (const char* e = std::getenv("BM_SHAPE_TEMPLATE_COT")) options.nonrigid_on_shaped_rest = false;
     if (a->pose_joints == "bone") options.pose.parameters = bone_pose_parameters();
     if (a->pose_joints == "segment") options.pose.parameters = segment_pose_parameters();
     if (a->pose_joints == "best") {
