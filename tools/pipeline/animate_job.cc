@@ -81,7 +81,10 @@ SkinWeights skin_weights_of(const SkinningRig& lbs) {
 FoldRepairOptions AnimateOptions::default_animation_repair() {
   FoldRepairOptions o;
   o.rings = 2;
-  o.passes = 8;  // as `generate`: wide creases need regions grown over several passes
+  // Wide creases need regions grown over several passes: 8 (as `generate`) left 2 armpit
+  // triangles of the demo character on 12_03, 16 none. Later passes run only on frames with
+  // flips left.
+  o.passes = 16;
   // A solve that would stretch an edge beyond 3x rest (the exploded-triangle bound of
   // animation.csv) and beyond what it was is refused (a later pass tries a wider region).
   o.max_edge_ratio = 3;
@@ -163,11 +166,25 @@ AnimateResult animate_character(const CharacterRigFile& ch, const ClipPoses& cli
     const Eigen::MatrixX3d X_skinned = o.details ? X : Eigen::MatrixX3d();
     if (o.repair && res.rig_before_repair.back().flipped > 0) {
       const auto tr = std::chrono::steady_clock::now();
-      const FoldRepairSummary s =
-          o.repair_vertex_rotations
-              ? repair_folds_against_normals(X, ch.rig.rest, checker.reference_normals(M),
-                                             blended_vertex_rotations(ch.lbs, M), ch.F, o.repair_options)
-              : repair_folds_against_normals(X, ch.rig.rest, checker.reference_normals(M), ch.F, o.repair_options);
+      const Eigen::MatrixX3d N_ref = checker.reference_normals(M);
+      auto repair = [&](Eigen::MatrixX3d& Y, int rings) {
+        FoldRepairOptions ro = o.repair_options;
+        ro.rings = rings;
+        return o.repair_vertex_rotations
+                   ? repair_folds_against_normals(Y, ch.rig.rest, N_ref, blended_vertex_rotations(ch.lbs, M), ch.F, ro)
+                   : repair_folds_against_normals(Y, ch.rig.rest, N_ref, ch.F, ro);
+      };
+      const Eigen::MatrixX3d X0 = X;
+      FoldRepairSummary s = repair(X, o.repair_options.rings);
+      // Flips left: the frame again from its skinned state with other first-ring widths, keeping
+      // the attempt with the fewest (a kept solve can leave one triangle flipped inside its area
+      // that no wider pass undoes; a different start rarely does the same).
+      for (int extra : o.repair_retry_rings) {
+        if (s.flipped_after == 0) break;
+        Eigen::MatrixX3d Y = X0;
+        const FoldRepairSummary t = repair(Y, extra);
+        if (t.flipped_after < s.flipped_after) X = Y, s = t;
+      }
       res.repair_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
       res.repaired_frames += s.regions_kept > 0;
       if (!X.allFinite())

@@ -54,6 +54,12 @@ BODYMODEL_VERB(add_animate_verb) {
   cmd->add_flag("--repair-vertex-rotations", a->options.repair_vertex_rotations,
                 "Fold repair: turn the rest shape by each vertex's blended bone rotation instead of one "
                 "Procrustes fit per region (for comparison)");
+  cmd->add_option("--repair-rings", a->options.repair_options.rings,
+                  "Fold repair: vertex rings grown around the flipped triangles (first pass)")
+      ->capture_default_str();
+  cmd->add_option("--repair-passes", a->options.repair_options.passes,
+                  "Fold repair: passes while flips remain (pass p grows rings + p rings)")
+      ->capture_default_str();
   cmd->add_option("--repair-max-edge-ratio", a->options.repair_options.max_edge_ratio,
                   "Fold repair: refuse a region's solve that stretches an edge beyond this x rest (0 = no test)")
       ->capture_default_str();
