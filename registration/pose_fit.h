@@ -114,8 +114,8 @@ struct PoseFitOptions {
   int hand_iterations = 10;
   int hand_sample_vertices = 1000;
   // Refit the wrists in the hand stage (the body stage places a hand by few, mostly forearm,
-  // correspondences). 15 database scans, pose only, hand stage on: distal phalanx error median
-  // 33.1 → 15.6°, correspondence median 19.6 → 14.5 mm.
+  // correspondences). 15 database scans, pose only, before the shape fit, hand stage on: distal
+  // phalanx error median 33.1 → 15.6°, correspondence median 19.6 → 14.5 mm.
   bool hand_wrists = true;
   // Range of a finger's curl per phalanx (degrees; positive closes the finger towards the palm,
   // the side of the thumb). Without it fists were fitted with fingers bent backwards (a fist's
@@ -172,10 +172,12 @@ const std::vector<PoseParameter>& segment_pose_parameters();
 // pose prior picks the smallest split), finger grasp groups as in 'segment'.
 const std::vector<PoseParameter>& bone_pose_parameters();
 // 'segment' with the hands in a hand stage (PoseParameter::late) instead of the grasp groups:
-// one curl per finger (PoseParameter::curl), the thumbs ball joints. On the synthetic fists of
-// MakeHuman's fight03 the finger vertices come from 52 to ~6 mm; on the 15 database scans
-// (pose only) it is not yet better than the grasp groups (distal phalanx error median 33°
-// against 15°), so it is not the default.
+// one curl per finger (PoseParameter::curl), the thumbs ball joints at their base. On the
+// synthetic fists of MakeHuman's fight03 the finger vertices come from 52 to 7.8 mm (test). On
+// the 15 database scans (register --shard 1/7, with the shape fit) it lowers the distal phalanx
+// error median 27.0 → 14.9°, correspondence median 9.40 → 8.38 mm, p95 25.9 → 21.2 mm, but
+// one scan of fight03 fists (s008_p3: right wrist refitted 50° off) flips 744 hand triangles
+// against 321, so it is not the default (register --hand-stage on selects it).
 const std::vector<PoseParameter>& hand_stage_pose_parameters();
 // `parameters` with the finger grasp groups (bones named "finger…") replaced by the hand stage's
 // per-finger curls and thumbs (as in hand_stage_pose_parameters()): e.g. 'bone' with a hand
