@@ -47,10 +47,12 @@ struct AnimateOptions {
   // is re-solved from the rest mesh's local shape rotated and scaled onto the area's border; the
   // flip test is the check's (rest normal turned by the triangle's dominant bone), and a solve is
   // kept only where it leaves fewer flips, so the count never grows. A post-process of the
-  // frames (.ply/.obj, frames.png, animation.csv): the glb's LBS rig is not repaired. The
-  // remaining folds are LBS creases at the armpit (upperarm01/02) and groin (spine05) at ordinary
-  // angles of a walk (arms down 40-45 deg from the A-pose, thighs 20-30 deg forward); the SSD base
-  // makes them as often as the MWE rig.
+  // frames (.ply/.obj, frames.png, animation.csv): the glb's LBS rig is not repaired. What it
+  // repairs are LBS creases at the armpit (upperarm01/02) and groin (spine05) at ordinary angles
+  // of a walk (upper arm 29-49 deg from hm08's A-pose, thighs 20-37 deg forward), inside the range
+  // of motion the character was trained on (its training poses include frames of the same CMU
+  // clips), in every frame; the rig's SSD base folds more (demo character at 5a4a148, 02_02: 277
+  // flipped triangles over all frames with MWE, 448 with its SSD).
   bool repair = true;
   // The rest shape's Laplacian coordinates turned per vertex by its blended bone rotation (SSD
   // weights) instead of one Procrustes fit per region's border. Off: the blended rotations
