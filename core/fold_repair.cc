@@ -200,7 +200,9 @@ FoldRepairSummary repair_folds_impl(Eigen::MatrixX3d& V, const Eigen::MatrixX3d&
         for (int f : touched) after += flipped(V, V_ref, F, f);
         const bool stretched = o.max_edge_ratio > 0 && after < before &&
                                worst_ratio() > std::max(o.max_edge_ratio, ratio_before);
-        if ((after < before && !stretched) || !o.keep_only_improving) {
+        double moved_most = 0;
+        for (int k = 0; k < m; ++k) moved_most = std::max(moved_most, (X.row(k) - old.row(k)).norm());
+        if (((after < before && !stretched) || !o.keep_only_improving) && moved_most <= o.max_displacement) {
           ++summary.regions_kept;
           for (int i : region) moved[i] = 1;
         } else {

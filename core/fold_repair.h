@@ -16,6 +16,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <limits>
 #include <vector>
 
 namespace bodymodel {
@@ -36,6 +37,10 @@ struct FoldRepairOptions {
   // times its length in V_ref and longer than it was (animation frames: the exploded-triangle
   // bound of 3x rest). 0 = no edge test.
   double max_edge_ratio = 0;
+  // A region's solve is also refused when it moves any vertex farther than this (mesh units;
+  // infinity = no limit): a solve that removes a fold by dragging a limb's surface away is worse
+  // than the fold.
+  double max_displacement = std::numeric_limits<double>::infinity();
 };
 
 struct FoldRepairSummary {

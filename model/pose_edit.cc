@@ -249,58 +249,9 @@ PoseTransfer pose_transfer_from_examples(const SubModel& fm, const Eigen::Vector
   return out;
 }
 
-Eigen::MatrixX3d pose_morph(const BodyModel& model, RelativeRotationDecoder& decoder, const Eigen::MatrixX3d& V,
-                            const Pose& pose, const PoseMorphOptions& o, PoseMorphSummary* summary) {
-  if (model.rig.empty()) throw InputError("pose: the model has no skeleton (rebuild it without --no-rig)");
-  if (static_cast<int>(pose.rotations.size()) != model.rig.bone_count())
-    throw InputError(fmt::format("pose: {} bone rotations, the model's skeleton has {} bones",
-                                 pose.rotations.size(), model.rig.bone_count()));
-  const SubModel& fm = model.full;
-  const SemanticRegression& reg = fm.regression;
-  Eigen::VectorXd x = model.encode(V, "input body").values;
-  Eigen::VectorXd c0 = fm.pca.project(x);
-  Eigen::VectorXd pred = reg.predict(c0);
-  Eigen::VectorXd target = pose_label_values(reg.labels, model.rig.bone_names, pose);
-
-  // 1. Example-based transfer: pose changes of training subjects in poses near the target.
-  PoseTransfer transfer;
-  transfer.coefficient_change = Eigen::VectorXd::Zero(fm.component_count());
-  transfer.pose_labels = Eigen::VectorXd::Zero(reg.label_count());
-  if (o.transfer_neighbours > 0) transfer = pose_transfer_from_examples(fm, target, o.transfer_neighbours);
-  Eigen::VectorXd c1 = c0 + transfer.coefficient_change;
-  Eigen::VectorXd pred1 = reg.predict(c1);
-
-  // 2. Linear correction (eq. 11): the joint angles the transfer missed, the other labels back
-  //    to their values before the transfer.
-  std::vector<int> cols;
-  std::vector<double> delta;
-  int npose = 0, nkeep = 0;
-  for (int l = 0; l < reg.label_count(); ++l) {
-    const std::string& n = reg.labels[l].name;
-    if (n.rfind("pose:", 0) == 0) {
-      cols.push_back(l);
-      delta.push_back(transfer.examples > 0 ? target(l) - transfer.pose_labels(l) : target(l) - pred(l));
-      ++npose;
-    } else if (o.keep_labels.empty() ||
-               std::find(o.keep_labels.begin(), o.keep_labels.end(), n) != o.keep_labels.end()) {
-      cols.push_back(l);
-      delta.push_back(pred(l) - pred1(l));
-      ++nkeep;
-    }
-  }
-  // Labels on comparable scales: each row divided by the label's standard deviation.
-  Eigen::MatrixXd S(fm.component_count(), cols.size());
-  Eigen::VectorXd d(cols.size());
-  for (size_t i = 0; i < cols.size(); ++i) {
-    double sd = std::max(reg.labels[cols[i]].stddev, 1e-6);
-    S.col(i) = reg.gradients.col(cols[i]) / sd;
-    d(i) = delta[i] / sd;
-  }
-  ConstrainedChangeOptions co;
-  co.damping = o.damping;
-  Eigen::VectorXd z = transfer.coefficient_change + constrained_change(S, d, co);
-  Eigen::VectorXd xp = x + fm.pca.basis * z;
-
+PositionConstraints pose_morph_constraints(const BodyModel& model, RelativeRotationDecoder& decoder,
+                                           const Eigen::MatrixX3d& V, const Pose& pose, const Encoding& unconstrained,
+                                           const PoseMorphOptions& o, int* torso_anchors) {
   PositionConstraints pc;
   int anchors = 0;
   if (o.use_tip_constraints) {
@@ -364,7 +315,7 @@ Eigen::MatrixX3d pose_morph(const BodyModel& model, RelativeRotationDecoder& dec
       for (Eigen::Index v = 0; v < tw.size(); ++v)
         if (tw(v) >= 0.9) torso.push_back(static_cast<int>(v));
       if (torso.size() >= 3) {
-        const Eigen::MatrixX3d D0 = decoder.decode(model.encoding_of(xp));
+        const Eigen::MatrixX3d D0 = decoder.decode(unconstrained);
         Eigen::MatrixX3d a(torso.size(), 3), b(torso.size(), 3);
         for (size_t i = 0; i < torso.size(); ++i) {
           a.row(i) = D0.row(torso[i]);
@@ -390,6 +341,64 @@ Eigen::MatrixX3d pose_morph(const BodyModel& model, RelativeRotationDecoder& dec
       pc.weights(i) = weights[i];
     }
   }
+  if (torso_anchors) *torso_anchors = anchors;
+  return pc;
+}
+
+Eigen::MatrixX3d pose_morph(const BodyModel& model, RelativeRotationDecoder& decoder, const Eigen::MatrixX3d& V,
+                            const Pose& pose, const PoseMorphOptions& o, PoseMorphSummary* summary) {
+  if (model.rig.empty()) throw InputError("pose: the model has no skeleton (rebuild it without --no-rig)");
+  if (static_cast<int>(pose.rotations.size()) != model.rig.bone_count())
+    throw InputError(fmt::format("pose: {} bone rotations, the model's skeleton has {} bones",
+                                 pose.rotations.size(), model.rig.bone_count()));
+  const SubModel& fm = model.full;
+  const SemanticRegression& reg = fm.regression;
+  Eigen::VectorXd x = model.encode(V, "input body").values;
+  Eigen::VectorXd c0 = fm.pca.project(x);
+  Eigen::VectorXd pred = reg.predict(c0);
+  Eigen::VectorXd target = pose_label_values(reg.labels, model.rig.bone_names, pose);
+
+  // 1. Example-based transfer: pose changes of training subjects in poses near the target.
+  PoseTransfer transfer;
+  transfer.coefficient_change = Eigen::VectorXd::Zero(fm.component_count());
+  transfer.pose_labels = Eigen::VectorXd::Zero(reg.label_count());
+  if (o.transfer_neighbours > 0) transfer = pose_transfer_from_examples(fm, target, o.transfer_neighbours);
+  Eigen::VectorXd c1 = c0 + transfer.coefficient_change;
+  Eigen::VectorXd pred1 = reg.predict(c1);
+
+  // 2. Linear correction (eq. 11): the joint angles the transfer missed, the other labels back
+  //    to their values before the transfer.
+  std::vector<int> cols;
+  std::vector<double> delta;
+  int npose = 0, nkeep = 0;
+  for (int l = 0; l < reg.label_count(); ++l) {
+    const std::string& n = reg.labels[l].name;
+    if (n.rfind("pose:", 0) == 0) {
+      cols.push_back(l);
+      delta.push_back(transfer.examples > 0 ? target(l) - transfer.pose_labels(l) : target(l) - pred(l));
+      ++npose;
+    } else if (o.keep_labels.empty() ||
+               std::find(o.keep_labels.begin(), o.keep_labels.end(), n) != o.keep_labels.end()) {
+      cols.push_back(l);
+      delta.push_back(pred(l) - pred1(l));
+      ++nkeep;
+    }
+  }
+  // Labels on comparable scales: each row divided by the label's standard deviation.
+  Eigen::MatrixXd S(fm.component_count(), cols.size());
+  Eigen::VectorXd d(cols.size());
+  for (size_t i = 0; i < cols.size(); ++i) {
+    double sd = std::max(reg.labels[cols[i]].stddev, 1e-6);
+    S.col(i) = reg.gradients.col(cols[i]) / sd;
+    d(i) = delta[i] / sd;
+  }
+  ConstrainedChangeOptions co;
+  co.damping = o.damping;
+  Eigen::VectorXd z = transfer.coefficient_change + constrained_change(S, d, co);
+  Eigen::VectorXd xp = x + fm.pca.basis * z;
+
+  int anchors = 0;
+  const PositionConstraints pc = pose_morph_constraints(model, decoder, V, pose, model.encoding_of(xp), o, &anchors);
   Eigen::MatrixX3d out = pc.vertices.size() >= 3 ? decoder.decode(model.encoding_of(xp), pc)
                                                   : decoder.decode(model.encoding_of(xp));
   const Eigen::MatrixX3i& F = model.tmpl->faces();
@@ -412,6 +421,23 @@ Eigen::MatrixX3d pose_morph(const BodyModel& model, RelativeRotationDecoder& dec
     summary->volume_ratio_before = before;
     summary->volume_ratio = v0 > 0 ? signed_volume(out, F) / v0 : 1;
     summary->volume_offset_mm = offset;
+  }
+  return out;
+}
+
+Eigen::MatrixX3d blend_pose_morphs(const BodyModel& model, RelativeRotationDecoder& decoder,
+                                   const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& A, const Eigen::MatrixX3d& B,
+                                   double t, const Pose& pose, const PoseMorphOptions& o) {
+  const Encoding e = interpolate(model.encode(A, "pose morph A"), model.encode(B, "pose morph B"), t);
+  const PositionConstraints pc = pose_morph_constraints(model, decoder, V, pose, e, o, nullptr);
+  Eigen::MatrixX3d out = pc.vertices.size() >= 3 ? decoder.decode(e, pc) : decoder.decode(e);
+  const Eigen::MatrixX3i& F = model.tmpl->faces();
+  const double v0 = signed_volume(V, F);
+  if (o.preserve_volume && v0 > 0) {
+    const double before = signed_volume(out, F) / v0;
+    const double tol = std::clamp(o.volume_tolerance, 0.0, 0.5);
+    const double target = std::clamp(before, 1 - tol, 1 + tol) * v0;
+    if (target != before * v0) restore_volume(out, F, target);
   }
   return out;
 }

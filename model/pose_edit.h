@@ -133,6 +133,23 @@ Eigen::MatrixX3d pose_morph(const BodyModel& model, RelativeRotationDecoder& dec
                             const Eigen::MatrixX3d& V, const Pose& pose, const PoseMorphOptions& options = {},
                             PoseMorphSummary* summary = nullptr);
 
+// The positional constraints pose_morph decodes with (limb tips, elbows and knees where skinning
+// the body V with the model's rig puts them in `pose`, and the torso anchors when
+// options.anchor_torso: `unconstrained` decoded and fitted rigidly onto the skinned torso).
+// torso_anchors (optional): how many of them are torso anchors. Empty without tip constraints.
+PositionConstraints pose_morph_constraints(const BodyModel& model, RelativeRotationDecoder& decoder,
+                                           const Eigen::MatrixX3d& V, const Pose& pose, const Encoding& unconstrained,
+                                           const PoseMorphOptions& options = {}, int* torso_anchors = nullptr);
+
+// An in-between of two pose morphs A and B (#V by 3, mm) of body V: their encodings interpolated
+// at t (relative rotations, encoding/), decoded with pose_morph's constraints for `pose` (the
+// in-between pose, e.g. per-bone slerp) and its volume kept like pose_morph's. Without the
+// constraints the limbs of an in-between of two distant poses end far from where the skeleton
+// puts them (up to 160–200 mm at the hands and feet of a demo character's held-out in-betweens).
+Eigen::MatrixX3d blend_pose_morphs(const BodyModel& model, RelativeRotationDecoder& decoder,
+                                   const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& A, const Eigen::MatrixX3d& B,
+                                   double t, const Pose& pose, const PoseMorphOptions& options = {});
+
 // A pose file as the synthetic database writes it (DB/truth/<scan>.pose.csv: a header, then
 // bone,rx,ry,rz rotation vectors in radians; rows starting with '_' are global and skipped) as
 // a Pose of the skeleton with bone names `bones` (bones not in the file keep the rest rotation).

@@ -176,8 +176,9 @@ CharacterExamples make_character_examples(const BodyModel& model, const Eigen::M
   // Flip reference: each triangle's rest normal turned by its dominant bone (the smoothed template
   // weights AS and MWE build on, as `animate` checks its frames).
   const Eigen::MatrixXd Wt = merge_undriven_weights(Eigen::MatrixXd(ex.template_weights), ex.skeleton, ex.driven);
-  const DeformationChecker checker(
-      V, ex.F, lbs_rig_from_weights(V, smooth_skin_weights(Wt, ex.F, o.weight_smoothing_steps), o.max_influences));
+  const SkinningRig smooth =
+      lbs_rig_from_weights(V, smooth_skin_weights(Wt, ex.F, o.weight_smoothing_steps), o.max_influences);
+  const DeformationChecker checker(V, ex.F, smooth);
   const Eigen::MatrixX3d rest_normals = face_normals(V, ex.F);
   auto repair = [&](int p, Eigen::MatrixX3d& X) {
     Eigen::MatrixX3d N(ex.F.rows(), 3);
@@ -185,7 +186,10 @@ CharacterExamples make_character_examples(const BodyModel& model, const Eigen::M
       N.row(f) = (ex.transforms[p][checker.dominant_bone_of_face(static_cast<int>(f))].linear() *
                   rest_normals.row(f).transpose()).transpose();
     if (o.repair_folds) {
-      const FoldRepairSummary s = repair_folds_against_normals(X, V, N, ex.F, o.fold_repair);
+      // Local shape from the body skinned into the same pose (already bent at the joints; the
+      // region's similarity fit places it), folds judged against the bones' rotations.
+      const Eigen::MatrixX3d S = o.fold_reference_skinned ? evaluate_rig(smooth, ex.transforms[p]) : V;
+      const FoldRepairSummary s = repair_folds_against_normals(X, S, N, ex.F, o.fold_repair);
       ex.flipped_before[p] = s.flipped_before;
       ex.flipped_after[p] = s.flipped_after;
     } else {
@@ -229,14 +233,18 @@ CharacterExamples make_character_examples(const BodyModel& model, const Eigen::M
       tick(ex.poses[p].name);
     });
     if (cancelled) return;
-    // In-betweens: interpolate the two morphs' encodings, decode, place the result rigidly
-    // where skinning the body with the in-between pose puts it.
+    // In-betweens: interpolate the two (repaired) morphs' encodings, decode with the pose morph's
+    // constraints for the in-between pose (constrain_blends), place the result rigidly where
+    // skinning the body with the in-between pose puts it.
     tbb::parallel_for(size_t(0), blends.size(), [&](size_t i) {
       if (cancelled) return;
       const RangeOfMotionPose& rp = ex.poses[blends[i]];
-      Encoding ea = model.encode(ex.meshes[rp.blend_a], rp.name);
-      Encoding eb = model.encode(ex.meshes[rp.blend_b], rp.name);
-      Eigen::MatrixX3d D = decoder().decode(interpolate(ea, eb, rp.t));
+      Eigen::MatrixX3d D =
+          o.constrain_blends
+              ? blend_pose_morphs(model, decoder(), V, ex.meshes[rp.blend_a], ex.meshes[rp.blend_b], rp.t, rp.pose,
+                                  o.pose_morph)
+              : decoder().decode(interpolate(model.encode(ex.meshes[rp.blend_a], rp.name),
+                                             model.encode(ex.meshes[rp.blend_b], rp.name), rp.t));
       Eigen::MatrixX3d target = linear_blend_skinning(V, model.rig.weights, ex.transforms[blends[i]]);
       ex.meshes[blends[i]] = apply(fit_rigid_motion(D, target), D);
       repair(blends[i], ex.meshes[blends[i]]);
@@ -346,11 +354,16 @@ void smooth_mwe_refinement(SkinningRig& mwe, const SkinningRig& base, const Eige
 
 Eigen::VectorXd mwe_refinement_mask(const Eigen::MatrixXd& W, const Skeleton& skeleton, const Eigen::MatrixX3i& F,
                                     int steps) {
+  return mwe_refinement_mask(W, skeleton, F, steps, {"wrist", "foot", "head"});
+}
+
+Eigen::VectorXd mwe_refinement_mask(const Eigen::MatrixXd& W, const Skeleton& skeleton, const Eigen::MatrixX3i& F,
+                                    int steps, const std::vector<std::string>& prefixes) {
   Eigen::VectorXd x = Eigen::VectorXd::Zero(W.rows());
   for (int b = 0; b < skeleton.bone_count(); ++b)
     for (int a = b; a >= 0; a = skeleton.parents[a]) {
       const std::string& n = skeleton.names[a];
-      if (n.rfind("wrist", 0) == 0 || n.rfind("foot", 0) == 0 || n == "head") {
+      if (std::any_of(prefixes.begin(), prefixes.end(), [&](const std::string& p) { return n.rfind(p, 0) == 0; })) {
         x += W.col(b);
         break;
       }
@@ -375,7 +388,8 @@ CharacterRigs fit_character_rigs(const CharacterExamples& ex, const CharacterOpt
   r.as = fit_animation_space(s, &base, o.animation_space, &r.as_summary, sub(0.3, 0.5));
   r.mwe = fit_mwe(s, &base, o.mwe, &r.mwe_summary, sub(0.5, 1.0));
   if (o.mwe_mask_steps >= 0) {
-    const Eigen::VectorXd keep = mwe_refinement_mask(Wt, ex.skeleton, ex.F, o.mwe_mask_steps);
+    const Eigen::VectorXd keep = mwe_refinement_mask(Eigen::MatrixXd(ex.template_weights), ex.skeleton, ex.F,
+                                                     o.mwe_mask_steps, o.mwe_mask_bones);
     smooth_mwe_refinement(r.mwe, base, ex.F, o.mwe_smoothing_steps, &keep);
   } else {
     smooth_mwe_refinement(r.mwe, base, ex.F, o.mwe_smoothing_steps);

@@ -95,6 +95,10 @@ void smooth_mwe_refinement(SkinningRig& mwe, const SkinningRig& base, const Eige
 // 20–90 × their rest length on CMU clips).
 Eigen::VectorXd mwe_refinement_mask(const Eigen::MatrixXd& W, const Skeleton& skeleton, const Eigen::MatrixX3i& F,
                                     int steps);
+// The same with the masked bones named by prefixes (each bone whose name or an ancestor's name
+// starts with one of them).
+Eigen::VectorXd mwe_refinement_mask(const Eigen::MatrixXd& W, const Skeleton& skeleton, const Eigen::MatrixX3i& F,
+                                    int steps, const std::vector<std::string>& bone_prefixes);
 
 struct CharacterOptions {
   RangeOfMotionOptions range_of_motion;
@@ -111,8 +115,17 @@ struct CharacterOptions {
   FoldRepairOptions fold_repair = [] {
     FoldRepairOptions f;
     f.passes = 8;   // as generate (model/morph.h)
+    f.max_displacement = 40;  // mm
+    f.max_edge_ratio = 3;     // as animate
     return f;
   }();
+  // Local shape of the repair: the body skinned into the pose (true) or the rest body (false).
+  bool fold_reference_skinned = true;
+  // In-betweens decoded with the pose morph's constraints (limb tips, torso) for the slerped pose
+  // (model/pose_edit.h blend_pose_morphs); false = the interpolated encoding decoded freely and
+  // placed rigidly, whose hands and feet end up to 160–200 mm from where the skeleton puts them
+  // (the demo character's held-out maximum of every rig, 163 mm, was such an in-between).
+  bool constrain_blends = true;
   int max_influences = 4;           // slots per vertex (the template weights' largest ones)
   // The SSD rig Animation Space and MWE build on (their prior / delta-space base): the template's
   // weights (smooth, painted by MakeHuman's artists) rather than SSD weights fitted to the pose
@@ -128,6 +141,9 @@ struct CharacterOptions {
   // The refinement is faded out on the hands, feet and head (mwe_refinement_mask) over this
   // many smoothing steps of the mask; < 0 = no mask.
   int mwe_mask_steps = 10;
+  // Bones whose vertices the mask fades the refinement on (name prefixes, with descendants), read
+  // on the template weights before undriven bones are merged.
+  std::vector<std::string> mwe_mask_bones = {"wrist", "foot", "head"};
   LbsFitOptions lbs;
   AnimationSpaceFitOptions animation_space;
   // MWE ridge s = 2e-5 (relative), 10⁴ × the horse-tuned default: the range of motion is small

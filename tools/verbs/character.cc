@@ -24,7 +24,11 @@ struct CharacterArgs {
   int threads = 0;
   double mwe_s = CharacterOptions{}.mwe.ridge_scale;
   int mwe_components = MweFitOptions{}.components;
-  bool paper_pose_morph = false, no_fold_repair = false;
+  bool paper_pose_morph = false, no_fold_repair = false, fold_rest_reference = false;
+  int mwe_smoothing_steps = CharacterOptions{}.mwe_smoothing_steps;
+  int mwe_mask_steps = CharacterOptions{}.mwe_mask_steps;
+  double fold_max_move_mm = CharacterOptions{}.fold_repair.max_displacement;
+  std::vector<std::string> mwe_mask_bones = CharacterOptions{}.mwe_mask_bones;
 };
 
 void print_fit_table(const std::vector<RigErrorRow>& rows) {
@@ -60,6 +64,20 @@ BODYMODEL_VERB(add_character_verb) {
                 "(torso anchored, volume kept); for comparisons");
   cmd->add_flag("--no-fold-repair", a->no_fold_repair,
                 "Do not repair folds of the pose morphs before fitting (for comparisons)");
+  cmd->add_option("--mwe-smoothing-steps", a->mwe_smoothing_steps,
+                  "Smoothing steps of MWE's refinement over the SSD (tools/pipeline/character.h)")
+      ->capture_default_str();
+  cmd->add_option("--mwe-mask-steps", a->mwe_mask_steps,
+                  "Smoothing steps of the hands/feet/head mask of MWE's refinement (< 0 = no mask)")
+      ->capture_default_str();
+  cmd->add_option("--mwe-mask-bones", a->mwe_mask_bones,
+                  "Bone name prefixes (with descendants) whose vertices keep the SSD (no MWE refinement)")
+      ->capture_default_str();
+  cmd->add_option("--fold-max-move-mm", a->fold_max_move_mm,
+                  "Fold repair of the pose morphs: refuse region solves moving a vertex farther (mm)")
+      ->capture_default_str();
+  cmd->add_flag("--fold-rest-reference", a->fold_rest_reference,
+                "Fold repair from the rest body's local shape instead of the body skinned into the pose");
   cmd->add_option("--threads", a->threads, "Threads for the pose morphs (0 = all cores)")->capture_default_str();
   cmd->callback([a] {
     if (!a->in.empty() && !a->where.empty()) throw InputError("character: give --where or --in, not both");
@@ -96,6 +114,11 @@ BODYMODEL_VERB(add_character_verb) {
       o.character.pose_morph.preserve_volume = false;
     }
     o.character.repair_folds = !a->no_fold_repair;
+    o.character.fold_reference_skinned = !a->fold_rest_reference;
+    o.character.fold_repair.max_displacement = a->fold_max_move_mm;
+    o.character.mwe_smoothing_steps = a->mwe_smoothing_steps;
+    o.character.mwe_mask_steps = a->mwe_mask_steps;
+    o.character.mwe_mask_bones = a->mwe_mask_bones;
     cli::ProgressBar bar("character");
     CharacterJobResult r = write_character(*model, V, out.path(), desc, o, bar.callback());
     bar.finish(fmt::format("{} training + {} held-out poses; examples {:.0f} s, fits {:.0f} s", r.training_poses,
