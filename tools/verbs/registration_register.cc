@@ -2,8 +2,9 @@
 //
 // Registers the template (MakeHuman default body, its skeleton and weights) to every scan of a
 // scan database (DB/scans.csv, DB/scans/<id>.ply, DB/scans/<id>.landmarks.json). Writes
-// REG/<id>.ply (template topology, mm), REG/<id>.pose.csv and REG/registration.csv. Never reads
-// DB/truth/.
+// REG/<id>.ply (template topology, mm), REG/<id>.pose.csv, REG/<id>.shape.json (the fitted
+// MakeHuman macro sliders, unless --no-shape-fit) and REG/registration.csv. Never reads
+// DB/truth/ (except the --start-from-truth diagnosis).
 #include <fmt/format.h>
 
 #include <atomic>
@@ -95,8 +96,10 @@ BODYMODEL_VERB(add_register_verb) {
   auto* cmd = app.add_subcommand(
       "register",
       "Register the template to every scan of a scan database (Hasler et al. 2009 §2):\n"
-      "skeleton pose fit (scale, global motion, joint rotations), then non-rigid fit.\n"
-      "Writes OUT/<id>.ply (template topology, mm), OUT/<id>.pose.csv, OUT/registration.csv.\n"
+      "skeleton pose fit (scale, global motion, joint rotations) alternated with a fit of\n"
+      "MakeHuman's macro sliders (the template's shape), then non-rigid fit.\n"
+      "Writes OUT/<id>.ply (template topology, mm), OUT/<id>.pose.csv, OUT/<id>.shape.json,\n"
+      "OUT/registration.csv.\n"
       "Scans already registered are skipped (rerun or split into shards freely); a failed scan\n"
       "is reported and skipped. Never reads DB/truth/ (except --start-from-truth, a diagnosis).");
   cmd->add_option("db", a->db, "Scan database folder (scans.csv, scans/)")->required();
