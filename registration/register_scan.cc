@@ -136,7 +136,8 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
     r.V = reg.fit(r.pose.V, scan, landmarks, &sum.nonrigid, sub(pose_share, 1.0));
     if (options.repair_flipped_rings > 0)
       sum.folded_triangles =
-          repair_flipped_triangles(r.V, r.pose.V, tpl.mesh.F, options.repair_flipped_rings);
+          repair_flipped_triangles(r.V, r.pose.V, tpl.mesh.F, options.repair_flipped_rings,
+                                   options.repair_flipped_passes);
   }
   if (!r.V.allFinite()) throw NumericalError(what + ": registration produced non-finite vertices");
   sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
