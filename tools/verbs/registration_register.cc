@@ -42,7 +42,7 @@ struct RegisterArgs {
   std::string start_from_truth;  // evaluation only: "", "mesh" or "pose"
   bool force = false, pose_only = false, no_proportions = false, no_shape_fit = false;
   bool proportions_with_shape = false;
-  std::string hand_stage = "off";  // regflip lane: finger curls fitted after the body
+  std::string hand_stage = "on";  // finger curls and thumbs fitted after the body (hand stage)
 };
 
 std::vector<std::string> read_scan_ids(const fs::path& csv) {
@@ -134,8 +134,9 @@ BODYMODEL_VERB(add_register_verb) {
       ->check(CLI::IsMember({"segment", "bone", "best"}))
       ->capture_default_str();
   cmd->add_option("--hand-stage", a->hand_stage,
-                  "Fingers: 'on' fits one curl per finger and the thumbs after the body "
-                  "(hand_stage_pose_parameters), 'off' one grasp rotation per hand with the body")
+                  "Fingers: 'on' fits the wrists again, then one grasp per hand, one curl per "
+                  "finger and the thumbs, after the body (hand_stage_pose_parameters); 'off' "
+                  "one grasp rotation per hand, fitted with the body")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   cmd->add_flag("--no-proportions", a->no_proportions,
