@@ -39,6 +39,16 @@ RegistrationErrors registration_errors(const Eigen::MatrixX3d& reg, const Eigen:
                                        const Eigen::MatrixX3d& scan_points,
                                        double hole_distance = 5.0);
 
+// Triangles folded against their own neighbourhood: f is folded in V when its normal has a
+// negative dot product with the area-weighted normal of the triangles within `rings` vertex
+// rings of it (its 2-ring by default), and is not so in V_rest (sharp features of the rest mesh,
+// e.g. eyelids and ear rims, are not folds). Needs no ground truth: a self-check of a registered
+// mesh, and on the synthetic truth it finds where linear blend skinning has collapsed a crease
+// (armpit, groin, a finger's inner joint), which a fold-free registration cannot reproduce.
+//   V #V by 3, V_rest #V by 3 (same topology F #F by 3); returns #F flags (1 = folded).
+std::vector<char> locally_folded_triangles(const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_rest,
+                                           const Eigen::MatrixX3i& F, int rings = 2);
+
 // Major joints compared by the pose evaluation (MakeHuman default skeleton names): for each
 // body segment its most distal bone, whose world orientation is the segment's orientation
 // whichever way a pose splits a rotation between the segment's bones (MakeHuman has two bones
