@@ -131,10 +131,7 @@ int unfold_triangles(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& reference_V,
   if (V.rows() != reference_V.rows())
     throw InputError("unfold: the mesh has " + std::to_string(V.rows()) +
                      " vertices, the reference " + std::to_string(reference_V.rows()));
-  // The single fold repair (core/fold_repair.h). Its region solve is the harmonic fill above
-  // solved exactly (umbrella Laplacian of V = that of the reference inside the region, the
-  // border fixed), so smoothing_iterations is not used; the reference's coordinates are rotated
-  // and scaled to the region's border, and a solve is kept only where it removes folds.
+  // The single fold repair (core/fold_repair.h), with no cap on the region's size.
   FoldRepairOptions o;
   o.rings = options.rings;
   o.passes = options.max_rounds;

@@ -74,18 +74,17 @@ int folded_triangles(const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& referenc
                      const Eigen::MatrixX3i& F);
 
 struct UnfoldOptions {
-  int max_rounds = 30;             // each round grows the smoothed region by one ring
-  int rings = 1;                   // rings around the folded triangles smoothed in round 1
-  int smoothing_iterations = 200;  // Jacobi sweeps of the displacement per round
+  int max_rounds = 30;  // repair passes; pass p grows the region by p more rings
+  int rings = 1;        // rings around the folded triangles in the first pass
 };
 
 // Removes folds left by a non-rigid fit where the template is finer than the scan (eyelids,
-// armpits): inside a region around the folded triangles the displacement D = V − reference_V
-// is replaced by the average of its neighbours' (a harmonic fill with the region's border
-// fixed), so the region follows the fold-free reference mesh up to a smooth displacement; the
-// region grows by one ring per round until no fold is left. V #V by 3 (modified), reference_V
-// #V by 3 (e.g. the pose-fitted template), F #F by 3. Returns the folds left (0 unless
-// max_rounds ran out).
+// armpits) with the fold repair of core/fold_repair.h: a region around the folded triangles is
+// re-solved so that its umbrella-Laplacian coordinates are reference_V's, rotated and scaled
+// to the region's border (the rest of the mesh fixed), and a solve is kept only where it leaves
+// fewer folds; the region grows each pass until no fold is left. V #V by 3 (modified),
+// reference_V #V by 3 (e.g. the pose-fitted template), F #F by 3. Returns the folds left (0
+// unless max_rounds ran out).
 int unfold_triangles(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& reference_V,
                      const Eigen::MatrixX3i& F, const UnfoldOptions& options = {});
 
