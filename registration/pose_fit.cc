@@ -824,6 +824,9 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     // single fingers are poorly scanned, e.g. the inside of a fist), then each on its own,
     // started there; the per-finger acceptance below reverts to the start of the last phase.
     std::vector<Eigen::Vector3d> hand_start = joint_aa;
+    // One hand stage from the current joint values: the phases, then the per-finger acceptance.
+    auto run_hand_stage = [&] {
+    const int run_first_iteration = sum.hand_iterations;
     const int phases = o.tied_hand_phase ? 2 : 1;
     for (int phase = 0; phase < phases; ++phase) {
     const double coupling = phase + 1 < phases ? 1e8 : o.finger_coupling;
@@ -978,7 +981,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
       if (dmax <= o.hand_max_distance && max_deg < o.convergence_deg) break;
     }
     }
-    if (o.hand_accept_cap > 0 && sum.hand_iterations > 0) {
+    if (o.hand_accept_cap > 0 && sum.hand_iterations > run_first_iteration) {
       // Per-finger acceptance: a hand parameter keeps its fitted value only if that lowers the
       // hand's two-sided distance to the scan (capped at hand_accept_cap), else it goes back to
       // where the hand stage started it (the rest pose's fingers). Scan holes between fingers
@@ -1053,6 +1056,123 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
         }
       }
       sum.hand_accept_after = best;
+    }
+    };
+    // The hand stage from several starts (PoseFitOptions::hand_start_curls_deg): the fingers
+    // open, then a fist; each hand keeps the start whose result is closest to the scan both
+    // ways (a later start by a margin). Started open only, a fist whose inside is not scanned
+    // was fitted with the fingers 100–120° off and the wrist turned 58° to lay the open hand's
+    // back over the fist (s008_p3: hand two-sided distance 12.3 mm against 3.6 mm for the true
+    // pose; right-hand flips 700 → 114 with the fist start).
+    const std::vector<Eigen::Vector3d> body_joints = joint_aa;
+    std::vector<std::vector<Eigen::Vector3d>> results;
+    for (size_t s = 0; s < std::max<size_t>(1, o.hand_start_curls_deg.size()); ++s) {
+      joint_aa = body_joints;
+      if (!o.hand_start_curls_deg.empty())
+        for (int k : hand_params)
+          if (params[k].curl) joint_aa[k][0] = o.hand_start_curls_deg[s] * M_PI / 180.0;
+      run_hand_stage();
+      results.push_back(joint_aa);
+    }
+    if (results.size() > 1) {
+      // The hand of each hand parameter (its wrist: the first fitted body bone above it) and of
+      // each hand-region vertex (its heaviest bone's hand).
+      std::vector<int> hand_id(nfree, -1);
+      std::vector<char> is_hand_bone(nb, 0);
+      for (int k : hand_params) {
+        int a = params[k].bones[0];
+        if (params[k].late)
+          do a = skeleton.parents[a];
+          while (a > 0 && (free_index[a] < 0 || params[free_index[a]].late));
+        hand_id[k] = std::max(a, 0);
+        is_hand_bone[hand_id[k]] = 1;
+      }
+      std::vector<int> hands;
+      for (int b = 0; b < nb; ++b)
+        if (is_hand_bone[b]) hands.push_back(b);
+      std::vector<int> vertex_hand(n, -1);
+      for (int i = 0; i < n; ++i) {
+        if (!hand_region[i]) continue;
+        int b = -1;
+        double best = 0;
+        for (SkinWeights::InnerIterator it(W, i); it; ++it)
+          if (it.value() > best) best = it.value(), b = int(it.col());
+        for (; b >= 0; b = skeleton.parents[b])
+          if (is_hand_bone[b]) {
+            vertex_hand[i] = int(std::find(hands.begin(), hands.end(), b) - hands.begin());
+            break;
+          }
+      }
+      const double cap = o.hand_accept_cap > 0 ? o.hand_accept_cap : 30.0;
+      std::vector<Eigen::MatrixX3d> Vs;
+      for (const auto& r : results) {
+        joint_aa = r;
+        Vs.push_back(pose_template(tpl.V, skeleton, W, scale, current_pose()));
+      }
+      // Scan points compared for each hand: closest to a vertex of that hand in any result.
+      std::vector<int> point_hand(scan.P.rows(), -1);
+      for (const auto& V : Vs) {
+        PointIndex vertex_index(V);
+        tbb::parallel_for(0, int(scan.P.rows()), [&](int j) {
+          double d2 = 0;
+          const int i = vertex_index.nearest(scan.P.row(j).transpose(), &d2);
+          if (i >= 0 && vertex_hand[i] >= 0 && d2 <= cap * cap && point_hand[j] < 0)
+            point_hand[j] = vertex_hand[i];
+        });
+      }
+      const int nhands = int(hands.size());
+      std::vector<int> choice(nhands, 0);
+      std::vector<double> best_cost(nhands, std::numeric_limits<double>::infinity());
+      for (size_t s = 0; s < Vs.size(); ++s)
+        for (int h = 0; h < nhands; ++h) {
+          std::vector<int> hv;
+          for (int i = 0; i < n; ++i)
+            if (vertex_hand[i] == h) hv.push_back(i);
+          std::vector<int> set;
+          for (Eigen::Index j = 0; j < scan.P.rows(); ++j)
+            if (point_hand[j] == h) set.push_back(int(j));
+          if (hv.empty() || set.empty()) continue;
+          Eigen::MatrixX3d H(hv.size(), 3);
+          for (size_t c = 0; c < hv.size(); ++c) H.row(c) = Vs[s].row(hv[c]);
+          PointIndex hand_index(H);
+          // The hand's two-sided distance after the translation that best aligns it (a few
+          // alternating steps): the pose stage cannot move the wrist, and a hand 10 mm off
+          // (s003_p0) otherwise favours a compact fist over the open hand it is.
+          Eigen::Vector3d t = Eigen::Vector3d::Zero();
+          double sa = 0, sb = 0;
+          for (int step = 0; step <= o.hand_start_align_steps; ++step) {
+            sa = sb = 0;
+            Eigen::Vector3d shift = Eigen::Vector3d::Zero();
+            int pairs = 0;
+            for (int j : set) {
+              double d2 = 0;
+              const Eigen::Vector3d q = scan.P.row(j).transpose();
+              const int i = hand_index.nearest(q - t, &d2);
+              const double d = std::sqrt(d2);
+              sa += std::min(d, cap);
+              if (i >= 0 && d < cap) shift += q - (H.row(i).transpose() + t), ++pairs;
+            }
+            for (int i = 0; i < H.rows(); ++i) {
+              double d2 = 0;
+              const Eigen::Vector3d v = H.row(i).transpose() + t;
+              const int j = scan_index.nearest(v, &d2);
+              const double d = std::sqrt(d2);
+              sb += std::min(d, cap);
+              if (j >= 0 && d < cap) shift += scan.P.row(j).transpose() - v, ++pairs;
+            }
+            if (pairs > 0) t += shift / pairs;
+          }
+          const double cost = 0.5 * (sa / set.size() + sb / H.rows());
+          // A later start must beat the first (open) by the margin.
+          const double compared = s == 0 ? cost : cost / (1.0 - o.hand_start_margin);
+          if (compared < best_cost[h]) best_cost[h] = compared, choice[h] = int(s);
+        }
+      joint_aa = results[0];
+      for (int k : hand_params) {
+        const int h = int(std::find(hands.begin(), hands.end(), hand_id[k]) - hands.begin());
+        joint_aa[k] = results[choice[h]][k];
+      }
+      for (int h = 0; h < nhands; ++h) sum.hand_start_choice.push_back(choice[h]);
     }
   }
   PoseFitResult result;

@@ -135,6 +135,17 @@ struct PoseFitOptions {
   // goes back to its start if that lowers the hand's two-sided distance to the scan, each
   // distance capped at this (mm); ≤ 0: off.
   double hand_accept_cap = 30.0;
+  // Starts of the hand stage: every finger's curl per phalanx (degrees) before the tied phase,
+  // the wrists where the body stage put them. Each hand keeps the result of the start that
+  // ends closest to the scan (two-sided distance of the hand, capped at hand_accept_cap).
+  // Empty: one start from the body stage's (open) fingers.
+  std::vector<double> hand_start_curls_deg = {0.0, 80.0};
+  // A start after the first is kept only if its distance is below (1 − margin) times the first
+  // start's: leaving the open hand needs clear evidence.
+  double hand_start_margin = 0.1;
+  // The starts are compared after aligning each hand to the scan by a translation, found in
+  // this many alternating closest-point steps (0: as posed).
+  int hand_start_align_steps = 5;
 };
 
 struct PoseFitSummary {
@@ -155,6 +166,9 @@ struct PoseFitSummary {
   double hand_accept_before = 0.0;
   double hand_accept_after = 0.0;
   int hand_reverted = 0;
+  // Per hand (wrist order in the skeleton), the index of the start kept
+  // (PoseFitOptions::hand_start_curls_deg); empty with a single start.
+  std::vector<int> hand_start_choice;
 };
 
 struct PoseFitResult {
