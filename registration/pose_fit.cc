@@ -826,237 +826,237 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     std::vector<Eigen::Vector3d> hand_start = joint_aa;
     // One hand stage from the current joint values: the phases, then the per-finger acceptance.
     auto run_hand_stage = [&] {
-    const int run_first_iteration = sum.hand_iterations;
-    const int phases = o.tied_hand_phase ? 2 : 1;
-    for (int phase = 0; phase < phases; ++phase) {
-    const double coupling = phase + 1 < phases ? 1e8 : o.finger_coupling;
-    hand_start = joint_aa;
-    for (int hiter = 0; hiter < o.hand_iterations; ++hiter) {
-      report_progress(progress, 0.95, "pose fit: hands");
-      const Eigen::MatrixX3d V = pose_template(tpl.V, skeleton, W, scale, current_pose());
-      const Eigen::MatrixX3d VN = vertex_normals(V, tpl.F);
-      const double dmax = std::max(o.hand_max_distance,
-                                   o.hand_initial_max_distance * std::pow(0.5, hiter));
-      // Scan points of the hand: within dmax of the posed hand's box and closest to a hand
-      // vertex of the posed template.
-      Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
-      Eigen::Vector3d hi = -lo;
-      for (int i = 0; i < n; ++i)
-        if (hand_region[i]) {
-          lo = lo.cwiseMin(V.row(i).transpose());
-          hi = hi.cwiseMax(V.row(i).transpose());
-        }
-      lo.array() -= dmax;
-      hi.array() += dmax;
-      PointIndex vertex_index(V);
-      std::vector<int> cand;
-      for (Eigen::Index j = 0; j < scan.P.rows(); ++j) {
-        const Eigen::Vector3d q = scan.P.row(j).transpose();
-        if ((q.array() >= lo.array()).all() && (q.array() <= hi.array()).all()) cand.push_back(int(j));
-      }
-      std::vector<char> is_hand(cand.size(), 0);
-      tbb::parallel_for(0, int(cand.size()), [&](int c) {
-        const int i = vertex_index.nearest(scan.P.row(cand[c]).transpose());
-        is_hand[c] = i >= 0 && hand_region[i];
-      });
-      std::vector<int> hand_points;
-      for (size_t c = 0; c < cand.size(); ++c)
-        if (is_hand[c]) hand_points.push_back(cand[c]);
-      if (hand_points.size() < 10) break;
-      Eigen::MatrixX3d HP(hand_points.size(), 3);
-      for (size_t c = 0; c < hand_points.size(); ++c) HP.row(c) = scan.P.row(hand_points[c]);
-      PointIndex hand_index(HP);
-      Eigen::MatrixX3d SV(nh, 3);
-      for (int h = 0; h < nh; ++h) SV.row(h) = V.row(hand_samples[h]);
-      PointIndex sample_index(SV);
-      auto normal_ok = [&](int j, int i) {
-        if (!scan.has_normals()) return true;
-        const double c = scan.N.row(j).dot(VN.row(i));
-        return (o.unsigned_normals ? std::abs(c) : c) >= cos_min;
-      };
-      std::vector<int> fwd(nh, -1);
-      tbb::parallel_for(0, nh, [&](int h) {
-        double d2 = 0;
-        const int c = hand_index.nearest(SV.row(h).transpose(), &d2);
-        if (c >= 0 && d2 <= dmax * dmax && normal_ok(hand_points[c], hand_samples[h]))
-          fwd[h] = hand_points[c];
-      });
-      const int hp = int(hand_points.size());
-      const int bstride = std::max(1, hp / std::max(1, nh));
-      std::vector<int> bwd((hp + bstride - 1) / bstride, -1);
-      tbb::parallel_for(0, int(bwd.size()), [&](int k) {
-        const int j = hand_points[k * bstride];
-        double d2 = 0;
-        const int h = sample_index.nearest(scan.P.row(j).transpose(), &d2);
-        if (h >= 0 && d2 <= dmax * dmax && normal_ok(j, hand_samples[h])) bwd[k] = h;
-      });
-      ceres::Problem problem;
-      problem.AddParameterBlock(&scale, 1);
-      problem.AddParameterBlock(root_aa.data(), 3);
-      problem.AddParameterBlock(trans.data(), 3);
-      for (int k = 0; k < nfree; ++k)
-        problem.AddParameterBlock(joint_aa[k].data(), params[k].one_dof() ? 1 : 3);
-      problem.SetParameterBlockConstant(&scale);
-      problem.SetParameterBlockConstant(root_aa.data());
-      problem.SetParameterBlockConstant(trans.data());
-      for (int k = 0; k < nfree; ++k)
-        if (!hand_free[k]) problem.SetParameterBlockConstant(joint_aa[k].data());
-      if (o.curl_max_deg > o.curl_min_deg)
-        for (int k : hand_params)
-          if (params[k].curl) {
-            joint_aa[k][0] = std::clamp(joint_aa[k][0], o.curl_min_deg * M_PI / 180.0,
-                                        o.curl_max_deg * M_PI / 180.0);
-            problem.SetParameterLowerBound(joint_aa[k].data(), 0, o.curl_min_deg * M_PI / 180.0);
-            problem.SetParameterUpperBound(joint_aa[k].data(), 0, o.curl_max_deg * M_PI / 180.0);
-          }
-        int matched = 0;
-      double d2sum = 0;
-      for (int h = 0; h < nh; ++h) {
-        if (fwd[h] < 0) continue;
-        const Eigen::Vector3d target = scan.P.row(fwd[h]).transpose();
-        d2sum += (SV.row(h).transpose() - target).squaredNorm();
-        ++matched;
-        const Eigen::Vector3d normal =
-            scan.has_normals() ? Eigen::Vector3d(scan.N.row(fwd[h])) : Eigen::Vector3d::Zero();
-        add_sample(problem, hand_first + h, target, normal, 1.0, 1.0, o.point_to_point_weight,
-                  new ceres::HuberLoss(o.robust_scale));
-      }
-      int nback = 0;
-      for (int b : bwd) nback += b >= 0;
-      if (nback > 0) {
-        const double w = std::sqrt(double(std::max(matched, 1)) / nback);
-        for (size_t k = 0; k < bwd.size(); ++k) {
-          if (bwd[k] < 0) continue;
-          const int j = hand_points[k * bstride];
-          const Eigen::Vector3d normal =
-              scan.has_normals() ? Eigen::Vector3d(scan.N.row(j)) : Eigen::Vector3d::Zero();
-          add_sample(problem, hand_first + bwd[k], scan.P.row(j).transpose(), normal, w, 1.0,
-                    o.point_to_point_weight, new ceres::HuberLoss(o.robust_scale));
-        }
-      }
-      if (matched + nback < 10) break;
-      for (size_t k = 0; k < landmarks.size(); ++k)
-        if (!lm_body[k])
-          add_sample(problem, nsamples + int(k), landmarks[k].target, Eigen::Vector3d::Zero(),
-                    o.landmark_weight * std::sqrt(double(nh) / 100.0), 0.0, 1.0, nullptr);
-      for (int k : hand_params) {
-        const double w = std::sqrt(o.pose_prior * params[k].prior * double(params[k].bones.size()));
-        if (params[k].one_dof())
-          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual1, 1, 1>(
-                                       new PriorResidual1{w}),
-                                   nullptr, joint_aa[k].data());
-        else
-          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual, 3, 3>(
-                                       new PriorResidual{w}),
-                                   nullptr, joint_aa[k].data());
-      }
-      // Each finger's curl towards its hand's mean curl (the mean a free variable).
-      std::vector<double> means;
-      means.reserve(coupled.size());
-      if (coupling > 0)
-        for (const auto& [wrist, ks] : coupled) {
-          if (ks.size() < 2) continue;
-          double m = 0;
-          for (int k : ks) m += joint_aa[k][0];
-          means.push_back(m / ks.size());
-          for (int k : ks)
-            problem.AddResidualBlock(
-                new ceres::AutoDiffCostFunction<CouplingResidual, 1, 1, 1>(new CouplingResidual{
-                    std::sqrt(coupling * double(params[k].bones.size()))}),
-                nullptr, joint_aa[k].data(), &means.back());
-        }
-      std::vector<Eigen::Vector3d> old = joint_aa;
-      ceres::Solver::Options so;
-      so.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
-      so.max_num_iterations = o.solver_iterations;
-      so.num_threads = o.threads;
-      so.logging_type = ceres::SILENT;
-      ceres::Solver::Summary cs;
-      ceres::Solve(so, &problem, &cs);
-      ++sum.hand_iterations;
-      sum.hand_rms = matched ? std::sqrt(d2sum / matched) : 0.0;
-      double max_deg = 0;
-      for (int k : hand_params)
-        max_deg = std::max(max_deg, (joint_aa[k] - old[k]).norm() * 180.0 / M_PI);
-      if (dmax <= o.hand_max_distance && max_deg < o.convergence_deg) break;
-    }
-    }
-    if (o.hand_accept_cap > 0 && sum.hand_iterations > run_first_iteration) {
-      // Per-finger acceptance: a hand parameter keeps its fitted value only if that lowers the
-      // hand's two-sided distance to the scan (capped at hand_accept_cap), else it goes back to
-      // where the hand stage started it (the rest pose's fingers). Scan holes between fingers
-      // and fingers touching the body give the hand stage correspondences that curl a straight
-      // finger; the distance of the whole result is what tells.
-      std::vector<int> hv;
-      for (int i = 0; i < n; ++i)
-        if (hand_region[i]) hv.push_back(i);
-      const double cap = o.hand_accept_cap;
-      // The scan points compared: closest (over the whole posed template) to a hand vertex in
-      // the start or the fitted pose, and within cap of it.
-      std::vector<char> in_set(scan.P.rows(), 0);
-      auto collect = [&](const Eigen::MatrixX3d& V) {
+      const int run_first_iteration = sum.hand_iterations;
+      const int phases = o.tied_hand_phase ? 2 : 1;
+      for (int phase = 0; phase < phases; ++phase) {
+      const double coupling = phase + 1 < phases ? 1e8 : o.finger_coupling;
+      hand_start = joint_aa;
+      for (int hiter = 0; hiter < o.hand_iterations; ++hiter) {
+        report_progress(progress, 0.95, "pose fit: hands");
+        const Eigen::MatrixX3d V = pose_template(tpl.V, skeleton, W, scale, current_pose());
+        const Eigen::MatrixX3d VN = vertex_normals(V, tpl.F);
+        const double dmax = std::max(o.hand_max_distance,
+                                     o.hand_initial_max_distance * std::pow(0.5, hiter));
+        // Scan points of the hand: within dmax of the posed hand's box and closest to a hand
+        // vertex of the posed template.
         Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
         Eigen::Vector3d hi = -lo;
-        for (int i : hv) {
-          lo = lo.cwiseMin(V.row(i).transpose());
-          hi = hi.cwiseMax(V.row(i).transpose());
-        }
-        lo.array() -= cap;
-        hi.array() += cap;
+        for (int i = 0; i < n; ++i)
+          if (hand_region[i]) {
+            lo = lo.cwiseMin(V.row(i).transpose());
+            hi = hi.cwiseMax(V.row(i).transpose());
+          }
+        lo.array() -= dmax;
+        hi.array() += dmax;
         PointIndex vertex_index(V);
-        tbb::parallel_for(0, int(scan.P.rows()), [&](int j) {
+        std::vector<int> cand;
+        for (Eigen::Index j = 0; j < scan.P.rows(); ++j) {
           const Eigen::Vector3d q = scan.P.row(j).transpose();
-          if (!((q.array() >= lo.array()).all() && (q.array() <= hi.array()).all())) return;
-          double d2 = 0;
-          const int i = vertex_index.nearest(q, &d2);
-          if (i >= 0 && hand_region[i] && d2 <= cap * cap) in_set[j] = 1;
-        });
-      };
-      std::vector<Eigen::Vector3d> fitted = joint_aa;
-      for (int k : hand_params) joint_aa[k] = hand_start[k];
-      collect(pose_template(tpl.V, skeleton, W, scale, current_pose()));
-      joint_aa = fitted;
-      collect(pose_template(tpl.V, skeleton, W, scale, current_pose()));
-      std::vector<int> set;
-      for (Eigen::Index j = 0; j < scan.P.rows(); ++j)
-        if (in_set[j]) set.push_back(int(j));
-      auto hand_cost = [&] {
-        const Eigen::MatrixX3d V = pose_template(tpl.V, skeleton, W, scale, current_pose());
-        Eigen::MatrixX3d H(hv.size(), 3);
-        for (size_t c = 0; c < hv.size(); ++c) H.row(c) = V.row(hv[c]);
-        PointIndex hand_index(H);
-        std::vector<double> a(set.size()), b(hv.size());
-        tbb::parallel_for(0, int(set.size()), [&](int c) {
-          double d2 = 0;
-          hand_index.nearest(scan.P.row(set[c]).transpose(), &d2);
-          a[c] = std::min(std::sqrt(d2), cap);
-        });
-        tbb::parallel_for(0, int(hv.size()), [&](int c) {
-          double d2 = 0;
-          scan_index.nearest(H.row(c).transpose(), &d2);
-          b[c] = std::min(std::sqrt(d2), cap);
-        });
-        double sa = 0, sb = 0;
-        for (double x : a) sa += x;
-        for (double x : b) sb += x;
-        return 0.5 * (sa / std::max<size_t>(1, a.size()) + sb / std::max<size_t>(1, b.size()));
-      };
-      double best = hand_cost();
-      sum.hand_accept_before = best;
-      for (int k : hand_params) {
-        if (joint_aa[k] == hand_start[k]) continue;
-        const Eigen::Vector3d keep = joint_aa[k];
-        joint_aa[k] = hand_start[k];
-        const double c = hand_cost();
-        if (c < best) {
-          best = c;
-          ++sum.hand_reverted;
-        } else {
-          joint_aa[k] = keep;
+          if ((q.array() >= lo.array()).all() && (q.array() <= hi.array()).all()) cand.push_back(int(j));
         }
+        std::vector<char> is_hand(cand.size(), 0);
+        tbb::parallel_for(0, int(cand.size()), [&](int c) {
+          const int i = vertex_index.nearest(scan.P.row(cand[c]).transpose());
+          is_hand[c] = i >= 0 && hand_region[i];
+        });
+        std::vector<int> hand_points;
+        for (size_t c = 0; c < cand.size(); ++c)
+          if (is_hand[c]) hand_points.push_back(cand[c]);
+        if (hand_points.size() < 10) break;
+        Eigen::MatrixX3d HP(hand_points.size(), 3);
+        for (size_t c = 0; c < hand_points.size(); ++c) HP.row(c) = scan.P.row(hand_points[c]);
+        PointIndex hand_index(HP);
+        Eigen::MatrixX3d SV(nh, 3);
+        for (int h = 0; h < nh; ++h) SV.row(h) = V.row(hand_samples[h]);
+        PointIndex sample_index(SV);
+        auto normal_ok = [&](int j, int i) {
+          if (!scan.has_normals()) return true;
+          const double c = scan.N.row(j).dot(VN.row(i));
+          return (o.unsigned_normals ? std::abs(c) : c) >= cos_min;
+        };
+        std::vector<int> fwd(nh, -1);
+        tbb::parallel_for(0, nh, [&](int h) {
+          double d2 = 0;
+          const int c = hand_index.nearest(SV.row(h).transpose(), &d2);
+          if (c >= 0 && d2 <= dmax * dmax && normal_ok(hand_points[c], hand_samples[h]))
+            fwd[h] = hand_points[c];
+        });
+        const int hp = int(hand_points.size());
+        const int bstride = std::max(1, hp / std::max(1, nh));
+        std::vector<int> bwd((hp + bstride - 1) / bstride, -1);
+        tbb::parallel_for(0, int(bwd.size()), [&](int k) {
+          const int j = hand_points[k * bstride];
+          double d2 = 0;
+          const int h = sample_index.nearest(scan.P.row(j).transpose(), &d2);
+          if (h >= 0 && d2 <= dmax * dmax && normal_ok(j, hand_samples[h])) bwd[k] = h;
+        });
+        ceres::Problem problem;
+        problem.AddParameterBlock(&scale, 1);
+        problem.AddParameterBlock(root_aa.data(), 3);
+        problem.AddParameterBlock(trans.data(), 3);
+        for (int k = 0; k < nfree; ++k)
+          problem.AddParameterBlock(joint_aa[k].data(), params[k].one_dof() ? 1 : 3);
+        problem.SetParameterBlockConstant(&scale);
+        problem.SetParameterBlockConstant(root_aa.data());
+        problem.SetParameterBlockConstant(trans.data());
+        for (int k = 0; k < nfree; ++k)
+          if (!hand_free[k]) problem.SetParameterBlockConstant(joint_aa[k].data());
+        if (o.curl_max_deg > o.curl_min_deg)
+          for (int k : hand_params)
+            if (params[k].curl) {
+              joint_aa[k][0] = std::clamp(joint_aa[k][0], o.curl_min_deg * M_PI / 180.0,
+                                          o.curl_max_deg * M_PI / 180.0);
+              problem.SetParameterLowerBound(joint_aa[k].data(), 0, o.curl_min_deg * M_PI / 180.0);
+              problem.SetParameterUpperBound(joint_aa[k].data(), 0, o.curl_max_deg * M_PI / 180.0);
+            }
+          int matched = 0;
+        double d2sum = 0;
+        for (int h = 0; h < nh; ++h) {
+          if (fwd[h] < 0) continue;
+          const Eigen::Vector3d target = scan.P.row(fwd[h]).transpose();
+          d2sum += (SV.row(h).transpose() - target).squaredNorm();
+          ++matched;
+          const Eigen::Vector3d normal =
+              scan.has_normals() ? Eigen::Vector3d(scan.N.row(fwd[h])) : Eigen::Vector3d::Zero();
+          add_sample(problem, hand_first + h, target, normal, 1.0, 1.0, o.point_to_point_weight,
+                    new ceres::HuberLoss(o.robust_scale));
+        }
+        int nback = 0;
+        for (int b : bwd) nback += b >= 0;
+        if (nback > 0) {
+          const double w = std::sqrt(double(std::max(matched, 1)) / nback);
+          for (size_t k = 0; k < bwd.size(); ++k) {
+            if (bwd[k] < 0) continue;
+            const int j = hand_points[k * bstride];
+            const Eigen::Vector3d normal =
+                scan.has_normals() ? Eigen::Vector3d(scan.N.row(j)) : Eigen::Vector3d::Zero();
+            add_sample(problem, hand_first + bwd[k], scan.P.row(j).transpose(), normal, w, 1.0,
+                      o.point_to_point_weight, new ceres::HuberLoss(o.robust_scale));
+          }
+        }
+        if (matched + nback < 10) break;
+        for (size_t k = 0; k < landmarks.size(); ++k)
+          if (!lm_body[k])
+            add_sample(problem, nsamples + int(k), landmarks[k].target, Eigen::Vector3d::Zero(),
+                      o.landmark_weight * std::sqrt(double(nh) / 100.0), 0.0, 1.0, nullptr);
+        for (int k : hand_params) {
+          const double w = std::sqrt(o.pose_prior * params[k].prior * double(params[k].bones.size()));
+          if (params[k].one_dof())
+            problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual1, 1, 1>(
+                                         new PriorResidual1{w}),
+                                     nullptr, joint_aa[k].data());
+          else
+            problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual, 3, 3>(
+                                         new PriorResidual{w}),
+                                     nullptr, joint_aa[k].data());
+        }
+        // Each finger's curl towards its hand's mean curl (the mean a free variable).
+        std::vector<double> means;
+        means.reserve(coupled.size());
+        if (coupling > 0)
+          for (const auto& [wrist, ks] : coupled) {
+            if (ks.size() < 2) continue;
+            double m = 0;
+            for (int k : ks) m += joint_aa[k][0];
+            means.push_back(m / ks.size());
+            for (int k : ks)
+              problem.AddResidualBlock(
+                  new ceres::AutoDiffCostFunction<CouplingResidual, 1, 1, 1>(new CouplingResidual{
+                      std::sqrt(coupling * double(params[k].bones.size()))}),
+                  nullptr, joint_aa[k].data(), &means.back());
+          }
+        std::vector<Eigen::Vector3d> old = joint_aa;
+        ceres::Solver::Options so;
+        so.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+        so.max_num_iterations = o.solver_iterations;
+        so.num_threads = o.threads;
+        so.logging_type = ceres::SILENT;
+        ceres::Solver::Summary cs;
+        ceres::Solve(so, &problem, &cs);
+        ++sum.hand_iterations;
+        sum.hand_rms = matched ? std::sqrt(d2sum / matched) : 0.0;
+        double max_deg = 0;
+        for (int k : hand_params)
+          max_deg = std::max(max_deg, (joint_aa[k] - old[k]).norm() * 180.0 / M_PI);
+        if (dmax <= o.hand_max_distance && max_deg < o.convergence_deg) break;
       }
-      sum.hand_accept_after = best;
-    }
+      }
+      if (o.hand_accept_cap > 0 && sum.hand_iterations > run_first_iteration) {
+        // Per-finger acceptance: a hand parameter keeps its fitted value only if that lowers the
+        // hand's two-sided distance to the scan (capped at hand_accept_cap), else it goes back to
+        // where the hand stage started it (the rest pose's fingers). Scan holes between fingers
+        // and fingers touching the body give the hand stage correspondences that curl a straight
+        // finger; the distance of the whole result is what tells.
+        std::vector<int> hv;
+        for (int i = 0; i < n; ++i)
+          if (hand_region[i]) hv.push_back(i);
+        const double cap = o.hand_accept_cap;
+        // The scan points compared: closest (over the whole posed template) to a hand vertex in
+        // the start or the fitted pose, and within cap of it.
+        std::vector<char> in_set(scan.P.rows(), 0);
+        auto collect = [&](const Eigen::MatrixX3d& V) {
+          Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+          Eigen::Vector3d hi = -lo;
+          for (int i : hv) {
+            lo = lo.cwiseMin(V.row(i).transpose());
+            hi = hi.cwiseMax(V.row(i).transpose());
+          }
+          lo.array() -= cap;
+          hi.array() += cap;
+          PointIndex vertex_index(V);
+          tbb::parallel_for(0, int(scan.P.rows()), [&](int j) {
+            const Eigen::Vector3d q = scan.P.row(j).transpose();
+            if (!((q.array() >= lo.array()).all() && (q.array() <= hi.array()).all())) return;
+            double d2 = 0;
+            const int i = vertex_index.nearest(q, &d2);
+            if (i >= 0 && hand_region[i] && d2 <= cap * cap) in_set[j] = 1;
+          });
+        };
+        std::vector<Eigen::Vector3d> fitted = joint_aa;
+        for (int k : hand_params) joint_aa[k] = hand_start[k];
+        collect(pose_template(tpl.V, skeleton, W, scale, current_pose()));
+        joint_aa = fitted;
+        collect(pose_template(tpl.V, skeleton, W, scale, current_pose()));
+        std::vector<int> set;
+        for (Eigen::Index j = 0; j < scan.P.rows(); ++j)
+          if (in_set[j]) set.push_back(int(j));
+        auto hand_cost = [&] {
+          const Eigen::MatrixX3d V = pose_template(tpl.V, skeleton, W, scale, current_pose());
+          Eigen::MatrixX3d H(hv.size(), 3);
+          for (size_t c = 0; c < hv.size(); ++c) H.row(c) = V.row(hv[c]);
+          PointIndex hand_index(H);
+          std::vector<double> a(set.size()), b(hv.size());
+          tbb::parallel_for(0, int(set.size()), [&](int c) {
+            double d2 = 0;
+            hand_index.nearest(scan.P.row(set[c]).transpose(), &d2);
+            a[c] = std::min(std::sqrt(d2), cap);
+          });
+          tbb::parallel_for(0, int(hv.size()), [&](int c) {
+            double d2 = 0;
+            scan_index.nearest(H.row(c).transpose(), &d2);
+            b[c] = std::min(std::sqrt(d2), cap);
+          });
+          double sa = 0, sb = 0;
+          for (double x : a) sa += x;
+          for (double x : b) sb += x;
+          return 0.5 * (sa / std::max<size_t>(1, a.size()) + sb / std::max<size_t>(1, b.size()));
+        };
+        double best = hand_cost();
+        sum.hand_accept_before = best;
+        for (int k : hand_params) {
+          if (joint_aa[k] == hand_start[k]) continue;
+          const Eigen::Vector3d keep = joint_aa[k];
+          joint_aa[k] = hand_start[k];
+          const double c = hand_cost();
+          if (c < best) {
+            best = c;
+            ++sum.hand_reverted;
+          } else {
+            joint_aa[k] = keep;
+          }
+        }
+        sum.hand_accept_after = best;
+      }
     };
     // The hand stage from several starts (PoseFitOptions::hand_start_curls_deg): the fingers
     // open, then a fist; each hand keeps the start whose result is closest to the scan both

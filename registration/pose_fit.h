@@ -189,9 +189,11 @@ const std::vector<PoseParameter>& bone_pose_parameters();
 // one curl per finger (PoseParameter::curl), the thumbs ball joints at their base. On the
 // synthetic fists of MakeHuman's fight03 the finger vertices come from 52 to 7.8 mm (test). On
 // the 15 database scans (register --shard 1/7, with the shape fit) it lowers the distal phalanx
-// error median 27.0 → 14.9°, correspondence median 9.40 → 8.38 mm, p95 25.9 → 21.2 mm, but
-// one scan of fight03 fists (s008_p3: right wrist refitted 50° off) flips 744 hand triangles
-// against 321, so it is not the default (register --hand-stage on selects it).
+// error median 27.0 → 14.9°, correspondence median 9.40 → 8.38 mm, p95 25.9 → 21.2 mm. With the
+// fist start (PoseFitOptions::hand_start_curls_deg) one scan of fight03 fists (s008_p3), whose
+// right wrist the open start alone refitted 58° off, flips 157 triangles instead of 744; the 15
+// scans' pose stage flips 345 (hands 239) instead of 932 (826), and the full registration 390
+// (hands 305) instead of 1087 (946). register --hand-stage on selects it.
 const std::vector<PoseParameter>& hand_stage_pose_parameters();
 // `parameters` with the finger grasp groups (bones named "finger…") replaced by the hand stage's
 // per-finger curls and thumbs (as in hand_stage_pose_parameters()): e.g. 'bone' with a hand

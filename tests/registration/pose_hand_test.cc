@@ -268,6 +268,8 @@ TEST(PoseFitHands, FistsWithUnscannedInside) {
               "%.1f deg, median %.1f deg, %.1f mm, %d flipped\n",
               int(c.scan.P.rows()), wrist_error(r0), med0, mm0, f0, s1.hand_start_choice[0],
               s1.hand_start_choice[1], wrist_error(r1), med1, mm1, f1);
+  std::printf("pose fit %.2f s with one start, %.2f s with the fist start (%d and %d hand solves)\n",
+              s0.seconds, s1.seconds, s0.hand_iterations, s1.hand_iterations);
   EXPECT_LE(f1, f0);
   EXPECT_LT(wrist_error(r1), 24.0);  // measured 21.1
   EXPECT_LT(med1, 32.0);             // measured 28.0 (open hands: > 60)
