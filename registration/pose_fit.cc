@@ -284,6 +284,20 @@ struct PriorResidual1 {
   }
 };
 
+// A prior pulling a joint parameter towards `centre` with `weight`: one residual for a one-dof
+// parameter (curl, twist: centre[0]), three for a ball joint's axis-angle.
+void add_joint_prior(ceres::Problem& problem, bool one_dof, double weight,
+                     const Eigen::Vector3d& centre, Eigen::Vector3d& aa) {
+  if (one_dof)
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual1, 1, 1>(
+                                 new PriorResidual1{weight, centre[0]}),
+                             nullptr, aa.data());
+  else
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual, 3, 3>(
+                                 new PriorResidual{weight, centre}),
+                             nullptr, aa.data());
+}
+
 // weight·(a − m): a finger's curl towards its hand's mean curl m.
 struct CouplingResidual {
   double weight;
@@ -736,25 +750,11 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
                : std::pow(o.landmark_prior_factor,
                           lm_iters > 1 ? double(lm_iters - 1 - iter) / double(lm_iters - 1) : 1.0);
       const double w = std::sqrt(anneal * o.pose_prior * params[k].prior * double(params[k].bones.size()));
-      if (params[k].one_dof())
-        problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual1, 1, 1>(
-                                     new PriorResidual1{w}),
-                                 nullptr, joint_aa[k].data());
-      else
-        problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual, 3, 3>(
-                                     new PriorResidual{w}),
-                                 nullptr, joint_aa[k].data());
+      add_joint_prior(problem, params[k].one_dof(), w, Eigen::Vector3d::Zero(), joint_aa[k]);
       if (data && !anchor.empty() && o.anchor_prior > 0 && !params[k].late &&
           params[k].anchored) {
         const double wa = std::sqrt(o.anchor_prior * double(params[k].bones.size()));
-        if (params[k].one_dof())
-          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual1, 1, 1>(
-                                       new PriorResidual1{wa, anchor[k][0]}),
-                                   nullptr, joint_aa[k].data());
-        else
-          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual, 3, 3>(
-                                       new PriorResidual{wa, anchor[k]}),
-                                   nullptr, joint_aa[k].data());
+        add_joint_prior(problem, params[k].one_dof(), wa, anchor[k], joint_aa[k]);
       }
     }
     sum.rms = matched ? std::sqrt(d2sum / matched) : 0.0;
@@ -941,14 +941,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
                       o.landmark_weight * std::sqrt(double(nh) / 100.0), 0.0, 1.0, nullptr);
         for (int k : hand_params) {
           const double w = std::sqrt(o.pose_prior * params[k].prior * double(params[k].bones.size()));
-          if (params[k].one_dof())
-            problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual1, 1, 1>(
-                                         new PriorResidual1{w}),
-                                     nullptr, joint_aa[k].data());
-          else
-            problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual, 3, 3>(
-                                         new PriorResidual{w}),
-                                     nullptr, joint_aa[k].data());
+          add_joint_prior(problem, params[k].one_dof(), w, Eigen::Vector3d::Zero(), joint_aa[k]);
         }
         // Each finger's curl towards its hand's mean curl (the mean a free variable).
         std::vector<double> means;
