@@ -12,6 +12,7 @@
 #include "model/generate_crowd.h"
 #include "model/morph.h"
 #include "model_test_util.h"
+#include "support/fixtures.h"
 
 namespace bodymodel {
 namespace {
@@ -20,14 +21,10 @@ namespace fs = std::filesystem;
 using testing::make_test_subjects;
 using testing::shape_test_model;
 
+// One folder per test process, removed when the process exits.
 fs::path temp_dir() {
-  static fs::path d = [] {
-    fs::path p = fs::temp_directory_path() / ("bodymodel_generate_test_" + std::to_string(::getpid()));
-    fs::remove_all(p);
-    fs::create_directories(p);
-    return p;
-  }();
-  return d;
+  static const fixtures::TempDir d;
+  return d.path;
 }
 
 void expect_same_measurements(const BodyMeasurements& a, const BodyMeasurements& b, const std::string& what) {

@@ -13,6 +13,7 @@
 #include "model/pose_edit.h"
 #include "model_test_util.h"
 #include "support/run_cli.h"
+#include "support/fixtures.h"
 
 namespace bodymodel {
 namespace {
@@ -22,13 +23,10 @@ using fixtures::run_cli;
 using testing::make_test_subjects;
 using testing::shape_test_model;
 
+// One folder per test process, removed when the process exits.
 fs::path temp_dir() {
-  static fs::path d = [] {
-    fs::path p = fs::temp_directory_path() / ("bodymodel_model_test_" + std::to_string(::getpid()));
-    fs::create_directories(p);
-    return p;
-  }();
-  return d;
+  static const fixtures::TempDir d;
+  return d.path;
 }
 
 const fs::path& saved_model() {

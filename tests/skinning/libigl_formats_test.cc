@@ -8,14 +8,15 @@
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "core/io/libigl_formats.h"
+#include "support/fixtures.h"
 
 namespace bodymodel {
 namespace {
 
+// One folder per test process, removed when the process exits.
 std::filesystem::path temp_dir() {
-  auto d = std::filesystem::temp_directory_path() / ("bodymodel_skin_fmt_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(d);
-  return d;
+  static const fixtures::TempDir d;
+  return d.path;
 }
 
 std::string error_of(const std::function<void()>& f) {

@@ -26,14 +26,10 @@ namespace {
 namespace fs = std::filesystem;
 using fixtures::run_cli;
 
+// One folder per test process, removed when the process exits.
 fs::path temp_dir() {
-  static fs::path d = [] {
-    fs::path p = fs::temp_directory_path() / ("bodymodel_e2e_test_" + std::to_string(::getpid()));
-    fs::remove_all(p);
-    fs::create_directories(p);
-    return p;
-  }();
-  return d;
+  static const fixtures::TempDir d;
+  return d.path;
 }
 
 int count_lines(const std::string& s) {
