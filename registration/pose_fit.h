@@ -34,6 +34,11 @@ struct PoseParameter {
   bool curl = false;
   // Pulled towards the landmark-only solve's value (PoseFitOptions::anchor_prior) in the ICP.
   bool anchored = true;
+  // A thumb's tuck: one angle per bone about the palm normal of its hand (the `curl` palm
+  // normal, signed so that a positive angle sweeps the thumb tip across the palm, towards the
+  // little finger). Never fitted: set by the hand stage's start
+  // (PoseFitOptions::hand_start_tucks_deg) and held there. Needs `late`.
+  bool tuck = false;
 };
 
 struct PoseFitOptions {
@@ -138,8 +143,17 @@ struct PoseFitOptions {
   // Starts of the hand stage: every finger's curl per phalanx (degrees) before the tied phase,
   // the wrists where the body stage put them. Each hand keeps the result of the start that
   // ends closest to the scan (two-sided distance of the hand, capped at hand_accept_cap).
-  // Empty: one start from the body stage's (open) fingers.
-  std::vector<double> hand_start_curls_deg = {0.0, 80.0};
+  // Empty: one start from the body stage's (open) fingers. A start with the same curl as an
+  // earlier one is that start's variant (differing in the thumbs' tuck): it is run and compared
+  // only for a hand that keeps the earlier start, against it.
+  std::vector<double> hand_start_curls_deg = {0.0, 80.0, 80.0};
+  // Per start, the thumbs' tuck per bone (degrees; PoseParameter::tuck; missing entries: 0).
+  // The third start is the fist with the thumb tucked across the palm (40° at each of its two
+  // outer bones; fight03's fists: 18° and 65°), inside the fist, where the scanner does not see
+  // it: a straight thumb sticks out of the fist, far from every scan point. 15 database scans,
+  // full register: flipped triangles 390 -> 285 (s008_p3: 164 -> 59, the right thumb), every
+  // other scan unchanged.
+  std::vector<double> hand_start_tucks_deg = {0.0, 0.0, 40.0};
   // A start after the first is kept only if its distance is below (1 − margin) times the first
   // start's: leaving the open hand needs clear evidence.
   double hand_start_margin = 0.1;
@@ -193,7 +207,9 @@ const std::vector<PoseParameter>& bone_pose_parameters();
 // fist start (PoseFitOptions::hand_start_curls_deg) one scan of fight03 fists (s008_p3), whose
 // right wrist the open start alone refitted 58° off, flips 157 triangles instead of 744; the 15
 // scans' pose stage flips 345 (hands 239) instead of 932 (826), and the full registration 390
-// (hands 305) instead of 1087 (946). register --hand-stage on selects it.
+// (hands 305) instead of 1087 (946). With the thumbs' tuck (a fist's variant start, tuck
+// parameters on finger1-2/1-3, never fitted) the full registration flips 285 (hands 200).
+// register --hand-stage on selects it.
 const std::vector<PoseParameter>& hand_stage_pose_parameters();
 // `parameters` with the finger grasp groups (bones named "finger…") replaced by the hand stage's
 // per-finger curls and thumbs (as in hand_stage_pose_parameters()): e.g. 'bone' with a hand
