@@ -1215,6 +1215,7 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
           }
           const double cw = start_cost(h, w, set), cs = start_cost(h, s, set);
           if (!(cs == cs) || !(cw == cw)) continue;
+          sum.hand_start_comparisons.push_back({h, int(w), int(s), cw, cs});
           const double compared_w = w == 0 ? cw : cw / (1.0 - o.hand_start_margin);
           if (cs / (1.0 - o.hand_start_margin) < compared_w) choice[h] = int(s);
         }
