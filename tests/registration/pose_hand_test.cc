@@ -139,6 +139,15 @@ struct HandCase {
     *hand_mm = sum / std::max(count, 1);
   }
 
+  // The largest world-orientation error over the named bones (degrees).
+  double max_bone_error(const PoseFitResult& r, std::initializer_list<const char*> bones) const {
+    const Skeleton& sk = body.skeleton;
+    const auto Qt = world_rotations(sk, truth), Qe = world_rotations(sk, r.pose);
+    double e = 0;
+    for (const char* b : bones) e = std::max(e, angle_deg(Qe[sk.index(b)], Qt[sk.index(b)]));
+    return e;
+  }
+
   // Triangles of the fitted template whose normal opposes the truth's (as eval-registration).
   int flipped(const PoseFitResult& r) const {
     const Eigen::MatrixX3d Ne = face_normals(r.V, body.mesh.F), Nt = face_normals(posed.V, body.mesh.F);
@@ -251,13 +260,7 @@ TEST(PoseFitHands, FistsWithUnscannedInside) {
       fit_pose(c.body.mesh, c.body.skeleton, c.body.weights, c.scan, c.landmarks, open, &s0);
   const PoseFitResult r1 =
       fit_pose(c.body.mesh, c.body.skeleton, c.body.weights, c.scan, c.landmarks, starts, &s1);
-  const Skeleton& sk = c.body.skeleton;
-  const auto Qt = world_rotations(sk, c.truth);
-  auto wrist_error = [&](const PoseFitResult& r) {
-    const auto Qe = world_rotations(sk, r.pose);
-    return std::max(angle_deg(Qe[sk.index("wrist.L")], Qt[sk.index("wrist.L")]),
-                    angle_deg(Qe[sk.index("wrist.R")], Qt[sk.index("wrist.R")]));
-  };
+  auto wrist_error = [&](const PoseFitResult& r) { return c.max_bone_error(r, {"wrist.L", "wrist.R"}); };
   double med0, max0, mm0, med1, max1, mm1;
   c.errors(r0, &med0, &max0, &mm0);
   c.errors(r1, &med1, &max1, &mm1);
@@ -301,14 +304,7 @@ TEST(PoseFitHands, FistsTuckTheUnscannedThumb) {
   const Skeleton& sk = c.body.skeleton;
   // Right thumb: the larger world-orientation error of its two outer bones; thumb triangles:
   // faces whose three vertices are mostly on a thumb's bones (either hand).
-  const auto Qt = world_rotations(sk, c.truth);
-  auto thumb_error = [&](const PoseFitResult& r) {
-    const auto Qe = world_rotations(sk, r.pose);
-    double e = 0;
-    for (const char* b : {"finger1-2.R", "finger1-3.R"})
-      e = std::max(e, angle_deg(Qe[sk.index(b)], Qt[sk.index(b)]));
-    return e;
-  };
+  auto thumb_error = [&](const PoseFitResult& r) { return c.max_bone_error(r, {"finger1-2.R", "finger1-3.R"}); };
   std::vector<char> on_thumb(c.posed.V.rows(), 0);
   for (int i = 0; i < c.body.weights.outerSize(); ++i) {
     double w = 0;
