@@ -157,8 +157,8 @@ struct PoseFitOptions {
   // A start after the first is kept only if its distance is below (1 − margin) times the first
   // start's: leaving the open hand needs clear evidence. On the whole database (100 scans) with
   // 0.1, three open hands whose arm the body stage had misplaced (the hand's fit 10–12 mm off
-  // either way) were taken for fists 12–16 % closer, e.g. s011_p1: 1 159 flipped triangles
-  // instead of 1; fight03's fist, whose inside is not scanned, wins by 31 % (s008_p3).
+  // either way) were taken for fists 12–16 % closer, e.g. s011_p1: 1 172 flipped triangles
+  // instead of 11 after the full registration; fight03's fist, whose inside is not scanned, wins by 31 % (s008_p3).
   double hand_start_margin = 0.2;
   // The starts are compared after aligning each hand to the scan by a translation, found in
   // this many alternating closest-point steps (0: as posed).
