@@ -139,6 +139,11 @@ struct HandCase {
     *hand_mm = sum / std::max(count, 1);
   }
 
+  // The pose fit of the template to this case's scan.
+  PoseFitResult fit(const PoseFitOptions& o, PoseFitSummary* summary) const {
+    return fit_pose(body.mesh, body.skeleton, body.weights, scan, landmarks, o, summary);
+  }
+
   // The largest world-orientation error over the named bones (degrees).
   double max_bone_error(const PoseFitResult& r, std::initializer_list<const char*> bones) const {
     const Skeleton& sk = body.skeleton;
@@ -164,10 +169,8 @@ TEST(PoseFitHands, RecoversFistCurl) {
   PoseFitOptions without = with;
   without.hand_iterations = 0;  // the fingers stay open
   PoseFitSummary s0, s1;
-  const PoseFitResult r0 = fit_pose(c.body.mesh, c.body.skeleton, c.body.weights, c.scan,
-                                    c.landmarks, without, &s0);
-  const PoseFitResult r1 = fit_pose(c.body.mesh, c.body.skeleton, c.body.weights, c.scan,
-                                    c.landmarks, with, &s1);
+  const PoseFitResult r0 = c.fit(without, &s0);
+  const PoseFitResult r1 = c.fit(with, &s1);
   double med0, max0, mm0, med1, max1, mm1;
   c.errors(r0, &med0, &max0, &mm0);
   c.errors(r1, &med1, &max1, &mm1);
@@ -190,10 +193,8 @@ TEST(PoseFitHands, HandStageFlipsFewerTrianglesThanTheGraspGroups) {
   PoseFitOptions hands;
   hands.parameters = hand_stage_pose_parameters();
   PoseFitSummary s;
-  const PoseFitResult r0 = fit_pose(c.body.mesh, c.body.skeleton, c.body.weights, c.scan,
-                                    c.landmarks, grasp);
-  const PoseFitResult r1 = fit_pose(c.body.mesh, c.body.skeleton, c.body.weights, c.scan,
-                                    c.landmarks, hands, &s);
+  const PoseFitResult r0 = c.fit(grasp, nullptr);
+  const PoseFitResult r1 = c.fit(hands, &s);
   const int f0 = c.flipped(r0), f1 = c.flipped(r1);
   std::printf("flipped triangles on fists: grasp groups %d, hand stage %d (%d reverted, hand "
               "two-sided %.2f -> %.2f mm)\n",
@@ -256,10 +257,8 @@ TEST(PoseFitHands, FistsWithUnscannedInside) {
   starts.hand_start_curls_deg = PoseFitOptions{}.hand_start_curls_deg;
   ASSERT_GE(starts.hand_start_curls_deg.size(), 2u);
   PoseFitSummary s0, s1;
-  const PoseFitResult r0 =
-      fit_pose(c.body.mesh, c.body.skeleton, c.body.weights, c.scan, c.landmarks, open, &s0);
-  const PoseFitResult r1 =
-      fit_pose(c.body.mesh, c.body.skeleton, c.body.weights, c.scan, c.landmarks, starts, &s1);
+  const PoseFitResult r0 = c.fit(open, &s0);
+  const PoseFitResult r1 = c.fit(starts, &s1);
   auto wrist_error = [&](const PoseFitResult& r) { return c.max_bone_error(r, {"wrist.L", "wrist.R"}); };
   double med0, max0, mm0, med1, max1, mm1;
   c.errors(r0, &med0, &max0, &mm0);
@@ -297,10 +296,8 @@ TEST(PoseFitHands, FistsTuckTheUnscannedThumb) {
   tucked.hand_start_tucks_deg = PoseFitOptions{}.hand_start_tucks_deg;
   ASSERT_EQ(tucked.hand_start_curls_deg.size(), 3u);
   PoseFitSummary s0, s1;
-  const PoseFitResult r0 =
-      fit_pose(c.body.mesh, c.body.skeleton, c.body.weights, c.scan, c.landmarks, straight, &s0);
-  const PoseFitResult r1 =
-      fit_pose(c.body.mesh, c.body.skeleton, c.body.weights, c.scan, c.landmarks, tucked, &s1);
+  const PoseFitResult r0 = c.fit(straight, &s0);
+  const PoseFitResult r1 = c.fit(tucked, &s1);
   const Skeleton& sk = c.body.skeleton;
   // Right thumb: the larger world-orientation error of its two outer bones; thumb triangles:
   // faces whose three vertices are mostly on a thumb's bones (either hand).
@@ -353,8 +350,7 @@ TEST(PoseFitHands, OpenHandsKeepTheOpenStart) {
   PoseFitOptions o;
   o.parameters = hand_stage_pose_parameters();
   PoseFitSummary s;
-  const PoseFitResult r =
-      fit_pose(c.body.mesh, c.body.skeleton, c.body.weights, c.scan, c.landmarks, o, &s);
+  const PoseFitResult r = c.fit(o, &s);
   double med, max, mm;
   c.errors(r, &med, &max, &mm);
   ASSERT_EQ(s.hand_start_choice.size(), 2u);
