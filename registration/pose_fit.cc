@@ -288,6 +288,17 @@ struct PriorResidual1 {
   }
 };
 
+// weight·(aa · axis): the component of an axis-angle along `axis` (a ball joint's twist).
+struct AxisPriorResidual {
+  double weight;
+  Eigen::Vector3d axis;
+  template <typename T>
+  bool operator()(const T* aa, T* r) const {
+    r[0] = T(weight) * (aa[0] * axis[0] + aa[1] * axis[1] + aa[2] * axis[2]);
+    return true;
+  }
+};
+
 // A prior pulling a joint parameter towards `centre` with `weight`: one residual for a one-dof
 // parameter (curl, twist: centre[0]), three for a ball joint's axis-angle.
 void add_joint_prior(ceres::Problem& problem, bool one_dof, double weight,
@@ -830,13 +841,30 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     if (params[k].late) late_params.push_back(k);
   // With hand_wrists, the wrists (the fitted parameters right above the late ones) are refitted
   // with them: the body stage places a hand by few, mostly forearm, correspondences.
+  // With hand_forearm_twist, so is the twist parameter right above each wrist (the forearm's).
+  // hand_wrist_of: the wrist bone of each hand parameter (the first fitted body bone above a
+  // late one).
   std::vector<char> hand_free(nfree, 0);
+  std::vector<int> hand_wrist_of(nfree, -1);
+  auto fitted_above = [&](int b) {
+    int a = skeleton.parents[b];
+    while (a > 0 && free_index[a] < 0) a = skeleton.parents[a];
+    return a;
+  };
   for (int k : late_params) {
     hand_free[k] = 1;
-    if (!o.hand_wrists) continue;
-    int a = skeleton.parents[params[k].bones[0]];
-    while (a > 0 && free_index[a] < 0) a = skeleton.parents[a];
-    if (a > 0 && !params[free_index[a]].late) hand_free[free_index[a]] = 1;
+    int a = params[k].bones[0];
+    do a = fitted_above(a);
+    while (a > 0 && params[free_index[a]].late);
+    hand_wrist_of[k] = std::max(a, 0);
+    if (!o.hand_wrists || a <= 0) continue;
+    hand_free[free_index[a]] = 1;
+    hand_wrist_of[free_index[a]] = a;
+    const int t = fitted_above(a);
+    if (o.hand_forearm_twist && t > 0 && params[free_index[t]].twist) {
+      hand_free[free_index[t]] = 1;
+      hand_wrist_of[free_index[t]] = a;
+    }
   }
   std::vector<int> hand_params;
   for (int k = 0; k < nfree; ++k)
@@ -970,6 +998,14 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
           if (params[k].tuck) continue;  // held where the start put it
           const double w = std::sqrt(o.pose_prior * params[k].prior * double(params[k].bones.size()));
           add_joint_prior(problem, params[k].one_dof(), w, Eigen::Vector3d::Zero(), joint_aa[k]);
+          // The wrists' twist (a ball joint's rotation about its bone, approximated by the
+          // axis-angle's component along the rest axis: exact for a pure twist).
+          if (o.wrist_twist_prior > 0 && !params[k].late && !params[k].one_dof())
+            problem.AddResidualBlock(
+                new ceres::AutoDiffCostFunction<AxisPriorResidual, 1, 3>(new AxisPriorResidual{
+                    std::sqrt(o.wrist_twist_prior * double(params[k].bones.size())),
+                    bone_axis[params[k].bones[0]]}),
+                nullptr, joint_aa[k].data());
         }
         // Each finger's curl towards its hand's mean curl (the mean a free variable).
         std::vector<double> means;
@@ -1095,6 +1131,8 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
           if (params[k].tuck)
             joint_aa[k][0] =
                 s < o.hand_start_tucks_deg.size() ? o.hand_start_tucks_deg[s] * M_PI / 180.0 : 0.0;
+          if (!params[k].late && params[k].twist && s < o.hand_start_twists_deg.size())
+            joint_aa[k][0] += o.hand_start_twists_deg[s] * M_PI / 180.0;
         }
       run_hand_stage();
     };
@@ -1103,16 +1141,9 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
     } else {
       // The hand of each hand parameter (its wrist: the first fitted body bone above it) and of
       // each hand-region vertex (its heaviest bone's hand).
-      std::vector<int> hand_id(nfree, -1);
+      const std::vector<int>& hand_id = hand_wrist_of;
       std::vector<char> is_hand_bone(nb, 0);
-      for (int k : hand_params) {
-        int a = params[k].bones[0];
-        if (params[k].late)
-          do a = skeleton.parents[a];
-          while (a > 0 && (free_index[a] < 0 || params[free_index[a]].late));
-        hand_id[k] = std::max(a, 0);
-        is_hand_bone[hand_id[k]] = 1;
-      }
+      for (int k : hand_params) is_hand_bone[hand_id[k]] = 1;
       std::vector<int> hands;
       for (int b = 0; b < nb; ++b)
         if (is_hand_bone[b]) hands.push_back(b);

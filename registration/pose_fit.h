@@ -122,6 +122,17 @@ struct PoseFitOptions {
   // correspondences). 15 database scans, pose only, before the shape fit, hand stage on: distal
   // phalanx error median 33.1 → 15.6°, correspondence median 19.6 → 14.5 mm.
   bool hand_wrists = true;
+  // With hand_wrists, the hand stage also refits the forearms' twist (the twist parameter right
+  // above each wrist): a hand turned palm up turns the forearm (pronation), not the wrist. The
+  // body stage, anchored to the landmark-only pose, leaves the forearms untwisted (registered
+  // lowerarm02 twist within ±4° over 100 database scans, truth up to ±56°) and the refitted
+  // wrists took the twist instead (±50°, truth mostly within ±20°).
+  bool hand_forearm_twist = true;
+  // In the hand stage, a prior on each refitted wrist's twist about its bone (per rad², same
+  // units as pose_prior, on top of it): the twist goes to the forearm. 0: none.
+  // 100 database scans, pose stage, with the forearm twist and the twist starts: 0 / 3e4 / 1e5
+  // give flipped triangles 2 912 / 1 616 / 1 680, joint median 5.02 / 5.05 / 5.08°.
+  double wrist_twist_prior = 3e4;
   // Range of a finger's curl per phalanx (degrees; positive closes the finger towards the palm,
   // the side of the thumb). Without it fists were fitted with fingers bent backwards (a fist's
   // inside is not scanned). max ≤ min: unbounded.
@@ -144,16 +155,24 @@ struct PoseFitOptions {
   // the wrists where the body stage put them. Each hand keeps the result of the start that
   // ends closest to the scan (two-sided distance of the hand, capped at hand_accept_cap).
   // Empty: one start from the body stage's (open) fingers. A start with the same curl as an
-  // earlier one is that start's variant (differing in the thumbs' tuck): it is run and compared
-  // only for a hand that keeps the earlier start, against it.
-  std::vector<double> hand_start_curls_deg = {0.0, 80.0, 80.0};
+  // earlier one is that start's variant (differing in the thumbs' tuck or the forearms' twist):
+  // it is run and compared only for a hand that keeps the earlier start, against it.
+  std::vector<double> hand_start_curls_deg = {0.0, 80.0, 80.0, 0.0, 0.0};
   // Per start, the thumbs' tuck per bone (degrees; PoseParameter::tuck; missing entries: 0).
   // The third start is the fist with the thumb tucked across the palm (40° at each of its two
   // outer bones; fight03's fists: 18° and 65°), inside the fist, where the scanner does not see
   // it: a straight thumb sticks out of the fist, far from every scan point. 15 database scans,
   // full register: flipped triangles 390 -> 285 (s008_p3: 164 -> 59, the right thumb), every
   // other scan unchanged.
-  std::vector<double> hand_start_tucks_deg = {0.0, 0.0, 40.0};
+  std::vector<double> hand_start_tucks_deg = {0.0, 0.0, 40.0, 0.0, 0.0};
+  // Per start, the forearms' twist added to the body stage's (degrees; with
+  // hand_forearm_twist; missing entries: 0). The fourth and fifth starts are the open hand's
+  // variants with the forearm turned ±90°: on a near-cylindrical forearm the body stage cannot
+  // see the twist, and from the untwisted forearm the hand stage ended palm out in a local
+  // minimum (s017_p4, fight02: the right forearm 90° off, 2 605 flipped triangles after the pose
+  // stage; 28 with these starts). 100 database scans, pose stage, forearm twist refitted:
+  // flipped triangles 4 944 -> 2 912 (hands 2 352), pose stage 543 -> 832 s (wall, 2 jobs).
+  std::vector<double> hand_start_twists_deg = {0.0, 0.0, 0.0, 90.0, -90.0};
   // A start after the first is kept only if its distance is below (1 − margin) times the first
   // start's: leaving the open hand needs clear evidence. On the whole database (100 scans) with
   // 0.1, three open hands whose arm the body stage had misplaced (the hand's fit 10–12 mm off
@@ -218,8 +237,10 @@ const std::vector<PoseParameter>& bone_pose_parameters();
 // right wrist the open start alone refitted 58° off, flips 157 triangles instead of 744; the 15
 // scans' pose stage flips 345 (hands 239) instead of 932 (826), and the full registration 390
 // (hands 305) instead of 1087 (946). With the thumbs' tuck (a fist's variant start, tuck
-// parameters on finger1-2/1-3, never fitted) the full registration flips 285 (hands 200).
-// register --hand-stage on selects it.
+// parameters on finger1-2/1-3, never fitted) the full registration flips 285 (hands 200). With
+// the forearms' twist refitted in the hand stage, the wrists' twist restrained and the open
+// hand's two twisted variant starts, all 100 database scans (full registration) flip 1 992
+// triangles (hands 1 319) instead of 5 357 (4 687). register --hand-stage on selects it.
 const std::vector<PoseParameter>& hand_stage_pose_parameters();
 // `parameters` with the finger grasp groups (bones named "finger…") replaced by the hand stage's
 // per-finger curls and thumbs (as in hand_stage_pose_parameters()): e.g. 'bone' with a hand
