@@ -1223,6 +1223,11 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
           if (curl_of(e) == curl_of(s)) base = e;
         if (base != s && std::find(choice.begin(), choice.end(), int(base)) == choice.end())
           continue;
+        // A twisted start without a refitted forearm twist would repeat its base start.
+        if (s < o.hand_start_twists_deg.size() && o.hand_start_twists_deg[s] != 0.0 &&
+            std::none_of(hand_params.begin(), hand_params.end(),
+                         [&](int k) { return !params[k].late && params[k].twist; }))
+          continue;
         run_start(s);
         results[s] = joint_aa;
         Vs[s] = pose_template(tpl.V, skeleton, W, scale, current_pose());

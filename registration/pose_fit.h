@@ -128,7 +128,7 @@ struct PoseFitOptions {
   // lowerarm02 twist within ±4° over 100 database scans, truth up to ±56°) and the refitted
   // wrists took the twist instead (±50°, truth mostly within ±20°).
   bool hand_forearm_twist = true;
-  // In the hand stage, a prior on each refitted wrist's twist about its bone (per rad², same
+  // In the hand stage (with hand_wrists), a prior on each refitted wrist's twist about its bone (per rad², same
   // units as pose_prior, on top of it): the twist goes to the forearm. 0: none.
   // 100 database scans, pose stage, with the forearm twist and the twist starts: 0 / 3e4 / 1e5
   // give flipped triangles 2 912 / 1 616 / 1 680, joint median 5.02 / 5.05 / 5.08°.
@@ -166,8 +166,9 @@ struct PoseFitOptions {
   // other scan unchanged.
   std::vector<double> hand_start_tucks_deg = {0.0, 0.0, 40.0, 0.0, 0.0};
   // Per start, the forearms' twist added to the body stage's (degrees; with
-  // hand_forearm_twist; missing entries: 0). The fourth and fifth starts are the open hand's
-  // variants with the forearm turned ±90°: on a near-cylindrical forearm the body stage cannot
+  // hand_forearm_twist, else such a start is skipped; missing entries: 0). The fourth and
+  // fifth starts are the open hand's variants with the forearm turned ±90°: on a
+  // near-cylindrical forearm the body stage cannot
   // see the twist, and from the untwisted forearm the hand stage ended palm out in a local
   // minimum (s017_p4, fight02: the right forearm 90° off, 2 605 flipped triangles after the pose
   // stage; 28 with these starts). 100 database scans, pose stage, forearm twist refitted:
