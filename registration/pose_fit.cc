@@ -1162,10 +1162,32 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
       }
       const double cap = o.hand_accept_cap > 0 ? o.hand_accept_cap : 30.0;
       const int nhands = int(hands.size());
-      std::vector<std::vector<Eigen::Vector3d>> results(nstarts);
-      std::vector<Eigen::MatrixX3d> Vs(nstarts);
+      // Slot nstarts: the body stage's hand (no hand stage), see hand_compare_body_stage.
+      std::vector<std::vector<Eigen::Vector3d>> results(nstarts + 1);
+      std::vector<Eigen::MatrixX3d> Vs(nstarts + 1);
       // For each result, the hand of every scan point's closest template vertex (within cap).
-      std::vector<std::vector<int>> near_hand(nstarts);
+      std::vector<std::vector<int>> near_hand(nstarts + 1);
+      auto record = [&](size_t s) {
+        results[s] = joint_aa;
+        Vs[s] = pose_template(tpl.V, skeleton, W, scale, current_pose());
+        near_hand[s].assign(scan.P.rows(), -1);
+        PointIndex vertex_index(Vs[s]);
+        tbb::parallel_for(0, int(scan.P.rows()), [&](int j) {
+          double d2 = 0;
+          const int i = vertex_index.nearest(scan.P.row(j).transpose(), &d2);
+          if (i >= 0 && vertex_hand[i] >= 0 && d2 <= cap * cap) near_hand[s][j] = vertex_hand[i];
+        });
+      };
+      // The scan points compared for hand h between results a and b: those whose closest
+      // template vertex (within cap) is on hand h in a, or, where none is on a hand in a, in b.
+      auto compared_points = [&](int h, size_t a, size_t b) {
+        std::vector<int> set;
+        for (Eigen::Index j = 0; j < scan.P.rows(); ++j) {
+          const int first = near_hand[a][j] >= 0 ? near_hand[a][j] : near_hand[b][j];
+          if (first == h) set.push_back(int(j));
+        }
+        return set;
+      };
       // Two-sided distance of hand h in result s against the scan points `set`, after the
       // translation that best aligns it (a few alternating steps): the pose stage cannot move
       // the wrist, and a hand 10 mm off (s003_p0) otherwise favours a compact fist over the open
@@ -1229,31 +1251,31 @@ PoseFitResult fit_pose(const Mesh& tpl, const Skeleton& skeleton, const SkinWeig
                          [&](int k) { return !params[k].late && params[k].twist; }))
           continue;
         run_start(s);
-        results[s] = joint_aa;
-        Vs[s] = pose_template(tpl.V, skeleton, W, scale, current_pose());
-        near_hand[s].assign(scan.P.rows(), -1);
-        {
-          PointIndex vertex_index(Vs[s]);
-          tbb::parallel_for(0, int(scan.P.rows()), [&](int j) {
-            double d2 = 0;
-            const int i = vertex_index.nearest(scan.P.row(j).transpose(), &d2);
-            if (i >= 0 && vertex_hand[i] >= 0 && d2 <= cap * cap) near_hand[s][j] = vertex_hand[i];
-          });
-        }
+        record(s);
         if (s == 0) continue;
         for (int h = 0; h < nhands; ++h) {
           const size_t w = size_t(choice[h]);
           if (base != s && base != w) continue;
-          std::vector<int> set;
-          for (Eigen::Index j = 0; j < scan.P.rows(); ++j) {
-            const int first = near_hand[w][j] >= 0 ? near_hand[w][j] : near_hand[s][j];
-            if (first == h) set.push_back(int(j));
-          }
+          const std::vector<int> set = compared_points(h, w, s);
           const double cw = start_cost(h, w, set), cs = start_cost(h, s, set);
           if (!(cs == cs) || !(cw == cw)) continue;
           sum.hand_start_comparisons.push_back({h, int(w), int(s), cw, cs});
           const double compared_w = w == 0 ? cw : cw / (1.0 - o.hand_start_margin);
           if (cs / (1.0 - o.hand_start_margin) < compared_w) choice[h] = int(s);
+        }
+      }
+      if (o.hand_compare_body_stage) {
+        // The chosen result of each hand against the body stage's hand, on the same terms
+        // (margin 0): the hand stage must bring the hand closer to the scan to be kept.
+        joint_aa = body_joints;
+        record(nstarts);
+        for (int h = 0; h < nhands; ++h) {
+          const size_t w = size_t(choice[h]);
+          const std::vector<int> set = compared_points(h, w, nstarts);
+          const double cw = start_cost(h, w, set), cb = start_cost(h, nstarts, set);
+          if (!(cw == cw) || !(cb == cb)) continue;
+          sum.hand_start_comparisons.push_back({h, int(w), int(nstarts), cw, cb});
+          if (cb <= cw) choice[h] = int(nstarts);
         }
       }
       joint_aa = results[0];

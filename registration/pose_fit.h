@@ -183,6 +183,13 @@ struct PoseFitOptions {
   // The starts are compared after aligning each hand to the scan by a translation, found in
   // this many alternating closest-point steps (0: as posed).
   int hand_start_align_steps = 5;
+  // With several starts, each hand's chosen result is last compared, the same way (margin 0),
+  // with the body stage's hand (fingers at rest, wrist and forearm twist as the body stage left
+  // them): the hand stage's result is kept only if it is closer to the scan. The hand stage's
+  // own correspondences can lead it away from a hand the body stage had right: s019_p0 (the
+  // standard pose, fingers straight), pose stage: the left forearm twisted 14.6°, wrist bent,
+  // little finger curled 80°; hand two-sided distance 7.6 mm against 5.6 mm before the stage.
+  bool hand_compare_body_stage = true;
 };
 
 struct PoseFitSummary {
@@ -204,10 +211,12 @@ struct PoseFitSummary {
   double hand_accept_after = 0.0;
   int hand_reverted = 0;
   // Per hand (wrist order in the skeleton), the index of the start kept
-  // (PoseFitOptions::hand_start_curls_deg); empty with a single start.
+  // (PoseFitOptions::hand_start_curls_deg), or the number of starts for the body stage's hand
+  // (PoseFitOptions::hand_compare_body_stage); empty with a single start.
   std::vector<int> hand_start_choice;
   // Every comparison of the start choice: hand, incumbent start, challenger start and their
-  // two-sided distances on the compared scan points (mm, after the translation alignment).
+  // two-sided distances on the compared scan points (mm, after the translation alignment);
+  // challenger = the number of starts: the body stage's hand.
   struct HandStartComparison {
     int hand = 0, incumbent = 0, challenger = 0;
     double incumbent_mm = 0, challenger_mm = 0;

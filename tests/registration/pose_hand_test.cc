@@ -151,6 +151,19 @@ struct HandCase {
     return fit_pose(body.mesh, body.skeleton, body.weights, scan, landmarks, o, summary);
   }
 
+  // A fit with its summary and errors (as errors()).
+  struct Measured {
+    PoseFitResult r;
+    PoseFitSummary s;
+    double median = 0, max = 0, hand_mm = 0;
+  };
+  Measured measure(const PoseFitOptions& o) const {
+    Measured m;
+    m.r = fit(o, &m.s);
+    errors(m.r, &m.median, &m.max, &m.hand_mm);
+    return m;
+  }
+
   // The largest world-orientation error over the named bones (degrees).
   double max_bone_error(const PoseFitResult& r, std::initializer_list<const char*> bones) const {
     const Skeleton& sk = body.skeleton;
@@ -370,8 +383,10 @@ TEST(PoseFitHands, OpenHandsKeepTheOpenStart) {
   std::printf("open hands, other subject, pillar scan: starts kept %d/%d, phalanx median %.1f, "
               "max %.1f deg, %.1f mm, %d flipped\n", s.hand_start_choice[0], s.hand_start_choice[1],
               med, max, mm, c.flipped(r));
-  EXPECT_EQ(s.hand_start_choice[0], 0);  // neither the fist nor the fist with tucked thumbs
-  EXPECT_EQ(s.hand_start_choice[1], 0);
+  // Neither the fist nor the fist with tucked thumbs: the open start or the body stage's
+  // (open) hand, index 5 (PoseFitOptions::hand_compare_body_stage).
+  for (int h = 0; h < 2; ++h)
+    EXPECT_TRUE(s.hand_start_choice[h] == 0 || s.hand_start_choice[h] == 5) << h;
   EXPECT_LT(med, 10.0);  // measured 7.9 (a fist: > 60)
   EXPECT_LE(c.flipped(r), 3);  // measured 0
 }
@@ -408,6 +423,34 @@ TEST(PoseFitHands, TwistStartsTurnAPalmOutHand) {
   EXPECT_LT(e1, 20.0);  // measured 17.8°
   EXPECT_LE(f1, 10);    // measured 0
   EXPECT_LT(f1, f0);
+}
+
+// The hand stage's result is kept only if it brings the hand closer to the scan than the body
+// stage's hand (PoseFitOptions::hand_compare_body_stage). Open hands fitted from fist starts
+// only (a start set that leads every hand astray) end as fists; the comparison must give back
+// the body stage's open hands.
+TEST(PoseFitHands, BodyStageHandWhenTheHandStageGoesAstray) {
+  const HandCase c(false, false, -60000);
+  PoseFitOptions o;
+  o.parameters = hand_stage_pose_parameters();
+  ASSERT_TRUE(o.hand_compare_body_stage);  // on by default
+  o.hand_start_curls_deg = {80.0, 80.0};   // the fist, and the fist with tucked thumbs
+  o.hand_start_tucks_deg = {0.0, 40.0};
+  o.hand_start_twists_deg = {};
+  PoseFitOptions without = o;
+  without.hand_compare_body_stage = false;
+  const HandCase::Measured m0 = c.measure(without), m1 = c.measure(o);
+  ASSERT_EQ(m1.s.hand_start_choice.size(), 2u);
+  std::printf("open hands from fist starts: without the comparison phalanx median %.1f deg, hands "
+              "%.1f mm, %d flipped; with it (kept %d/%d) %.1f deg, %.1f mm, %d flipped\n",
+              m0.median, m0.hand_mm, c.flipped(m0.r), m1.s.hand_start_choice[0],
+              m1.s.hand_start_choice[1], m1.median, m1.hand_mm, c.flipped(m1.r));
+  EXPECT_GT(m0.median, 60.0);  // fists: measured 108.5°, 50.2 mm, 1 176 flipped
+  EXPECT_EQ(m1.s.hand_start_choice[0], 2);  // index 2 = the number of starts: the body stage
+  EXPECT_EQ(m1.s.hand_start_choice[1], 2);
+  EXPECT_LT(m1.median, 5.0);  // measured 1.1°, 1.1 mm, 0 flipped
+  EXPECT_LT(m1.hand_mm, 5.0);
+  EXPECT_LE(c.flipped(m1.r), 3);
 }
 
 }  // namespace
