@@ -91,6 +91,7 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
     ShapeFitOptions so = options.shape;
     so.unsigned_normals = po.unsigned_normals;
     MacroSettings settings = tpl.shape_start;
+    double moved_last = 0;
     for (int round = 0; round < rounds; ++round) {
       if (!given_start) fit_poses(round);
       ShapeFitSummary ss;
@@ -119,10 +120,13 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
       sum.shape_rounds = round + 1;
       po.initial_scale = r.pose.scale;
       if (options.shape_fixes_scale) po.fit_scale = false;
+      moved_last = moved;
       if (moved < options.shape_convergence) break;
     }
     r.shape = settings;
-    if (options.proportions_with_shape && !r.proportions.segment.empty() && !given_start) {
+    if (options.final_pose_fit && !given_start && moved_last >= options.shape_convergence) {
+      fit_poses(rounds - 1);
+    } else if (options.proportions_with_shape && !r.proportions.segment.empty() && !given_start) {
       // The last shape fit's pose is on the unproportioned body: pose the proportioned one.
       fit_poses(rounds - 1);
     }
