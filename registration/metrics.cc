@@ -63,15 +63,18 @@ RegistrationErrors registration_errors(const Eigen::MatrixX3d& reg, const Eigen:
   e.vertex_errors = (reg - truth).rowwise().norm();
   e.correspondence_mean = e.vertex_errors.mean();
   e.correspondence_max = e.vertex_errors.maxCoeff();
-  const Eigen::VectorXd surf = point_to_mesh_distance(reg, truth, F);
+  e.surface_errors = point_to_mesh_distance(reg, truth, F);
+  const Eigen::VectorXd& surf = e.surface_errors;
   e.surface_mean = surf.mean();
   e.surface_max = surf.maxCoeff();
   PointIndex scan_index(scan_points);
   double hole_sum = 0;
+  e.hole_vertex.assign(truth.rows(), 0);
   for (Eigen::Index i = 0; i < truth.rows(); ++i) {
     double d2 = 0;
     scan_index.nearest(truth.row(i).transpose(), &d2);
     if (d2 > hole_distance * hole_distance) {
+      e.hole_vertex[i] = 1;
       ++e.hole_vertices;
       hole_sum += surf(i);
       e.hole_max = std::max(e.hole_max, surf(i));
@@ -79,8 +82,14 @@ RegistrationErrors registration_errors(const Eigen::MatrixX3d& reg, const Eigen:
   }
   e.hole_mean = e.hole_vertices ? hole_sum / e.hole_vertices : 0.0;
   const Eigen::MatrixX3d Nr = face_normals(reg, F), Nt = face_normals(truth, F);
+  e.flipped.assign(F.rows(), 0);
   for (Eigen::Index f = 0; f < F.rows(); ++f)
-    if (Nr.row(f).dot(Nt.row(f)) < 0) ++e.flipped_triangles;
+    if (Nr.row(f).dot(Nt.row(f)) < 0) {
+      e.flipped[f] = 1;
+      ++e.flipped_triangles;
+      e.flipped_unseen +=
+          e.hole_vertex[F(f, 0)] && e.hole_vertex[F(f, 1)] && e.hole_vertex[F(f, 2)];
+    }
   return e;
 }
 

@@ -30,7 +30,13 @@ struct RegistrationErrors {
   double hole_mean = 0;             // surface distance over those (mm)
   double hole_max = 0;
   int flipped_triangles = 0;        // triangles whose normal opposes the truth's (dot < 0)
+  // Of those, triangles the scanner did not see: all three vertices are hole vertices (their
+  // true position > hole_distance from every scan point). The scan says nothing about them.
+  int flipped_unseen = 0;
+  std::vector<char> hole_vertex;    // #V: 1 where the true position is a hole vertex
+  std::vector<char> flipped;        // #F: 1 where the triangle is flipped against the truth
   Eigen::VectorXd vertex_errors;    // #V correspondence errors (mm)
+  Eigen::VectorXd surface_errors;   // #V distances registered vertex → truth surface (mm)
 };
 
 // reg, truth: #V by 3 on the same topology F; scan_points: the scan (for the hole mask).

@@ -74,5 +74,36 @@ TEST(LocallyFoldedTriangles, FindsExactlyTheTrianglesADraggedVertexTurnsOver) {
   }
 }
 
+// registration_errors splits the flipped triangles by what the scan saw: a scan with a hole
+// band around y = 300 (rings 28–32 missing) makes those rings' vertices hole vertices; a vertex
+// dragged past the next ring flips two triangles, counted unseen inside the band and seen
+// outside it. Each registration's only error is the dragged vertex.
+TEST(RegistrationErrors, SplitsFlippedTrianglesIntoSeenAndUnseen) {
+  const test::Limb limb = test::limb();
+  const Eigen::MatrixX3d& T = limb.mesh.V;
+  const Eigen::MatrixX3i& F = limb.mesh.F;
+  std::vector<int> seen;
+  for (int i = 0; i < T.rows(); ++i)
+    if (T(i, 1) < 275.0 || T(i, 1) > 325.0) seen.push_back(i);
+  Eigen::MatrixX3d scan(seen.size(), 3);
+  for (size_t k = 0; k < seen.size(); ++k) scan.row(k) = T.row(seen[k]);
+  for (const int ring : {10, 30}) {
+    Eigen::MatrixX3d R = T;
+    const int v = ring * 24 + 5;
+    R(v, 1) += 12.0;
+    const RegistrationErrors e = registration_errors(R, T, F, scan);
+    EXPECT_EQ(e.hole_vertices, 5 * 24);
+    EXPECT_EQ(int(std::count(e.hole_vertex.begin(), e.hole_vertex.end(), 1)), 5 * 24);
+    EXPECT_EQ(e.flipped_triangles, 2) << "vertex dragged in ring " << ring;
+    EXPECT_EQ(int(std::count(e.flipped.begin(), e.flipped.end(), 1)), 2);
+    EXPECT_EQ(e.flipped_unseen, ring == 30 ? 2 : 0) << "vertex dragged in ring " << ring;
+    EXPECT_NEAR(e.vertex_errors(v), 12.0, 1e-9);
+    EXPECT_NEAR(e.correspondence_max, 12.0, 1e-9);
+    // The hole error is a distance to the true surface: the vertex slid along the tube, so
+    // neither registration has one, though the ring-30 vertex is in the hole.
+    EXPECT_LT(e.hole_max, 1e-6);
+  }
+}
+
 }  // namespace
 }  // namespace bodymodel

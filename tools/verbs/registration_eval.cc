@@ -30,7 +30,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct EvalArgs {
-  std::string db, reg, csv;
+  std::string db, reg, csv, flipped_csv, hole_csv;
   bool per_joint = false, flipped_regions = false;
 };
 
@@ -88,6 +88,12 @@ BODYMODEL_VERB(add_eval_registration_verb) {
   cmd->add_flag("--flipped-regions", a->flipped_regions,
                 "Also print where the flipped triangles are (body region of the bone with the "
                 "largest weight at the triangle's vertices)");
+  cmd->add_option("--flipped-csv", a->flipped_csv,
+                  "Also write every flipped triangle (scan, triangle, region, bone, angle between "
+                  "its normal and the truth's, areas against rest, unseen, truth folded, centroid)");
+  cmd->add_option("--hole-csv", a->hole_csv,
+                  "Also write every hole vertex more than 10 mm from the true surface (scan, "
+                  "vertex, region, bone, distance, correspondence error)");
   cmd->callback([a] {
     const fs::path db = a->db, reg = a->reg;
     if (!fs::is_directory(db / "truth"))
@@ -113,7 +119,7 @@ BODYMODEL_VERB(add_eval_registration_verb) {
         "scan_id,correspondence_mean_mm,correspondence_p95_mm,correspondence_max_mm,"
         "surface_mean_mm,surface_max_mm,hole_vertices,hole_mean_mm,hole_max_mm,"
         "flipped_triangles,joint_median_deg,joint_max_deg,finger_median_deg,flipped_hands,"
-        "flipped_where_truth_folded,folded_in_registration\n";
+        "flipped_where_truth_folded,folded_in_registration,flipped_unseen\n";
     std::vector<double> scan_means, all_vertices, surface_means, hole_max, joint_all;
     std::vector<double> scan_joint_medians;
     std::vector<std::vector<double>> per_joint(joints.size()), per_swing(joints.size()),
@@ -132,15 +138,27 @@ BODYMODEL_VERB(add_eval_registration_verb) {
     std::vector<double> finger_all;
     int flipped_total = 0, evaluated = 0, missing = 0;
     int flipped_truth_folded_total = 0, folded_registration_total = 0, folded_truth_total = 0;
-    std::map<std::string, int> flipped_by_region;
+    int flipped_unseen_total = 0, flipped_seen_unfolded_total = 0;
+    std::map<std::string, int> flipped_by_region, flipped_unseen_by_region;
     std::vector<std::string> vertex_region;  // always: the per-scan flipped_hands column
+    std::vector<int> vertex_bone;              // bone with the largest weight at each vertex
+    std::string flipped_rows =
+        "scan_id,triangle,region,bone,angle_deg,truth_area_ratio,registered_area_ratio,unseen,"
+        "truth_folded,x,y,z\n";
+    std::string hole_rows = "scan_id,vertex,region,bone,surface_mm,correspondence_mm\n";
+    const Eigen::VectorXd rest_area = face_areas(body.mesh.V, body.mesh.F);
     {
       const SkinWeights& W = body.weights;
       vertex_region.assign(W.rows(), "torso/pelvis");
+      vertex_bone.assign(W.rows(), 0);
       for (int i = 0; i < W.outerSize(); ++i) {
         double best = 0;
         for (SkinWeights::InnerIterator it(W, i); it; ++it)
-          if (it.value() > best) best = it.value(), vertex_region[i] = bone_region(sk.names[it.col()]);
+          if (it.value() > best) {
+            best = it.value();
+            vertex_region[i] = bone_region(sk.names[it.col()]);
+            vertex_bone[i] = int(it.col());
+          }
       }
     }
     double worst_hole = 0;
@@ -167,23 +185,45 @@ BODYMODEL_VERB(add_eval_registration_verb) {
       hole_max.push_back(e.hole_max);
       worst_hole = std::max(worst_hole, e.hole_max);
       flipped_total += e.flipped_triangles;
+      if (!a->hole_csv.empty())
+        for (Eigen::Index i = 0; i < t.V.rows(); ++i)
+          if (e.hole_vertex[i] && e.surface_errors(i) > 10.0)
+            hole_rows += fmt::format("{},{},{},{},{:.2f},{:.2f}\n", id, i, vertex_region[i],
+                                     sk.names[vertex_bone[i]], e.surface_errors(i),
+                                     e.vertex_errors(i));
       int flipped_hands = 0, flipped_truth_folded = 0, folded_registration = 0;
       {
         const Eigen::MatrixX3d Nr = face_normals(r.V, t.F), Nt = face_normals(t.V, t.F);
+        const Eigen::VectorXd reg_area = face_areas(r.V, t.F), truth_area = face_areas(t.V, t.F);
         const std::vector<char> truth_folded = locally_folded_triangles(t.V, body.mesh.V, t.F);
         const std::vector<char> reg_folded = locally_folded_triangles(r.V, body.mesh.V, t.F);
         folded_registration = int(std::count(reg_folded.begin(), reg_folded.end(), 1));
         folded_truth_total += int(std::count(truth_folded.begin(), truth_folded.end(), 1));
         for (Eigen::Index f = 0; f < t.F.rows(); ++f)
-          if (Nr.row(f).dot(Nt.row(f)) < 0) {
+          if (e.flipped[f]) {
             flipped_truth_folded += truth_folded[f];
+            const bool unseen = e.hole_vertex[t.F(f, 0)] && e.hole_vertex[t.F(f, 1)] &&
+                                e.hole_vertex[t.F(f, 2)];
+            flipped_seen_unfolded_total += !unseen && !truth_folded[f];
             // Region most of the triangle's vertices are in.
             std::map<std::string, int> votes;
             for (int c = 0; c < 3; ++c) ++votes[vertex_region[t.F(f, c)]];
             auto best = std::max_element(votes.begin(), votes.end(),
                                          [](const auto& x, const auto& y) { return x.second < y.second; });
             ++flipped_by_region[best->first];
+            flipped_unseen_by_region[best->first] += unseen;
             flipped_hands += best->first == "hands";
+            if (!a->flipped_csv.empty()) {
+              const Eigen::RowVector3d c =
+                  (t.V.row(t.F(f, 0)) + t.V.row(t.F(f, 1)) + t.V.row(t.F(f, 2))) / 3.0;
+              const double cosine = std::clamp(Nr.row(f).dot(Nt.row(f)), -1.0, 1.0);
+              const double ra = std::max(rest_area(f), 1e-12);
+              flipped_rows += fmt::format(
+                  "{},{},{},{},{:.1f},{:.3f},{:.3f},{},{},{:.1f},{:.1f},{:.1f}\n", id, f, best->first,
+                  sk.names[vertex_bone[t.F(f, 0)]], std::acos(cosine) * 180.0 / M_PI,
+                  truth_area(f) / ra, reg_area(f) / ra, int(unseen), int(truth_folded[f]), c.x(),
+                  c.y(), c.z());
+            }
           }
       }
       double jmed = std::nan(""), jmax = std::nan(""), fmed = std::nan("");
@@ -208,12 +248,13 @@ BODYMODEL_VERB(add_eval_registration_verb) {
         scan_joint_medians.push_back(jmed);
       }
       flipped_truth_folded_total += flipped_truth_folded;
+      flipped_unseen_total += e.flipped_unseen;
       folded_registration_total += folded_registration;
-      csv += fmt::format("{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{:.3f},{:.3f},{},{:.3f},{:.3f},{:.3f},{},{},{}\n",
+      csv += fmt::format("{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{:.3f},{:.3f},{},{:.3f},{:.3f},{:.3f},{},{},{},{}\n",
                          id, e.correspondence_mean, percentile(verr, 0.95),
                          e.correspondence_max, e.surface_mean, e.surface_max, e.hole_vertices,
                          e.hole_mean, e.hole_max, e.flipped_triangles, jmed, jmax, fmed, flipped_hands,
-                         flipped_truth_folded, folded_registration);
+                         flipped_truth_folded, folded_registration, e.flipped_unseen);
       ++evaluated;
     }
     bar.finish(fmt::format("{} scans evaluated", evaluated));
@@ -221,6 +262,8 @@ BODYMODEL_VERB(add_eval_registration_verb) {
       throw InputError("'" + a->reg + "': no registered scans of " + a->db + " found");
     if (missing) cli::warn(fmt::format("{} scans of the database have no registration", missing));
     write_text_file(a->csv.empty() ? reg / "evaluation.csv" : fs::path(a->csv), csv);
+    if (!a->flipped_csv.empty()) write_text_file(a->flipped_csv, flipped_rows);
+    if (!a->hole_csv.empty()) write_text_file(a->hole_csv, hole_rows);
     fmt::print("registration vs truth, {} scans\n", evaluated);
     fmt::print("  correspondence error   median of per-scan means {:8.3f} mm   (target <= 5)\n",
                percentile(scan_means, 0.5));
@@ -236,6 +279,10 @@ BODYMODEL_VERB(add_eval_registration_verb) {
     fmt::print("    of which the truth itself is folded there   {}   (linear blend skinning collapsed "
                "a crease of the synthetic body: triangle against its 2-ring, unlike at rest)\n",
                flipped_truth_folded_total);
+    fmt::print("    of which the scanner did not see them       {}   (all three vertices' true "
+               "positions > 5 mm from every scan point)\n",
+               flipped_unseen_total);
+    fmt::print("    seen, where the truth is not folded         {}\n", flipped_seen_unfolded_total);
     fmt::print("  locally folded         {} in the registrations, {} in the truths   (triangle "
                "against its 2-ring, unlike at rest: needs no truth)\n",
                folded_registration_total, folded_truth_total);
@@ -245,7 +292,8 @@ BODYMODEL_VERB(add_eval_registration_verb) {
                  percentile(joint_all, 0.5), percentile(joint_all, 0.95), joint_all.size());
     if (a->flipped_regions)
       for (const auto& [region, count] : flipped_by_region)
-        fmt::print("    flipped in {:<14} {}\n", region, count);
+        fmt::print("    flipped in {:<14} {:5}   ({} unseen)\n", region, count,
+                   flipped_unseen_by_region[region]);
     if (a->per_joint && !joint_all.empty())
       for (size_t j = 0; j < joints.size(); ++j)
         fmt::print("    {:<14} median {:6.2f} deg, max {:6.2f} deg   (swing median {:6.2f}, "
