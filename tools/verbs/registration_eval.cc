@@ -1,4 +1,5 @@
 // bodymodel eval-registration DB/ REG/ [--csv FILE] [--per-joint] [--flipped-regions]
+//                             [--flipped-csv FILE] [--hole-csv FILE]
 //
 // Compares registered meshes and poses with the database's ground truth (EVALUATION.md,
 // registration): correspondence error (per-scan mean, median over scans, 95th percentile of all
