@@ -249,8 +249,8 @@ TEST(GltfExport, BadInputIsRejectedWithAReason) {
 }
 
 // The Khronos validator (npm gltf-validator) finds no errors in the exported file. Runs when
-// `node` can load the package (NODE_PATH, or BODYMODEL_GLTF_VALIDATOR = its node_modules folder);
-// skipped otherwise.
+// `node` can load the package (NODE_PATH, or BODYMODEL_GLTF_VALIDATOR = its node_modules folder;
+// scripts/test.sh installs it into build/npm and sets the latter); skipped otherwise.
 TEST(GltfExport, KhronosValidatorReportsNoErrors) {
   const char* modules = std::getenv("BODYMODEL_GLTF_VALIDATOR");
   const char* node_path = std::getenv("NODE_PATH");
