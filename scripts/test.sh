@@ -34,7 +34,7 @@ if [ -z "${BODYMODEL_GLTF_VALIDATOR:-}" ]; then
     npm install --prefix "$build/npm" --no-audit --no-fund --silent gltf-validator@2.0.0-dev.3.10 >/dev/null 2>&1 ||
       echo "test.sh: npm could not install gltf-validator; the glTF validator test will be skipped" >&2
   fi
-  [ -d "$validator/gltf-validator" ] && export BODYMODEL_GLTF_VALIDATOR="$validator"
+  if [ -d "$validator/gltf-validator" ]; then export BODYMODEL_GLTF_VALIDATOR="$validator"; fi
 fi
 cmake --build "$build" -j "${BODYMODEL_JOBS:-2}"
 cd "$build"
