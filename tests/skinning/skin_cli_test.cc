@@ -37,7 +37,8 @@ TEST(SkinCli, EvalWritesTheJackaTableAndRejectsMismatchedFrames) {
   std::ifstream csv(dir / "report" / "skinning.csv");
   std::string header, line;
   std::getline(csv, header);
-  EXPECT_EQ(header, "method,split,mean_geometric,max_geometric,mean_normal_deg,max_normal_deg,rms_vertex");
+  EXPECT_EQ(header,
+            "method,split,mean_geometric,max_geometric,mean_normal_deg,max_normal_deg,rms_vertex,e_rms,frames,fit_cpu_s");
   int rows = 0;
   while (std::getline(csv, line)) {
     ++rows;
@@ -49,8 +50,10 @@ TEST(SkinCli, EvalWritesTheJackaTableAndRejectsMismatchedFrames) {
     // The data are exact 3-bone LBS: every method reproduces them to well below the tube's size.
     EXPECT_LT(std::stod(mean), 0.01) << line;
   }
-  EXPECT_EQ(rows, 6);
+  EXPECT_EQ(rows, 14);   // 7 methods (ssd, dqs, as, mwe, psd, eigenskin, quadratic) × train, unseen
   EXPECT_TRUE(std::filesystem::exists(dir / "report" / "unseen_error_mwe.ply"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "report" / "unseen_error_quadratic.ply"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "report" / "skinning_cv.csv"));
   // A frame with a different vertex count: one clear error line, exit code 2.
   write_mesh(dir / "seq" / "frame_99.obj", t.V.topRows(t.V.rows() - 2), Eigen::MatrixX3i(t.F.topRows(10)));
   EXPECT_EQ(run_cli("skin eval " + (dir / "seq").string() + " --out " +
