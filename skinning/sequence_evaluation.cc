@@ -224,13 +224,39 @@ FittedModel fit_sequence_method(SkinningModel method, const PreparedSequence& pr
   return m;
 }
 
+void check_evaluation_request(int nf, const std::vector<int>& train_in, const SequenceEvaluationOptions& options,
+                              bool bones_recovered) {
+  if (options.methods.empty()) throw InputError("skinning evaluation: no method given");
+  const std::set<int> train(train_in.begin(), train_in.end());
+  if (train.empty()) throw InputError("skinning evaluation: no training frames");
+  for (int t : train)
+    if (t < 0 || t >= nf)
+      throw InputError("skinning evaluation: training frame " + std::to_string(t) + " outside 0.." + std::to_string(nf - 1));
+  if (bones_recovered && !train.count(options.rest_frame))
+    throw InputError("skinning evaluation: the rest frame (" + std::to_string(options.rest_frame) +
+                     ") must be a training frame: its geometry becomes the rig's rest shape");
+  const int count = static_cast<int>(train.size());
+  const std::vector<std::vector<int>> folds = cv_folds(count >= 2 ? count : 2, options.cv);
+  for (SkinningModel m : options.methods) {
+    if (count < minimum_examples(m))
+      throw InputError("skinning evaluation: " + skinning_model_name(m) + " needs at least " +
+                       std::to_string(minimum_examples(m)) + " training frames, " + std::to_string(count) + " given");
+    if (m == SkinningModel::ssd || m == SkinningModel::dqs) continue;
+    for (const auto& held : folds)
+      if (count - static_cast<int>(held.size()) < minimum_examples(m))
+        throw InputError("cross-validation of " + skinning_model_name(m) + ": a fold leaves " +
+                         std::to_string(count - static_cast<int>(held.size())) + " training example(s), the method needs " +
+                         std::to_string(minimum_examples(m)) + " (use fewer folds or more training frames)");
+  }
+}
+
 SequenceEvaluation evaluate_skinning_sequence(const std::vector<Eigen::MatrixX3d>& frames,
                                               const Eigen::MatrixX3i& F, const std::vector<int>& train,
                                               const SequenceEvaluationOptions& options,
                                               const std::vector<BoneTransforms>& given,
                                               const ProgressCallback& progress) {
   const auto t0 = std::chrono::steady_clock::now();
-  if (options.methods.empty()) throw InputError("skinning evaluation: no method given");
+  check_evaluation_request(static_cast<int>(frames.size()), train, options, given.empty());
   ProgressCallback sub = progress ? ProgressCallback([&](double f, std::string_view w) {
     return progress(0.3 * f, w);
   }) : ProgressCallback();

@@ -82,6 +82,12 @@ struct SequenceEvaluation {
   double seconds = 0;
 };
 
+// Checks, before any work, that every method can be fitted: enough training frames for each
+// (minimum_examples) and for each cross-validation fold, training indices in range, a rest frame
+// among them when bones are recovered. Throws InputError naming the method or frame.
+void check_evaluation_request(int frame_count, const std::vector<int>& train, const SequenceEvaluationOptions& options,
+                              bool bones_recovered = true);
+
 // frames: #frames meshes (#V by 3, same order) sharing faces F; train: indices of training frames.
 // transforms: per-frame bone transforms, or empty to recover them (options.recovery.bones).
 SequenceEvaluation evaluate_skinning_sequence(const std::vector<Eigen::MatrixX3d>& frames,

@@ -233,6 +233,7 @@ void run_eval(const EvalArgs& a) {
   }
   opt.cv = parse_cv(a.cv, future);
 
+  for (const auto& fold : folds) check_evaluation_request(nf, fold, opt);
   ensure_directory(a.out);
   if (a.save_posed) {
     if (a.leave_one_out) throw InputError("--save-posed needs a single split (not --leave-one-out)");

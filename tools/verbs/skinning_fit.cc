@@ -79,6 +79,14 @@ void run_fit(const FitArgs& a) {
     throw InputError(a.poses + ": " + skinning_model_name(method) + " needs at least " +
                      std::to_string(minimum_examples(method)) + " example poses, the folder has " +
                      std::to_string(seq.frames.size()));
+  if (cv.scheme != CvScheme::none && method != SkinningModel::ssd && method != SkinningModel::dqs) {
+    const int count = static_cast<int>(seq.frames.size()) + (a.bones > 0 ? 1 : 0);   // + the rest frame
+    for (const auto& held : cv_folds(count, cv))
+      if (count - static_cast<int>(held.size()) < minimum_examples(method))
+        throw InputError("--cv " + a.cv + ": a fold leaves " + std::to_string(count - static_cast<int>(held.size())) +
+                         " example pose(s), " + skinning_model_name(method) + " needs " +
+                         std::to_string(minimum_examples(method)) + " (use fewer folds or --cv none)");
+  }
   ProgressBar bar("skin fit");
   auto cb = bar.callback();
   PreparedSequence prep;
