@@ -26,6 +26,7 @@
 #include <string>
 
 #include "core/data_path.h"
+#include "core/error.h"
 #include "core/io/mesh_io.h"
 #include "skinning/sequence_evaluation.h"
 

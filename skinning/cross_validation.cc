@@ -142,30 +142,32 @@ CrossValidationResult CrossValidator::select(SkinningModel model, const ModelFit
           }
       break;
     case SkinningModel::psd:
-    case SkinningModel::eigenskin:
-    case SkinningModel::quadratic: {
-      const std::vector<int> modes = model == SkinningModel::eigenskin
-                                         ? or_first(c.eigenskin_modes, start.pose_space.eigenskin_modes)
-                                         : std::vector<int>{start.pose_space.eigenskin_modes};
-      const std::vector<double> qr = model == SkinningModel::quadratic
-                                         ? or_first(c.quadratic_ridges, start.pose_space.quadratic_ridge)
-                                         : std::vector<double>{start.pose_space.quadratic_ridge};
-      for (int m : modes)
-        for (double q : qr)
-          for (double w : or_first(c.kernel_widths, start.pose_space.kernel_width))
-            for (double l : or_first(c.rbf_ridges, start.pose_space.rbf_ridge)) {
-              ModelFitOptions o = start;
-              o.pose_space.eigenskin_modes = m;
-              o.pose_space.quadratic_ridge = q;
-              o.pose_space.kernel_width = w;
-              o.pose_space.rbf_ridge = l;
-              std::string s = "width " + g(w) + ", RBF λ " + g(l);
-              if (model == SkinningModel::eigenskin) s = "modes " + std::to_string(m) + ", " + s;
-              if (model == SkinningModel::quadratic) s = "quadratic ridge " + g(q) + ", " + s;
-              add(s, o);
-            }
+      for (double w : or_first(c.kernel_widths, start.pose_space.kernel_width))
+        for (double l : or_first(c.rbf_ridges, start.pose_space.rbf_ridge)) {
+          ModelFitOptions o = start;
+          o.pose_space.kernel_width = w;
+          o.pose_space.rbf_ridge = l;
+          add("width " + g(w) + ", RBF λ " + g(l), o);
+        }
       break;
-    }
+    case SkinningModel::eigenskin:
+      for (int m : or_first(c.eigenskin_modes, start.pose_space.eigenskin_modes)) {
+        ModelFitOptions o = start;
+        o.pose_space.eigenskin_modes = m;
+        add("modes " + std::to_string(m) + " (width " + g(start.pose_space.kernel_width) + ", RBF λ " +
+                g(start.pose_space.rbf_ridge) + ")",
+            o);
+      }
+      break;
+    case SkinningModel::quadratic:
+      for (double q : or_first(c.quadratic_ridges, start.pose_space.quadratic_ridge)) {
+        ModelFitOptions o = start;
+        o.pose_space.quadratic_ridge = q;
+        add("quadratic ridge " + g(q) + " (width " + g(start.pose_space.kernel_width) + ", RBF λ " +
+                g(start.pose_space.rbf_ridge) + ")",
+            o);
+      }
+      break;
     default: break;
   }
   const size_t F = folds_.size();

@@ -35,19 +35,24 @@ struct CrossValidationOptions {
   // the comparison reports) when surfaces are given, else ‖x − y‖; measured on every
   // vertex_stride-th vertex (the closest-point queries dominate the cost; 1 = every vertex).
   int vertex_stride = 4;
-  // Grids (the first value is used when a grid is empty). Animation Space: ridge λ.
-  std::vector<double> as_ridges = {0, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1};
+  // Grids (the start value is used when a grid is empty). Each reaches far enough that its
+  // largest value gives back the method's base (AS → the SSD prior, MWE → its underlying rig,
+  // the RBFs → the mean correction): a choice at the edge of a grid would mean the grid is short.
+  // Animation Space: ridge λ.
+  std::vector<double> as_ridges = {0, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1, 10};
   // MWE: ridge scale s (relative), underlying rig (delta space, §4.5), refined influences
   // (weight count; 0 = all), principal components (0 = all with variance).
-  std::vector<double> mwe_scales = {1e-9, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-2};
+  std::vector<double> mwe_scales = {1e-9, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1, 100};
   std::vector<MweBase> mwe_bases = {MweBase::lbs, MweBase::animation_space};
   std::vector<int> mwe_delta_influences = {2, 4};
   std::vector<int> mwe_components = {0};
-  // Pose-space methods: kernel width and RBF ridge; EigenSkin modes; quadratic ridge.
-  std::vector<double> kernel_widths = {0.5, 1, 2};
-  std::vector<double> rbf_ridges = {1e-2, 1e-1, 1};
-  std::vector<int> eigenskin_modes = {2, 4, 8};
-  std::vector<double> quadratic_ridges = {1e-3, 1e-1};
+  // PSD: kernel width and RBF ridge. EigenSkin and the quadratic method share PSD's pose space:
+  // they keep the start's width and ridge (the evaluation sets them to PSD's choice first) and
+  // choose only their own parameter: EigenSkin's modes, the quadratic fit's ridge.
+  std::vector<double> kernel_widths = {0.5, 1, 2, 4};
+  std::vector<double> rbf_ridges = {1e-2, 1e-1, 1, 10};
+  std::vector<int> eigenskin_modes = {2, 4, 8, 16};
+  std::vector<double> quadratic_ridges = {1e-3, 1e-2, 1e-1, 1, 10};
 };
 
 struct CvCandidate {

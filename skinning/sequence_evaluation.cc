@@ -293,17 +293,21 @@ SequenceEvaluation evaluate_skinning_sequence(const std::vector<Eigen::MatrixX3d
       return lo;
     }(), options.cv, train_surfaces);
   SequenceEvaluationOptions opt = options;
-  // MWE over an Animation Space base uses the AS ridge chosen for AS: fit AS first.
+  // MWE over an Animation Space base uses the AS ridge chosen for AS, EigenSkin and the quadratic
+  // method PSD's pose space (kernel width, RBF ridge): fit AS and PSD first, or cross-validate
+  // them for the others when they are not evaluated themselves.
   std::vector<SkinningModel> order = options.methods;
-  std::stable_sort(order.begin(), order.end(), [](SkinningModel a, SkinningModel b) {
-    return a == SkinningModel::as && b != SkinningModel::as;
-  });
-  const bool need_as_ridge = validator && std::count(order.begin(), order.end(), SkinningModel::mwe) &&
-                             !std::count(order.begin(), order.end(), SkinningModel::as) &&
-                             std::count(options.cv.mwe_bases.begin(), options.cv.mwe_bases.end(),
-                                        MweBase::animation_space);
-  if (need_as_ridge)
+  auto rank = [](SkinningModel m) { return m == SkinningModel::as || m == SkinningModel::psd ? 0 : 1; };
+  std::stable_sort(order.begin(), order.end(), [&](SkinningModel a, SkinningModel b) { return rank(a) < rank(b); });
+  auto has = [&](SkinningModel m) { return std::count(order.begin(), order.end(), m) > 0; };
+  if (validator && has(SkinningModel::mwe) && !has(SkinningModel::as) &&
+      std::count(options.cv.mwe_bases.begin(), options.cv.mwe_bases.end(), MweBase::animation_space))
     opt.fit.mwe.base_as_ridge = validator->select(SkinningModel::as, opt.fit).chosen.animation_space.ridge;
+  if (validator && (has(SkinningModel::eigenskin) || has(SkinningModel::quadratic)) && !has(SkinningModel::psd)) {
+    const PoseSpaceOptions chosen = validator->select(SkinningModel::psd, opt.fit).chosen.pose_space;
+    opt.fit.pose_space.kernel_width = chosen.kernel_width;
+    opt.fit.pose_space.rbf_ridge = chosen.rbf_ridge;
+  }
   std::vector<MethodFit> fits(options.methods.size());
   std::vector<RigFrameStats> stats(options.methods.size());
   for (size_t k = 0; k < order.size(); ++k) {
@@ -315,6 +319,10 @@ SequenceEvaluation evaluate_skinning_sequence(const std::vector<Eigen::MatrixX3d
     }) : ProgressCallback();
     const FittedModel model = fit_sequence_method(method, prep, opt, validator.get(), &fits[m], msub);
     if (method == SkinningModel::as && validator) opt.fit.mwe.base_as_ridge = fits[m].cv.chosen.animation_space.ridge;
+    if (method == SkinningModel::psd && validator) {
+      opt.fit.pose_space.kernel_width = fits[m].cv.chosen.pose_space.kernel_width;
+      opt.fit.pose_space.rbf_ridge = fits[m].cv.chosen.pose_space.rbf_ridge;
+    }
     report_progress(msub, 0.9, "evaluating " + skinning_model_name(method));
     std::function<void(int, const Eigen::MatrixX3d&)> sink;
     if (options.on_posed) sink = [&](int f, const Eigen::MatrixX3d& X) { options.on_posed(method, f, X); };

@@ -132,6 +132,11 @@ void run_fit(const FitArgs& a) {
     validator = std::make_unique<CrossValidator>(ex, lo, cv, surfaces);
     if (method == SkinningModel::mwe)   // the AS base's ridge, chosen the same way
       opt.fit.mwe.base_as_ridge = validator->select(SkinningModel::as, opt.fit).chosen.animation_space.ridge;
+    if (method == SkinningModel::eigenskin || method == SkinningModel::quadratic) {   // PSD's pose space
+      const PoseSpaceOptions chosen = validator->select(SkinningModel::psd, opt.fit).chosen.pose_space;
+      opt.fit.pose_space.kernel_width = chosen.kernel_width;
+      opt.fit.pose_space.rbf_ridge = chosen.rbf_ridge;
+    }
   }
   MethodFit mf;
   const FittedModel model = fit_sequence_method(method, prep, opt, validator.get(), &mf,
