@@ -1,4 +1,4 @@
-// The statistical body model (Hasler et al. 2009 §4, METHOD.md §4): relative rotation
+// The statistical body model (Hasler et al. 2009 §4, docs/method.md §4.1): relative rotation
 // encodings of registered meshes, PCA'd twice —
 //   * the SHAPE-ONLY model: one standard-pose scan per subject (random generation, morphing by
 //     height/weight/..., handle editing);

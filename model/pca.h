@@ -1,5 +1,5 @@
 // Principal component analysis of high-dimensional samples through the N×N Gram matrix
-// (Hasler et al. 2009 §4, METHOD.md §4): with N samples of dimension D ≫ N (encodings have
+// (Hasler et al. 2009 §4, docs/method.md §4.1): with N samples of dimension D ≫ N (encodings have
 // D = 15·#F ≈ 400k numbers, N ≤ a few hundred) the eigenvectors of the D×D covariance are
 // X_c·v / √((N−1)·λ) for the eigenpairs (λ, v) of G = X_cᵀX_c / (N−1). Cost O(N²·D).
 #pragma once

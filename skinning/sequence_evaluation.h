@@ -1,7 +1,7 @@
-// Jacka et al. 2007's protocol on a mesh sequence (EVALUATION.md "Skinning"): recover bones from
-// the training frames when no transforms are given, fit SSD, Animation Space and MWE to the
-// training frames, fit every unseen frame's bone transforms with the SSD weights held fixed, pose
-// every frame with each rig and measure it against the frame (train and unseen separately).
+// Jacka et al. 2007's protocol on a mesh sequence (docs/evaluation.md#skinning-protocol): recover
+// bones from the training frames when no transforms are given, fit SSD, Animation Space and MWE to
+// the training frames, fit every unseen frame's bone transforms with the SSD weights held fixed,
+// pose every frame with each rig and measure it against the frame (train and unseen separately).
 #pragma once
 
 #include <Eigen/Core>

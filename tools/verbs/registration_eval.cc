@@ -1,9 +1,10 @@
 // bodymodel eval-registration DB/ REG/ [--csv FILE] [--per-joint] [--flipped-regions]
 //                             [--flipped-csv FILE] [--hole-csv FILE]
 //
-// Compares registered meshes and poses with the database's ground truth (EVALUATION.md,
-// registration): correspondence error (per-scan mean, median over scans, 95th percentile of all
-// vertices), surface fit, hole error, flipped triangles and joint rotation error.
+// Compares registered meshes and poses with the database's ground truth
+// (docs/evaluation.md#registration-against-ground-truth): correspondence error (per-scan mean,
+// median over scans, 95th percentile of all vertices), surface fit, hole error, flipped triangles
+// and joint rotation error.
 #include <fmt/format.h>
 
 #include <Eigen/Geometry>
@@ -79,7 +80,7 @@ BODYMODEL_VERB(add_eval_registration_verb) {
   auto* cmd = app.add_subcommand(
       "eval-registration",
       "Compare registrations (REG/<id>.ply, <id>.pose.csv) with the database's ground truth\n"
-      "(DB/truth/): correspondence, surface-fit, hole and joint errors (EVALUATION.md).\n"
+      "(DB/truth/): correspondence, surface-fit, hole and joint errors (docs/evaluation.md).\n"
       "Writes REG/evaluation.csv (per scan) unless --csv says otherwise; prints a summary.");
   cmd->add_option("db", a->db, "Scan database folder (with truth/)")->required();
   cmd->add_option("reg", a->reg, "Registration folder written by 'bodymodel register'")

@@ -1,5 +1,5 @@
 // `bodymodel skin eval SEQUENCE/`: Jacka et al. 2007's comparison of SSD, Animation Space and
-// MWE on a mesh sequence (EVALUATION.md "Skinning").
+// MWE on a mesh sequence (docs/evaluation.md#skinning-protocol).
 #include <fmt/format.h>
 
 #include <memory>
