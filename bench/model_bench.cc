@@ -6,8 +6,8 @@
 //    final measurement and the OBJ apart. Model built in-process from 30 MakeHuman bodies.
 //  * BM_GenerateFoldRepairCost: generation with and without the fold repair on the same seeds,
 //    alternating in one process (CPU ratio), the repair alone, flips per body before and after.
-//  * BM_GenerateCrowdParallel/<girths>/<threads>: batches of 16 bodies through generate_crowd
-//    (model/generate_crowd.h: parallel bodies, OBJ files, labels.csv), wall and process CPU.
+//  * BM_GenerateCrowdParallel/<girths>/<threads>: batches of 16 bodies through write_crowd
+//    (tools/pipeline/crowd_output.h: parallel bodies, OBJ files, labels.csv), wall and process CPU.
 //  * BM_MeasureBanded, BM_WriteObj: measure_body cutting only each band's triangles vs every triangle, and the to_chars OBJ
 //    writer vs the snprintf one it replaced, alternating in one process (speedup ratios).
 //  * BM_Generalisation: reconstruction error of HELD-OUT subjects (all their scans, posed ones
@@ -39,10 +39,10 @@
 #include "core/measure.h"
 #include "model/database.h"
 #include "model/model_file.h"
-#include "model/generate_crowd.h"
 #include "model/morph.h"
 #include "model/pca.h"
 #include "model/pose_edit.h"
+#include "tools/pipeline/crowd_output.h"
 
 namespace bodymodel {
 namespace {
@@ -181,24 +181,24 @@ void BM_GenerateFoldRepairCost(benchmark::State& state) {
 }
 BENCHMARK(BM_GenerateFoldRepairCost)->Iterations(20)->Unit(benchmark::kMillisecond);
 
-// The crowd as `bodymodel generate` makes it (generate_crowd, model/generate_crowd.h): bodies
+// The crowd as `bodymodel generate` makes it (write_crowd, tools/pipeline/crowd_output.h): bodies
 // in parallel on `threads` TBB workers, each written to its own OBJ, labels.csv at the end.
 // Wall and process CPU per body.
 void BM_GenerateCrowdParallel(benchmark::State& state) {
   auto model = bench_model();
   const std::vector<LabelCondition> cond = bench_conditions(true);
   auto dir = std::filesystem::temp_directory_path() / ("bodymodel_bench_crowd_" + std::to_string(getpid()));
-  GenerateCrowdOptions co;
-  co.generate.measure_girths = state.range(0) != 0;
-  co.threads = static_cast<int>(state.range(1));
+  CrowdOutputOptions co;
+  co.crowd.generate.measure_girths = state.range(0) != 0;
+  co.crowd.threads = static_cast<int>(state.range(1));
   const int batch = 16;
   uint64_t seed = 1;
   double cpu = 0;
   for (auto _ : state) {
     std::filesystem::remove_all(dir);
-    co.seed = seed++;
+    co.crowd.seed = seed++;
     const double t0 = process_cpu_seconds();
-    GenerateCrowdSummary s = generate_crowd(model, cond, batch, dir, co);
+    GenerateCrowdSummary s = write_crowd(model, cond, batch, dir, co);
     cpu += process_cpu_seconds() - t0;
     benchmark::DoNotOptimize(s.generated);
   }
