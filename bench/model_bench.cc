@@ -6,8 +6,8 @@
 //    final measurement and the OBJ apart. Model built in-process from 30 MakeHuman bodies.
 //  * BM_GenerateFoldRepairCost: generation with and without the fold repair on the same seeds,
 //    alternating in one process (CPU ratio), the repair alone, flips per body before and after.
-//  * BM_GenerateCrowdParallel/<girths>/<threads>: batches of 16 bodies through generate_crowd
-//    (model/generate_crowd.h: parallel bodies, OBJ files, labels.csv), wall and process CPU.
+//  * BM_GenerateCrowdParallel/<girths>/<threads>: batches of 16 bodies through write_crowd
+//    (tools/pipeline/crowd_output.h: parallel bodies, OBJ files, labels.csv), wall and process CPU.
 //  * BM_MeasureBanded, BM_WriteObj: measure_body cutting only each band's triangles vs every triangle, and the to_chars OBJ
 //    writer vs the snprintf one it replaced, alternating in one process (speedup ratios).
 //  * BM_Generalisation: reconstruction error of HELD-OUT subjects (all their scans, posed ones
@@ -17,6 +17,8 @@
 //    the last quarter of the subjects is held out. Prints a table to stderr.
 //  * BM_ProjectionDiagnosis: why the RRE numbers above are what they are (training scans
 //    reconstruct exactly, where the held-out residual sits, weighted projections).
+//  * BM_PcaEigen/<N>/<K>: fit_pca with the full and the partial (Spectra) eigen-solver on the
+//    same synthetic samples, interleaved; times, ratio and agreement (model/pca.h).
 //  * BM_PoseMorph/<transfer neighbours>/<every bone>: pose morphing of the held-out subjects of
 //    BODYMODEL_BENCH_MODEL (default /tmp/model30.npz: `bodymodel build REG30 --db DB --out
 //    model30.npz` with REG30 = DB/truth meshes of the first 30 subjects) against DB/truth.
@@ -35,14 +37,15 @@
 #include "core/geometry.h"
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
+#include "core/io/pose_csv.h"
 #include "core/makehuman.h"
 #include "core/measure.h"
 #include "model/database.h"
 #include "model/model_file.h"
-#include "model/generate_crowd.h"
 #include "model/morph.h"
 #include "model/pca.h"
 #include "model/pose_edit.h"
+#include "tools/pipeline/crowd_output.h"
 
 namespace bodymodel {
 namespace {
@@ -181,24 +184,24 @@ void BM_GenerateFoldRepairCost(benchmark::State& state) {
 }
 BENCHMARK(BM_GenerateFoldRepairCost)->Iterations(20)->Unit(benchmark::kMillisecond);
 
-// The crowd as `bodymodel generate` makes it (generate_crowd, model/generate_crowd.h): bodies
+// The crowd as `bodymodel generate` makes it (write_crowd, tools/pipeline/crowd_output.h): bodies
 // in parallel on `threads` TBB workers, each written to its own OBJ, labels.csv at the end.
 // Wall and process CPU per body.
 void BM_GenerateCrowdParallel(benchmark::State& state) {
   auto model = bench_model();
   const std::vector<LabelCondition> cond = bench_conditions(true);
   auto dir = std::filesystem::temp_directory_path() / ("bodymodel_bench_crowd_" + std::to_string(getpid()));
-  GenerateCrowdOptions co;
-  co.generate.measure_girths = state.range(0) != 0;
-  co.threads = static_cast<int>(state.range(1));
+  CrowdOutputOptions co;
+  co.crowd.generate.measure_girths = state.range(0) != 0;
+  co.crowd.threads = static_cast<int>(state.range(1));
   const int batch = 16;
   uint64_t seed = 1;
   double cpu = 0;
   for (auto _ : state) {
     std::filesystem::remove_all(dir);
-    co.seed = seed++;
+    co.crowd.seed = seed++;
     const double t0 = process_cpu_seconds();
-    GenerateCrowdSummary s = generate_crowd(model, cond, batch, dir, co);
+    GenerateCrowdSummary s = write_crowd(model, cond, batch, dir, co);
     cpu += process_cpu_seconds() - t0;
     benchmark::DoNotOptimize(s.generated);
   }
@@ -511,7 +514,7 @@ void BM_PoseMorph(benchmark::State& state) {
     for (auto& [st, posed] : cases) {
       Mesh body = read_mesh(db / "truth" / (st + ".ply"));
       Mesh truth = read_mesh(db / "truth" / (posed + ".ply"));
-      Pose pose = read_pose_csv((db / "truth" / (posed + ".pose.csv")).string(), model.rig.bone_names);
+      Pose pose = read_pose_csv(db / "truth" / (posed + ".pose.csv"), model.rig.bone_names).pose;
       Eigen::MatrixX3d out = pose_morph(model, decoder, body.V, pose, o);
       errors.push_back(mean_vertex_error_after_rigid_fit(out, truth.V));
       // Reference: the body skinned with the model's rig (what the positional constraints use).
@@ -529,6 +532,57 @@ void BM_PoseMorph(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_PoseMorph)->Args({0, 0})->Args({8, 0})->Args({8, 1})->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+
+// The PCA's eigen-solvers on the same data (fit_pca, model/pca.h): the full dense solver of the
+// N×N Gram matrix against Spectra's partial Lanczos solver for the K = range(1) leading
+// components, at N = range(0) samples, interleaved in one loop (alternating order). The data
+// is synthetic, of D = N + 1000 values per sample with a decaying spectrum (σ_k ∝ 1/k, as
+// shape data has) plus noise; D only sizes the Gram product, which both paths share, so the
+// difference of the two times is the eigen-solve. Process CPU (both paths are serial, so it is
+// their time on an idle machine, and steadier than wall time on a loaded one), and how far
+// apart the results are: eigenvalues (relative) and basis vectors (max |Δ|, up to sign).
+void BM_PcaEigen(benchmark::State& state) {
+  const int N = static_cast<int>(state.range(0)), K = static_cast<int>(state.range(1)), D = N + 1000;
+  std::mt19937 rng(11);
+  std::normal_distribution<double> z;
+  Eigen::MatrixXd A(D, N), Z(N, N);
+  for (Eigen::Index i = 0; i < A.size(); ++i) A.data()[i] = z(rng);
+  for (Eigen::Index i = 0; i < Z.size(); ++i) Z.data()[i] = z(rng);
+  for (int k = 0; k < N; ++k) A.col(k) *= 100.0 / (k + 1);
+  Eigen::MatrixXd X = A * Z;
+  for (Eigen::Index i = 0; i < X.size(); ++i) X.data()[i] += 0.01 * z(rng);
+  PcaOptions full{1.0, K, PcaEigenSolver::full}, partial{1.0, K, PcaEigenSolver::partial};
+  double t_full = 0, t_partial = 0;
+  Pca a, b;
+  int round = 0;
+  for (auto _ : state) {
+    for (int step = 0; step < 2; ++step) {
+      const bool use_partial = (round + step) % 2 == 1;
+      const double t0 = process_cpu_seconds();
+      (use_partial ? b : a) = fit_pca(X, use_partial ? partial : full);
+      (use_partial ? t_partial : t_full) += process_cpu_seconds() - t0;
+    }
+    ++round;
+  }
+  const double n = static_cast<double>(state.iterations());
+  double eig = 0, basis = 0;
+  for (int k = 0; k < std::min(a.component_count(), b.component_count()); ++k) {
+    eig = std::max(eig, std::abs(a.eigenvalues(k) - b.eigenvalues(k)) / a.eigenvalues(0));
+    const double sign = a.basis.col(k).dot(b.basis.col(k)) < 0 ? -1 : 1;
+    basis = std::max(basis, (a.basis.col(k) - sign * b.basis.col(k)).cwiseAbs().maxCoeff());
+  }
+  state.counters["full_ms"] = 1e3 * t_full / n;
+  state.counters["partial_ms"] = 1e3 * t_partial / n;
+  state.counters["full_over_partial"] = t_full / t_partial;
+  state.counters["eigenvalue_rel_diff"] = eig;
+  state.counters["basis_max_diff"] = basis;
+  state.counters["components"] = b.component_count();
+  std::fprintf(stderr, "PCA N=%d D=%d K=%d: full %.1f ms, partial (Spectra) %.1f ms, full/partial %.2f; "
+               "eigenvalues agree to %.1e (relative to the largest), basis to %.1e\n",
+               N, D, K, 1e3 * t_full / n, 1e3 * t_partial / n, t_full / t_partial, eig, basis);
+}
+BENCHMARK(BM_PcaEigen)->Args({200, 20})->Args({1000, 20})->Args({1000, 50})->Args({2000, 20})->Args({2000, 50})
+    ->Iterations(3)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace bodymodel

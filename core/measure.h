@@ -1,6 +1,6 @@
 // Body measurements on a closed, outward-oriented triangle mesh in the standard (A-)pose.
 //
-// Definitions (EVALUATION.md, "Body measurements"):
+// Definitions (docs/evaluation.md#body-measurements, docs/method.md §7):
 //   height   extent along the up axis (+y for hm08 bodies).
 //   volume   enclosed volume by the divergence theorem.
 //   weight   volume × density; density 1.01 kg/L, a typical whole-body density with normal

@@ -1,5 +1,5 @@
 // Per-triangle deformation gradients and their polar decomposition (Hasler et al. 2009 §3,
-// METHOD.md §3; the fourth-vertex construction of Sumner & Popović 2004 §3).
+// docs/method.md §3.1; the fourth-vertex construction of Sumner & Popović 2004 §3).
 //
 // A triangle (v1, v2, v3) gets the frame W = [v2 − v1, v3 − v1, n] with n = (v2 − v1) × (v3 − v1)
 // / sqrt(‖(v2 − v1) × (v3 − v1)‖): the "fourth vertex" v1 + n lies off the plane at a distance

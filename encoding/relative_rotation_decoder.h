@@ -1,5 +1,5 @@
 // Decoding a relative rotation encoding back into a mesh: two sparse linear solves
-// (Hasler et al. 2009 §3, METHOD.md §3).
+// (Hasler et al. 2009 §3, docs/method.md §3.4–§3.5).
 //
 //  1. Rotations. Unknown per-triangle matrices X_f ≈ T_f = R_fᵀ (3×3). Every stored relative
 //     rotation R_fg = R_fᵀ R_g of an adjacent pair gives the equation R_fg X_g − X_f = 0 (the

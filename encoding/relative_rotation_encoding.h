@@ -1,5 +1,5 @@
 // Relative rotation encoding (RRE) of meshes that share a template's topology: Hasler et al.
-// 2009 §3, METHOD.md §3. This is the model's coordinate system: morphing, PCA, regression,
+// 2009 §3, docs/method.md §3.2. This is the model's coordinate system: morphing, PCA, regression,
 // interpolation and pose changes are linear operations on these vectors, and
 // RelativeRotationDecoder (encoding/relative_rotation_decoder.h) turns them back into meshes.
 //

@@ -1,4 +1,4 @@
-// The statistical body model (Hasler et al. 2009 §4, METHOD.md §4): relative rotation
+// The statistical body model (Hasler et al. 2009 §4, docs/method.md §4.1): relative rotation
 // encodings of registered meshes, PCA'd twice —
 //   * the SHAPE-ONLY model: one standard-pose scan per subject (random generation, morphing by
 //     height/weight/..., handle editing);
@@ -94,10 +94,6 @@ struct ModelBuildSummary {
 // scan, sizes disagree or a mesh does not have the common vertex count.
 BodyModel build_body_model(const ModelBuildInput& input, const ModelBuildOptions& options = {},
                            ModelBuildSummary* summary = nullptr, const ProgressCallback& progress = {});
-
-// Rotation vector (axis · angle, radians) of a rotation matrix, and back.
-Eigen::Vector3d rotation_vector_of(const Eigen::Matrix3d& R);
-Eigen::Matrix3d rotation_from_vector(const Eigen::Vector3d& w);
 
 // The pose-label values (for `labels`, names "pose:<bone>:rx|ry|rz") of a pose of a skeleton
 // with bone names `bones`; labels whose bone is not in the skeleton get 0.

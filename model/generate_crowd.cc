@@ -4,27 +4,13 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
-#include <atomic>
-#include <chrono>
 #include <mutex>
-#include <nlohmann/json.hpp>
-#include <optional>
-#include <sstream>
 
 #include "core/error.h"
-#include "core/io/atomic_write.h"
-#include "core/io/mesh_io.h"
 
 namespace bodymodel {
 
-namespace fs = std::filesystem;
-
 namespace {
-
-constexpr const char* kLabelsHeader =
-    "body,file,sex,height_cm,weight_kg,volume_l,waist_cm,hips_cm,chest_cm,neck_cm,body_fat_pct,"
-    "constraints_met,iterations,attempts,flipped_triangles,flipped_before_repair";
-constexpr int kColumnMet = 11, kColumnFlipped = 14, kColumnBeforeRepair = 15, kColumns = 16;
 
 struct Fnv1a {
   uint64_t h = 1469598103934665603ull;
@@ -37,70 +23,6 @@ struct Fnv1a {
     bytes(&n, sizeof n);
   }
 };
-
-std::vector<std::string> split_row(const std::string& line) {
-  std::vector<std::string> cells;
-  std::stringstream ss(line);
-  std::string c;
-  while (std::getline(ss, c, ',')) cells.push_back(c);
-  if (!line.empty() && line.back() == ',') cells.push_back("");
-  return cells;
-}
-
-std::string sex_name(const std::vector<LabelCondition>& conditions) {
-  for (auto& c : conditions)
-    if (c.label == "sex" && !c.keep) return c.lo < 0.5 ? "female" : "male";
-  return "";
-}
-
-nlohmann::json settings_json(const std::string& fingerprint, const std::vector<LabelCondition>& conditions,
-                             const GenerateCrowdOptions& o) {
-  nlohmann::json cond = nlohmann::json::array();
-  for (auto& c : conditions) cond.push_back({{"label", c.label}, {"lo", c.lo}, {"hi", c.hi}, {"keep", c.keep}});
-  const GenerateOptions& g = o.generate;
-  return {{"generator_version", kCrowdGeneratorVersion},
-          {"model", fingerprint},
-          {"seed", o.seed},
-          {"conditions", cond},
-          {"spread", g.spread},
-          {"max_attempts", g.max_attempts},
-          {"measure_girths", g.measure_girths},
-          {"repair_folds", g.repair_folds},
-          {"fold_repair", {g.fold_repair.rings, g.fold_repair.passes, g.fold_repair.local_similarity,
-                           g.fold_repair.keep_only_improving, g.fold_repair.max_region_vertices}},
-          {"max_iterations", g.morph.max_iterations},
-          {"tolerance_cm", g.morph.tolerance_cm},
-          {"tolerance_kg", g.morph.tolerance_kg},
-          {"tolerance_other", g.morph.tolerance_other},
-          {"range_margin", g.morph.range_margin},
-          {"format", o.format}};
-}
-
-// Rows of an earlier labels.csv by body index (empty when missing or of another layout).
-std::vector<std::optional<std::string>> read_previous_rows(const fs::path& csv, int count) {
-  std::vector<std::optional<std::string>> rows(count);
-  std::error_code ec;
-  if (!fs::is_regular_file(csv, ec)) return rows;
-  std::stringstream ss(read_text_file(csv));
-  std::string line;
-  if (!std::getline(ss, line) || line != kLabelsHeader) return rows;
-  while (std::getline(ss, line)) {
-    auto cells = split_row(line);
-    if (static_cast<int>(cells.size()) != kColumns) continue;
-    char* end = nullptr;
-    long i = std::strtol(cells[0].c_str(), &end, 10);
-    if (!end || *end != '\0' || i < 0 || i >= count) continue;
-    rows[i] = line;
-  }
-  return rows;
-}
-
-std::string labels_csv(const std::vector<std::optional<std::string>>& rows) {
-  std::string csv = std::string(kLabelsHeader) + "\n";
-  for (auto& r : rows)
-    if (r) csv += *r + "\n";
-  return csv;
-}
 
 }  // namespace
 
@@ -118,115 +40,30 @@ std::string model_fingerprint(const BodyModel& model) {
   return fmt::format("{:016x}", h.h);
 }
 
-GenerateCrowdSummary generate_crowd(std::shared_ptr<const BodyModel> model,
-                                    const std::vector<LabelCondition>& conditions, int count,
-                                    const fs::path& out, const GenerateCrowdOptions& o,
-                                    const ProgressCallback& progress) {
-  if (count < 1) throw InputError(fmt::format("generate: --count must be at least 1, got {}", count));
-  if (o.format != "obj" && o.format != "ply")
-    throw InputError(fmt::format("generate: mesh format '{}' (expected obj or ply)", o.format));
+void generate_crowd_bodies(std::shared_ptr<const BodyModel> model, const std::vector<LabelCondition>& conditions,
+                           const std::vector<int>& indices, const GenerateCrowdOptions& o,
+                           const std::function<void(CrowdBody&&)>& on_body, const ProgressCallback& progress) {
   if (o.threads < 0) throw InputError(fmt::format("generate: {} threads", o.threads));
-  ensure_directory(out);
-  const fs::path settings_path = out / "generate.json";
-  const fs::path csv_path = out / "labels.csv";
-  const nlohmann::json settings = settings_json(model_fingerprint(*model), conditions, o);
-
-  // Same settings as the crowd already in the folder?
-  bool resume = false;
-  std::error_code ec;
-  if (fs::exists(settings_path, ec)) {
-    nlohmann::json previous;
-    try {
-      previous = nlohmann::json::parse(read_text_file(settings_path));
-    } catch (const nlohmann::json::exception&) {
-      previous = nullptr;
-    }
-    if (previous == settings) {
-      resume = o.resume;
-    } else if (!o.force) {
-      std::string what = "its generate.json cannot be read";
-      if (previous.is_object()) {
-        for (auto& [key, value] : settings.items())
-          if (!previous.contains(key) || previous[key] != value) {
-            what = fmt::format("{} was {}, now {}", key, previous.contains(key) ? previous[key].dump() : "missing",
-                               value.dump());
-            break;
-          }
-      }
-      throw InputError(fmt::format("'{}' holds a crowd generated with other settings ({}); use another "
-                                   "folder, or --force to replace it",
-                                   out.string(), what));
-    }
-  }
-  std::vector<std::optional<std::string>> rows(count);
-  if (resume) {
-    rows = read_previous_rows(csv_path, count);
-  } else {
-    // A new crowd: an earlier labels.csv must not lend its rows to it.
-    fs::remove(csv_path, ec);
-    write_text_file(settings_path, settings.dump(2) + "\n");
-  }
-
-  GenerateCrowdSummary summary;
-  summary.count = count;
-  for (int i = 0; i < count; ++i) summary.files.push_back(fmt::format("body_{:03d}.{}", i, o.format));
-  std::vector<int> todo;
-  for (int i = 0; i < count; ++i) {
-    if (rows[i] && split_row(*rows[i])[1] == summary.files[i] && fs::is_regular_file(out / summary.files[i], ec))
-      continue;
-    rows[i].reset();
-    todo.push_back(i);
-  }
-  summary.skipped = count - static_cast<int>(todo.size());
-  summary.generated = static_cast<int>(todo.size());
-
   const ShapeMorpher morpher(model);
-  const std::string sex = sex_name(conditions);
-  std::mutex mutex;
+  std::mutex mutex;  // the progress callback is not assumed thread-safe
   int done = 0;
-  auto last_flush = std::chrono::steady_clock::now();
-  const auto t0 = last_flush;
-  report_progress(progress, 0, fmt::format("{} bodies to generate, {} already there", todo.size(), summary.skipped));
+  const int n = static_cast<int>(indices.size());
   auto body = [&](int t) {
-    const int i = todo[t];
-    const GeneratedBody g = generate_body(morpher, conditions, o.seed * 1000003ull + static_cast<uint64_t>(i), o.generate);
-    const int flipped = flipped_triangle_count(*model, g.V);
-    write_mesh(out / summary.files[i], g.V, model->tmpl->faces());
-    const BodyMeasurements& m = g.measured;
-    auto num = [](double v) { return std::isfinite(v) ? fmt::format("{:.2f}", v) : std::string(); };
-    std::string row = fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}", i, summary.files[i], sex,
-                                  num(m.height_cm), num(m.weight_kg), num(m.volume_l), num(m.waist_cm),
-                                  num(m.hips_cm), num(m.chest_cm), num(m.neck_cm), num(m.body_fat_pct),
-                                  g.satisfied ? 1 : 0, g.summary.iterations, g.attempts, flipped,
-                                  o.generate.repair_folds ? g.folds.flipped_before : flipped);
+    CrowdBody b;
+    b.index = indices[t];
+    b.body = generate_body(morpher, conditions, crowd_body_seed(o.seed, b.index), o.generate);
+    b.flipped_triangles = flipped_triangle_count(*model, b.body.V);
+    on_body(std::move(b));
     std::lock_guard<std::mutex> lock(mutex);
-    rows[i] = std::move(row);
     ++done;
-    const auto now = std::chrono::steady_clock::now();
-    if (std::chrono::duration<double>(now - last_flush).count() >= o.labels_flush_seconds) {
-      write_text_file(csv_path, labels_csv(rows));
-      last_flush = now;
-    }
-    report_progress(progress, static_cast<double>(done) / static_cast<double>(todo.size()), fmt::format("body {}", i));
+    report_progress(progress, static_cast<double>(done) / n, fmt::format("body {}", indices[t]));
   };
-  const int n = static_cast<int>(todo.size());
   if (o.threads > 0) {
     tbb::task_arena arena(o.threads);
     arena.execute([&] { tbb::parallel_for(0, n, body); });
   } else {
     tbb::parallel_for(0, n, body);
   }
-  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  write_text_file(csv_path, labels_csv(rows));
-  for (auto& r : rows) {
-    auto cells = split_row(*r);
-    summary.constraints_met += cells[kColumnMet] == "1" ? 1 : 0;
-    const int flipped = std::atoi(cells[kColumnFlipped].c_str());
-    summary.flipped_triangles += flipped;
-    summary.max_flipped_triangles = std::max(summary.max_flipped_triangles, flipped);
-    summary.flipped_before_repair.push_back(std::atoi(cells[kColumnBeforeRepair].c_str()));
-  }
-  return summary;
 }
 
 }  // namespace bodymodel

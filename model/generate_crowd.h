@@ -1,24 +1,14 @@
-// A crowd of random bodies written to a folder (`bodymodel generate`, Hasler et al. 2009 §5.2):
-// OUT/body_NNN.obj|ply, OUT/labels.csv with the MEASURED labels of every body, and
-// OUT/generate.json with the settings the crowd was made with.
+// The bodies of a crowd (`bodymodel generate`, Hasler et al. 2009 §5.2), generated in parallel
+// and handed to the caller one by one; writing them (meshes, labels.csv, the settings, resuming
+// an interrupted run) is the tools' job (tools/pipeline/crowd_output.h).
 //
-// DETERMINISM. Body k is generate_body(conditions, seed·1000003 + k) (model/morph.h): it depends
-// on the seed and k only, not on the number of threads, the order bodies finish in or the
-// count (a crowd of 10 is the first 10 bodies of a crowd of 200 with the same seed).
-//
-// RESUME. A rerun into the same folder with the same settings (generate.json equal: model
-// fingerprint, seed, conditions, spread, attempts, girths, format, generator version) skips
-// every body that is already complete — its mesh exists (meshes are written atomically, so an
-// existing file is complete) and labels.csv has its row — and generates the rest; the result is
-// byte-identical to a clean run. labels.csv is rewritten atomically (temporary + rename) every
-// `labels_flush_seconds` during the run and at the end, with the rows of the bodies finished so
-// far, so an interrupted run leaves a consistent labels.csv for the rerun to continue from.
-// A folder holding a crowd made with OTHER settings is refused (InputError) unless `force`,
-// which regenerates every body.
+// DETERMINISM. Body k is generate_body(conditions, crowd_body_seed(seed, k)) (model/morph.h): it
+// depends on the seed and k only, not on the number of threads, the order bodies finish in or
+// the count (a crowd of 10 is the first 10 bodies of a crowd of 200 with the same seed).
 #pragma once
 
 #include <cstdint>
-#include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -33,39 +23,31 @@ namespace bodymodel {
 // not mix bodies of two algorithms).
 inline constexpr int kCrowdGeneratorVersion = 3;  // 3: fold repair after decoding
 
+// The generation seed of body k of a crowd seeded with `seed`.
+inline uint64_t crowd_body_seed(uint64_t seed, int k) { return seed * 1000003ull + static_cast<uint64_t>(k); }
+
 struct GenerateCrowdOptions {
   GenerateOptions generate;   // per-body generation (model/morph.h)
   uint64_t seed = 1;          // the crowd is a function of it
-  std::string format = "obj"; // mesh format: obj or ply
   int threads = 0;            // bodies generated in parallel; 0 = all cores (TBB's default)
-  bool force = false;         // replace a crowd made with other settings instead of refusing
-  bool resume = true;         // skip complete bodies of a crowd made with the same settings
-  double labels_flush_seconds = 2.0;  // labels.csv is rewritten at most this often mid-run
 };
 
-struct GenerateCrowdSummary {
-  int count = 0;
-  int generated = 0;          // bodies made by this run
-  int skipped = 0;            // complete bodies found from an earlier run (same settings)
-  int constraints_met = 0;    // bodies meeting every condition as measured (of count)
-  int flipped_triangles = 0;  // total over the crowd after the fold repair (flipped_triangle_count)
-  int max_flipped_triangles = 0;    // ... of the worst body
-  std::vector<int> flipped_before_repair;  // per body, as decoded (labels.csv flipped_before_repair)
-  double seconds = 0;         // wall time of the generation (set-up excluded)
-  std::vector<std::string> files;  // count mesh file names (relative to the folder)
+struct CrowdBody {
+  int index = 0;              // k: the body's place in the crowd
+  GeneratedBody body;
+  int flipped_triangles = 0;  // after the fold repair (flipped_triangle_count)
 };
 
 // Content fingerprint of a model (hex): the shape model's eigenvalues, regression, labels and a
 // sample of its basis and mean. Two loads of one file give the same fingerprint.
 std::string model_fingerprint(const BodyModel& model);
 
-// Generates bodies 0..count-1 into `out` (created if missing). Throws InputError for a folder
-// holding a crowd with other settings (unless options.force), an unwritable folder or bad
-// conditions. Progress over the bodies to generate.
-GenerateCrowdSummary generate_crowd(std::shared_ptr<const BodyModel> model,
-                                    const std::vector<LabelCondition>& conditions, int count,
-                                    const std::filesystem::path& out,
-                                    const GenerateCrowdOptions& options = {},
-                                    const ProgressCallback& progress = {});
+// Generates the bodies `indices` of a crowd. `on_body` receives each body as soon as it is made,
+// on the worker thread that made it (so concurrently and in any order: it must be thread-safe),
+// and may keep or drop it, so a crowd of any size never has to fit in memory. Progress over
+// `indices`. Throws InputError for a negative thread count or bad conditions.
+void generate_crowd_bodies(std::shared_ptr<const BodyModel> model, const std::vector<LabelCondition>& conditions,
+                           const std::vector<int>& indices, const GenerateCrowdOptions& options,
+                           const std::function<void(CrowdBody&&)>& on_body, const ProgressCallback& progress = {});
 
 }  // namespace bodymodel

@@ -1,4 +1,4 @@
-// Morphing a body by its labels (Hasler et al. 2009 §4, §5.1, §5.2; METHOD.md §4):
+// Morphing a body by its labels (Hasler et al. 2009 §4, §5.1, §5.2; docs/method.md §4.3, §4.5):
 // "make this person 10 cm taller but keep the weight", "200 different women of 65 kg".
 //
 // A label change is requested in the shape model's coefficient space: the minimum-norm change

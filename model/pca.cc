@@ -1,6 +1,10 @@
 #include "model/pca.h"
 
+#include <Spectra/MatOp/DenseSymMatProd.h>
+#include <Spectra/SymEigsSolver.h>
+
 #include <Eigen/Eigenvalues>
+
 #include "model/format.h"
 
 #include "core/error.h"
@@ -12,6 +16,8 @@ void PcaOptions::validate() const {
     throw InputError(fmt::format("PCA variance_threshold must be in (0, 1], got {}", variance_threshold));
   if (max_components == 0 || max_components < -1)
     throw InputError(fmt::format("PCA max_components must be ≥ 1 or −1, got {}", max_components));
+  if (eigen_solver == PcaEigenSolver::partial && max_components < 1)
+    throw InputError("PCA: the partial eigen-solver needs max_components ≥ 1 (the components to find)");
 }
 
 std::string PcaSummary::one_line() const {
@@ -31,6 +37,33 @@ Eigen::VectorXd Pca::reconstruct(const Eigen::VectorXd& c) const {
   return mean + basis * c;
 }
 
+namespace {
+
+bool use_partial_eigen_solver(const PcaOptions& o, int N) {
+  if (o.max_components <= 0 || o.eigen_solver == PcaEigenSolver::full) return false;
+  if (o.eigen_solver == PcaEigenSolver::partial) return true;
+  return N >= kPartialEigenMinSamples && o.max_components <= N / kPartialEigenMinRatio;
+}
+
+// The K leading eigenpairs of the symmetric G (descending, eigenvalues clamped at 0) by
+// Lanczos iteration; false when it did not converge (the caller then solves in full).
+bool partial_eigenpairs(const Eigen::MatrixXd& G, int K, Eigen::VectorXd& lambda, Eigen::MatrixXd& V) {
+  const int N = static_cast<int>(G.rows());
+  if (K < 1 || K >= N) return false;  // Spectra needs nev < n
+  // Krylov subspace: Spectra's advice is ≥ 2·nev; a few more vectors converge in fewer restarts.
+  const int ncv = std::min(N, std::max(2 * K + 1, K + 20));
+  Spectra::DenseSymMatProd<double> op(G);
+  Spectra::SymEigsSolver<Spectra::DenseSymMatProd<double>> eigs(op, K, ncv);
+  eigs.init();  // fixed start vector: the result is reproducible
+  eigs.compute(Spectra::SortRule::LargestAlge, 1000, 1e-12);
+  if (eigs.info() != Spectra::CompInfo::Successful) return false;
+  lambda = eigs.eigenvalues().cwiseMax(0.0);  // already descending
+  V = eigs.eigenvectors();
+  return true;
+}
+
+}  // namespace
+
 Pca fit_pca(const Eigen::MatrixXd& X, const PcaOptions& options, PcaSummary* summary) {
   options.validate();
   const int D = static_cast<int>(X.rows()), N = static_cast<int>(X.cols());
@@ -44,18 +77,25 @@ Pca fit_pca(const Eigen::MatrixXd& X, const PcaOptions& options, PcaSummary* sum
   Eigen::MatrixXd Xc = X.colwise() - p.mean;
   G.noalias() = Xc.transpose() * Xc;
   G /= (N - 1);
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(G);
-  if (es.info() != Eigen::Success) throw NumericalError("PCA: eigen-decomposition of the Gram matrix failed");
-  // Descending order.
-  Eigen::VectorXd lambda = es.eigenvalues().reverse();
-  Eigen::MatrixXd V = es.eigenvectors().rowwise().reverse();
-  for (int i = 0; i < N; ++i) lambda(i) = std::max(lambda(i), 0.0);
-  const double total = lambda.sum();
-  int rank_limit = N - 1;
+  const int rank_limit = N - 1;
+  Eigen::VectorXd lambda;  // descending, ≥ 0
+  Eigen::MatrixXd V;       // N by lambda.size()
+  double total = 0;        // Σ of all N eigenvalues
+  const int wanted = options.max_components > 0 ? std::min(options.max_components, rank_limit) : rank_limit;
+  if (use_partial_eigen_solver(options, N) && partial_eigenpairs(G, wanted, lambda, V)) {
+    total = G.trace();  // = Σ of every eigenvalue, without computing them
+  } else {
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(G);
+    if (es.info() != Eigen::Success) throw NumericalError("PCA: eigen-decomposition of the Gram matrix failed");
+    lambda = es.eigenvalues().reverse();
+    V = es.eigenvectors().rowwise().reverse();
+    for (int i = 0; i < N; ++i) lambda(i) = std::max(lambda(i), 0.0);
+    total = lambda.sum();
+  }
   const double tiny = 1e-12 * std::max(total, 1e-300);
   int K = 0;
   double acc = 0;
-  int cap = options.max_components > 0 ? std::min(options.max_components, rank_limit) : rank_limit;
+  const int cap = std::min<int>(wanted, static_cast<int>(lambda.size()));
   while (K < cap && lambda(K) > tiny) {
     acc += lambda(K);
     ++K;

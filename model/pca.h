@@ -1,5 +1,5 @@
 // Principal component analysis of high-dimensional samples through the N×N Gram matrix
-// (Hasler et al. 2009 §4, METHOD.md §4): with N samples of dimension D ≫ N (encodings have
+// (Hasler et al. 2009 §4, docs/method.md §4.1): with N samples of dimension D ≫ N (encodings have
 // D = 15·#F ≈ 400k numbers, N ≤ a few hundred) the eigenvectors of the D×D covariance are
 // X_c·v / √((N−1)·λ) for the eigenpairs (λ, v) of G = X_cᵀX_c / (N−1). Cost O(N²·D).
 #pragma once
@@ -9,6 +9,17 @@
 
 namespace bodymodel {
 
+// How the Gram matrix's eigenpairs are found.
+enum class PcaEigenSolver {
+  // The partial solver when few components of many samples are wanted (see fit_pca), else full.
+  automatic,
+  // Every eigenpair (Eigen's dense SelfAdjointEigenSolver, O(N³)).
+  full,
+  // Only the max_components leading ones (Spectra's Lanczos SymEigsSolver, O(N²) per iteration);
+  // needs max_components ≥ 1. Falls back to the full solver if it does not converge.
+  partial,
+};
+
 struct PcaOptions {
   // Keep the fewest leading components whose eigenvalues explain at least this fraction of the
   // total variance (the paper keeps "enough components"; 0.99 keeps nearly all of the shape
@@ -16,6 +27,7 @@ struct PcaOptions {
   double variance_threshold = 0.99;
   // Upper bound on the number of components (−1 = N − 1, the rank of centred data).
   int max_components = -1;
+  PcaEigenSolver eigen_solver = PcaEigenSolver::automatic;
   // Throws InputError describing the first invalid field.
   void validate() const;
 };
@@ -44,7 +56,12 @@ struct Pca {
 };
 
 // PCA of the COLUMNS of X (D by N, one sample per column, N ≥ 2). Throws InputError for fewer
-// than two samples or non-finite values.
+// than two samples or non-finite values. With PcaEigenSolver::automatic the partial solver is
+// used when N ≥ kPartialEigenMinSamples and max_components ≤ N / kPartialEigenMinRatio:
+// measured there (bench/model_bench.cc BM_PcaEigen, docs/benchmarks.md) the whole fit takes
+// 0.5× the CPU at N = 200 and 0.18× at N = 2000, with the same eigenpairs to ~1e-14.
+inline constexpr int kPartialEigenMinSamples = 200;
+inline constexpr int kPartialEigenMinRatio = 10;
 Pca fit_pca(const Eigen::MatrixXd& X, const PcaOptions& options = {}, PcaSummary* summary = nullptr);
 
 }  // namespace bodymodel

@@ -1,5 +1,6 @@
 // Semantic regression, constrained morphing and the semantic basis (Hasler et al. 2009 §4,
-// §4.1; METHOD.md §4). Everything here works in PCA-coefficient space (K numbers per body).
+// §4.1; docs/method.md §4.2–§4.4). Everything here works in PCA-coefficient space (K numbers per
+// body).
 //
 //  * Eq. 10: per label l (height, weight, a joint angle, ...) an affine fit
 //    l ≈ o + s·c over the training subjects' coefficients c; s is the label's morph direction.

@@ -1,4 +1,4 @@
-// Detail transfer (Hasler et al. 2009 §2, Fig. 4; METHOD.md §2): the registered template is
+// Detail transfer (Hasler et al. 2009 §2, Fig. 4; docs/method.md §2.7): the registered template is
 // smooth at the template's resolution; the scan's finer detail is kept as offsets along the
 // normal of a once-subdivided mesh. The fitted mesh is subdivided once (mid-edge, 1 → 4
 // triangles), each new edge-midpoint vertex is projected onto the scan along the base mesh's

@@ -1,5 +1,5 @@
-// Registration metrics (EVALUATION.md, registration): correspondence, surface-fit, hole and
-// joint errors against ground truth.
+// Registration metrics (docs/evaluation.md#registration-against-ground-truth): correspondence,
+// surface-fit, hole and joint errors against ground truth.
 #pragma once
 
 #include <Eigen/Core>

@@ -28,7 +28,7 @@ enum class NonrigidSchedule {
 
 // Which form of the smoothness term.
 enum class Smoothness {
-  // Σ_edges w_ij ‖T_i − T_j‖²_F (METHOD.md §2; first differences with cotangent weights).
+  // Σ_edges w_ij ‖T_i − T_j‖²_F (docs/method.md §2.5; first differences with cotangent weights).
   edge_differences,
   // Σ_i ‖Σ_j w_ij (T_i − T_j)‖²_F (the paper's eq. 4 read literally: second-order differences,
   // a squared Laplacian; insensitive to the sign of w_ij; denser system).

@@ -1,5 +1,6 @@
-// k-fold cross-validation with subject-grouped folds (EVALUATION.md "Regressors"): a subject's rows
-// are never split between training and test. Seeded, so a run can be repeated exactly.
+// k-fold cross-validation with subject-grouped folds (docs/evaluation.md#subject-grouped-folds):
+// a subject's rows are never split between training and test. Seeded, so a run can be repeated
+// exactly.
 #pragma once
 
 #include <Eigen/Core>

@@ -8,10 +8,10 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 export CCACHE_BASEDIR="$here" CCACHE_NOHASHDIR=1
 
 packages=(
-  g++ cmake ninja-build ccache pkg-config
-  libeigen3-dev libspectra-dev libopenmesh-dev libcgal-dev libgmp-dev libmpfr-dev
+  g++ cmake ninja-build ccache pkg-config python3
+  libeigen3-dev libspectra-dev libcgal-dev libgmp-dev libmpfr-dev
   libceres-dev libnanoflann-dev libsuitesparse-dev libtbb-dev
-  libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
+  libcli11-dev nlohmann-json3-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev libtinygltf-dev libstb-dev libsvm-dev zlib1g-dev
 )
 

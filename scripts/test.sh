@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The test command: installs what is missing, builds (Release, ./build), runs the whole suite.
 # Options: --sanitize   build in ./build-asan with AddressSanitizer + UndefinedBehaviorSanitizer
-#                       (gcc, -O2, line tables) and run the suite there; any sanitizer report
-#                       fails its test. .ci/run runs both.
+#                       (gcc, -O2, line tables) and run the reader and fast unit tests there
+#                       (CTest labels "reader" and "fast"); any sanitizer report fails its test.
+#                       .ci/run runs both.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # ccache: paths relative to the checkout, so a fresh clone elsewhere still hits the cache.
@@ -10,7 +11,7 @@ export CCACHE_BASEDIR="$here" CCACHE_NOHASHDIR=1
 "$here/scripts/setup.sh" --no-build
 build="$here/build"
 config=(-DCMAKE_BUILD_TYPE=Release)
-skip=()
+ctest_args=()   # the sanitizer phase selects labels
 if [ "${1:-}" = "--sanitize" ]; then
   build="$here/build-asan"
   config=(-DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG"
@@ -20,10 +21,10 @@ if [ "${1:-}" = "--sanitize" ]; then
   # containers); BODYMODEL_DETECT_LEAKS=1 turns it on.
   export ASAN_OPTIONS=detect_leaks=${BODYMODEL_DETECT_LEAKS:-0}:abort_on_error=1:halt_on_error=1
   export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
-  # Tests left out of the sanitizer run only (too slow there; they run in the normal suite),
-  # as a CTest name regex; override with BODYMODEL_SANITIZE_SKIP.
-  skip_regex="${BODYMODEL_SANITIZE_SKIP-}"
-  [ -n "$skip_regex" ] && skip=(-E "$skip_regex")
+  # The sanitizer phase runs the readers' tests and the fast unit tests (CTest labels, see
+  # tests/CMakeLists.txt); the long end-to-end tests run once, in the normal build.
+  # BODYMODEL_SANITIZE_LABELS overrides the label regex (e.g. "." for everything).
+  ctest_args=(-L "${BODYMODEL_SANITIZE_LABELS:-reader|fast}")
 fi
 cmake -S "$here" -B "$build" -G Ninja "${config[@]}" >/dev/null
 # The Khronos glTF validator (npm, pinned) for GltfExport.KhronosValidatorReportsNoErrors, kept
@@ -38,4 +39,4 @@ if [ -z "${BODYMODEL_GLTF_VALIDATOR:-}" ]; then
 fi
 cmake --build "$build" -j "${BODYMODEL_JOBS:-2}"
 cd "$build"
-ctest --output-on-failure -j "${BODYMODEL_JOBS:-2}" --timeout 900 "${skip[@]}"
+ctest --output-on-failure -j "${BODYMODEL_JOBS:-2}" --timeout 900 "${ctest_args[@]}"

@@ -1,5 +1,5 @@
 // Fitting linear blend skinning (SSD) weights to example poses (Jacka et al. 2007 §2.4.1,
-// Sloan et al.; METHOD.md §6): per vertex, min Σ_p ω_p² ‖Σ_k w_k M_k(p) ṽ − q_p‖² subject to
+// Sloan et al.; docs/method.md §6.2): per vertex, min Σ_p ω_p² ‖Σ_k w_k M_k(p) ṽ − q_p‖² subject to
 // w ≥ 0 and Σ w = 1, solved exactly per vertex by an active-set (Lawson–Hanson) non-negative
 // least-squares solve with the sum-to-one row appended with a large weight, then renormalised.
 #pragma once

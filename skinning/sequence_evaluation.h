@@ -1,4 +1,4 @@
-// Jacka et al. 2007's protocol on a mesh sequence (EVALUATION.md "Skinning"): recover bones from
+// Jacka et al. 2007's protocol on a mesh sequence (docs/skinning.md): recover bones from
 // the training frames when no transforms are given, fit every method (skinning_model.h: SSD, DQS,
 // Animation Space, MWE, PSD, EigenSkin, quadratic) to the training frames — the regularisation of
 // AS, MWE and the pose-space methods chosen by cross-validation on the training frames only

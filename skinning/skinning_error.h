@@ -1,5 +1,5 @@
-// Error metrics of a skinned result against a reference mesh (EVALUATION.md, "Meshes against a
-// reference"; Jacka et al. 2007 §3.2 after PolyMeCo):
+// Error metrics of a skinned result against a reference mesh (Jacka et al. 2007 §3.2 after
+// PolyMeCo; definitions in docs/evaluation.md#meshes-against-a-reference):
 //   geometric deviation g_i  distance from result vertex x_i to the closest point of the reference
 //                            *surface* (triangles; CGAL AABB tree), ≤ the vertex error
 //   normal deviation         angle (degrees) between the area-weighted vertex normals of X and Y

@@ -3,6 +3,7 @@
 #include <exception>
 
 #include "core/error.h"
+#include "core/io/interrupt_cleanup.h"
 #include "core/progress.h"
 #include "tools/verb.h"
 
@@ -14,6 +15,9 @@ std::vector<VerbAdder>& verb_adders() {
 }  // namespace bodymodel::cli
 
 int main(int argc, char** argv) {
+  // Before any verb writes: Ctrl-C or kill then removes the hidden temporaries of the files
+  // being written (core/io/interrupt_cleanup.h).
+  bodymodel::install_interrupt_cleanup();
   CLI::App app{
       "bodymodel: a statistical model of human bodies from 3D scans, and animated characters.\n"
       "Data is read from $BODYMODEL_DATA (default ../shared/data beside the repository)."};

@@ -1,5 +1,5 @@
 // libigl's small text/binary formats used by skinning data sets (see
-// ../shared/data/animations/README.md, "File formats"):
+// $BODYMODEL_DATA/animations/README.md, "File formats"; docs/data.md):
 //   .tgf   skeleton graph: joint positions and parent→child edges (every edge is a bone)
 //   .dmat  dense matrix, ASCII ("ncols nrows" then column-major values) or binary
 //          ("0 0\n", "ncols nrows\n", then little-endian float64, column-major)

@@ -40,6 +40,33 @@ TEST(Pca, GramPcaReconstructsLowRankDataAndMatchesCovariance) {
   EXPECT_GE(s2.explained, 0.6);
 }
 
+// The partial (Spectra) eigen-solver finds the same leading components as the full one: same
+// count under a variance threshold, eigenvalues, basis (up to sign) and coefficients.
+TEST(Pca, PartialEigenSolverAgreesWithTheFullOne) {
+  Eigen::MatrixXd X = random_low_rank(300, 120, 40, 2);
+  for (double threshold : {1.0, 0.8}) {
+    SCOPED_TRACE(threshold);
+    PcaSummary sf, sp;
+    Pca f = fit_pca(X, {threshold, 10, PcaEigenSolver::full}, &sf);
+    Pca p = fit_pca(X, {threshold, 10, PcaEigenSolver::partial}, &sp);
+    ASSERT_EQ(p.component_count(), f.component_count());
+    EXPECT_NEAR(sp.explained, sf.explained, 1e-10);
+    EXPECT_NEAR(sp.total_variance, sf.total_variance, 1e-10 * sf.total_variance);
+    for (int k = 0; k < f.component_count(); ++k) {
+      EXPECT_NEAR(p.eigenvalues(k), f.eigenvalues(k), 1e-10 * f.eigenvalues(0)) << k;
+      const double sign = p.basis.col(k).dot(f.basis.col(k)) < 0 ? -1 : 1;
+      EXPECT_LT((p.basis.col(k) - sign * f.basis.col(k)).cwiseAbs().maxCoeff(), 1e-8) << k;
+      EXPECT_LT((p.coefficients.col(k) - sign * f.coefficients.col(k)).cwiseAbs().maxCoeff(),
+                1e-8 * f.coefficients.cwiseAbs().maxCoeff()) << k;
+    }
+  }
+  // Automatic choice: few components of few samples stay on the full solver (bit-identical).
+  Pca a = fit_pca(X, {1.0, 10});
+  Pca f = fit_pca(X, {1.0, 10, PcaEigenSolver::full});
+  EXPECT_TRUE(a.basis == f.basis);
+  EXPECT_THROW(fit_pca(X, {1.0, -1, PcaEigenSolver::partial}), InputError);
+}
+
 TEST(ConstrainedChange, MeetsEveryConstraintWithMinimumNorm) {
   std::mt19937 rng(3);
   std::normal_distribution<double> n(0, 1);

@@ -1,4 +1,4 @@
-// A rigged character from the statistical model (METHOD.md §6 "Generated characters"; Hasler
+// A rigged character from the statistical model (docs/method.md §6.6; Hasler
 // et al. 2009 §5.4 for the poses, Wang & Phillips 2002 for the rig):
 //  1. a range of motion: MakeHuman's static poses and frames of the CMU clips (the poses the
 //     synthetic database draws from), each turned into a mesh by the model's POSE MORPHING
@@ -196,7 +196,7 @@ CharacterRigs fit_character_rigs(const CharacterExamples& ex, const CharacterOpt
                                  const ProgressCallback& progress = {});
 
 // Errors of one rig on one split: vertex error ‖x_i − y_i‖ against the pose morph (mm), over all
-// vertices of all poses of the split (EVALUATION.md: vertex error).
+// vertices of all poses of the split (docs/evaluation.md#character-rig-errors).
 struct RigErrorRow {
   std::string method;   // "template_lbs", "smooth_lbs", "lbs", "as", "mwe"
   std::string split;    // "train" or "held_out"

@@ -10,8 +10,8 @@
 
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
-#include "model/generate_crowd.h"
 #include "model/morph.h"
+#include "tools/pipeline/crowd_output.h"
 #include "tools/verb.h"
 #include "tools/verbs/model_common.h"
 
@@ -57,7 +57,7 @@ BODYMODEL_VERB(add_model_generate_verb) {
       "(or the chosen sex's subjects), then the --where conditions are enforced as MEASURED on\n"
       "each output (model/morph.h). Writes OUT/body_NNN.obj, OUT/labels.csv with the measured\n"
       "labels of every body and OUT/generate.json with the settings. Body k depends only on the\n"
-      "seed and k. A rerun with the same settings skips the bodies already written (model/generate_crowd.h).");
+      "seed and k. A rerun with the same settings skips the bodies already written (tools/pipeline/crowd_output.h).");
   cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`)")->required();
   cmd->add_option("--count", a->count, "Number of bodies")->capture_default_str()->check(CLI::Range(1, 100000));
   cmd->add_option("--where", a->where, "LABEL=VALUE or LABEL=LO..HI, repeatable (sex=female|male)");
@@ -81,12 +81,12 @@ BODYMODEL_VERB(add_model_generate_verb) {
     const SemanticRegression& reg = model->shape.regression;
     std::vector<LabelCondition> cond;
     for (auto& w : a->where) cond.push_back(parse_where(reg, w, a->clamp));
-    GenerateCrowdOptions co;
-    co.generate.spread = a->spread;
-    co.generate.measure_girths = !a->no_girths;
-    co.seed = a->seed;
+    CrowdOutputOptions co;
+    co.crowd.generate.spread = a->spread;
+    co.crowd.generate.measure_girths = !a->no_girths;
+    co.crowd.seed = a->seed;
+    co.crowd.threads = a->jobs;
     co.format = a->format;
-    co.threads = a->jobs;
     co.force = a->force;
     Sex sex = Sex::unknown;
     for (auto& c : cond)
@@ -96,7 +96,7 @@ BODYMODEL_VERB(add_model_generate_verb) {
     GenerateCrowdSummary s;
     {
       cli::ProgressBar bar("generate");
-      s = generate_crowd(model, cond, n, out, co, bar.callback());
+      s = write_crowd(model, cond, n, out, co, bar.callback());
       bar.finish(fmt::format("{} bodies in {:.1f} s ({:.1f}/s)", s.generated, s.seconds,
                              s.generated / std::max(s.seconds, 1e-9)));
     }

@@ -1,9 +1,10 @@
 // bodymodel eval-registration DB/ REG/ [--csv FILE] [--per-joint] [--flipped-regions]
 //                             [--flipped-csv FILE] [--hole-csv FILE]
 //
-// Compares registered meshes and poses with the database's ground truth (EVALUATION.md,
-// registration): correspondence error (per-scan mean, median over scans, 95th percentile of all
-// vertices), surface fit, hole error, flipped triangles and joint rotation error.
+// Compares registered meshes and poses with the database's ground truth
+// (docs/evaluation.md#registration-against-ground-truth): correspondence error (per-scan mean,
+// median over scans, 95th percentile of all vertices), surface fit, hole error, flipped triangles
+// and joint rotation error.
 #include <fmt/format.h>
 
 #include <Eigen/Geometry>
@@ -16,12 +17,13 @@
 #include <sstream>
 
 #include "core/error.h"
-#include "core/io/atomic_write.h"
 #include "core/geometry.h"
+#include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
+#include "core/io/pose_csv.h"
 #include "core/makehuman.h"
+#include "core/rotation.h"
 #include "registration/metrics.h"
-#include "registration/pose_io.h"
 #include "tools/console.h"
 #include "tools/verb.h"
 
@@ -79,7 +81,7 @@ BODYMODEL_VERB(add_eval_registration_verb) {
   auto* cmd = app.add_subcommand(
       "eval-registration",
       "Compare registrations (REG/<id>.ply, <id>.pose.csv) with the database's ground truth\n"
-      "(DB/truth/): correspondence, surface-fit, hole and joint errors (EVALUATION.md).\n"
+      "(DB/truth/): correspondence, surface-fit, hole and joint errors (docs/evaluation.md).\n"
       "Writes REG/evaluation.csv (per scan) unless --csv says otherwise; prints a summary.");
   cmd->add_option("db", a->db, "Scan database folder (with truth/)")->required();
   cmd->add_option("reg", a->reg, "Registration folder written by 'bodymodel register'")
@@ -229,8 +231,8 @@ BODYMODEL_VERB(add_eval_registration_verb) {
       }
       double jmed = std::nan(""), jmax = std::nan(""), fmed = std::nan("");
       if (fs::exists(reg / (id + ".pose.csv")) && fs::exists(db / "truth" / (id + ".pose.csv"))) {
-        const auto Qe = read_pose_csv(reg / (id + ".pose.csv"), sk).world_rotations(sk);
-        const auto Qt = read_pose_csv(db / "truth" / (id + ".pose.csv"), sk).world_rotations(sk);
+        const auto Qe = read_pose_csv(reg / (id + ".pose.csv"), sk.names).world_rotations(sk);
+        const auto Qt = read_pose_csv(db / "truth" / (id + ".pose.csv"), sk.names).world_rotations(sk);
         std::vector<double> je;
         for (size_t j = 0; j < joints.size(); ++j) {
           je.push_back(rotation_angle_deg(Qe[joints[j]], Qt[joints[j]]));

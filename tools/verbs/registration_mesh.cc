@@ -8,11 +8,7 @@
 // REG/<stem>.detail.npz and the detailed mesh REG/<stem>.detailed.ply.
 #include <fmt/format.h>
 
-#include <atomic>
 #include <filesystem>
-#include <mutex>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
@@ -22,9 +18,10 @@
 #include <nlohmann/json.hpp>
 #include "registration/detail_transfer.h"
 #include "registration/mesh_scan.h"
-#include "registration/pose_io.h"
+#include "core/io/pose_csv.h"
 #include "registration/register_scan.h"
 #include "tools/console.h"
+#include "tools/pipeline/batch_jobs.h"
 #include "tools/verb.h"
 
 namespace bodymodel {
@@ -144,18 +141,14 @@ BODYMODEL_VERB(add_register_mesh_verb) {
     if (!fs::is_regular_file(a->landmarks))
       throw InputError("--landmarks '" + a->landmarks + "': file not found");
     ensure_directory(out);
-    std::vector<size_t> todo;
-    for (size_t k = 0; k < stems.size(); ++k) {
+    BatchJobs batch({"mesh", "meshes", "registered", a->jobs, a->force}, stems, a->meshes);
+    const size_t todo = batch.skip_done([&](size_t k) {
       const std::string& s = stems[k];
-      const bool done = fs::exists(out / (s + ".ply")) && fs::exists(out / (s + ".pose.csv")) &&
-                        fs::exists(out / (s + ".register-mesh.csv")) &&
-                        (!a->detail || fs::exists(out / (s + ".detail.npz")));
-      if (a->force || !done) todo.push_back(k);
-    }
-    if (todo.size() < stems.size())
-      cli::info(fmt::format("{} of {} meshes already registered in {}: skipped",
-                            stems.size() - todo.size(), stems.size(), a->out));
-    if (todo.empty()) {
+      return fs::exists(out / (s + ".ply")) && fs::exists(out / (s + ".pose.csv")) &&
+             fs::exists(out / (s + ".register-mesh.csv")) &&
+             (!a->detail || fs::exists(out / (s + ".detail.npz")));
+    }, a->out);
+    if (todo == 0) {
       rebuild_csv(out);
       return;
     }
@@ -174,87 +167,54 @@ BODYMODEL_VERB(add_register_mesh_verb) {
     options.pose.max_icp_iterations = a->pose_iterations;
     // options.pose.parameters left empty: default_pose_parameters(), as `register`.
 
-    cli::ProgressBar bar(fmt::format("register {} meshes", todo.size()));
-    std::mutex mutex;
-    std::atomic<int> done{0};
-    std::vector<std::string> failures;
-    std::vector<double> current(todo.size(), 0.0);
-    auto update = [&](std::string_view what) {
-      double f = 0;
-      for (double c : current) f += c;
-      bar.update(f / todo.size(), what);
-    };
-    tbb::task_arena arena(a->jobs);
-    arena.execute([&] {
-      tbb::parallel_for(size_t(0), todo.size(), size_t(1), [&](size_t j) {
-        const std::string& path = a->meshes[todo[j]];
-        const std::string& stem = stems[todo[j]];
-        try {
-          Mesh mesh = read_mesh(path);
-          mesh.V *= a->scale;
-          std::vector<Landmark> landmarks =
-              read_mesh_landmarks(a->landmarks, body_landmarks(), mesh.V);
-          MeshScanOptions so;
-          so.samples = a->samples;
-          PointCloud scan = mesh_to_scan(mesh, so, path);
-          const PointCloud scan_copy = scan;
-          RegistrationSummary s;
-          auto progress = [&, j](double f, std::string_view) {
-            std::lock_guard<std::mutex> lock(mutex);
-            current[j] = 0.9 * f;
-            update(stem);
-            return true;
-          };
-          RegistrationResult r = register_scan(tpl, scan, landmarks, options, path, &s, progress);
-          if (!a->keep_folds) unfold_triangles(r.V, r.pose.V, tpl.mesh.F);
-          const MeshScanDistance d = mesh_scan_distance(r.V, tpl.mesh.F, mesh, &r.pose.V);
-          double detail_distance = -1;
-          if (a->detail) {
-            const SurfaceDetail detail = capture_detail(r.V, tpl.mesh.F, scan_copy);
-            const Mesh detailed = apply_detail(r.V, tpl.mesh.F, detail);
-            detail_distance =
-                mesh_scan_distance(detailed.V, detailed.F, mesh).scan_to_registered_mean;
-            write_detail(out / (stem + ".detail.npz"), detail, tpl.mesh.F);
-            write_mesh(out / (stem + ".detailed.ply"), detailed);
-          }
-          PoseRecord rec;
-          rec.scale = r.pose.scale;
-          rec.pose = r.pose.pose;
-          write_mesh(out / (stem + ".ply"), r.V, tpl.mesh.F);
-          write_pose_csv(out / (stem + ".pose.csv"), tpl.skeleton, rec);
-          if (r.shape)
-            write_text_file(out / (stem + ".shape.json"), r.shape->to_json().dump(2) + "\n");
-          write_text_file(
-              out / (stem + ".register-mesh.csv"),
-              fmt::format("{},{},{},{:.6f},{},{:.4f},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},"
-                          "{:.4f},{},{},{:.4f},{:.2f}\n",
-                          stem, scan.P.rows(), landmarks.size(), r.pose.scale,
-                          s.pose.icp_iterations, s.pose.rms, s.nonrigid.iterations,
-                          s.nonrigid.data_rms, s.nonrigid.landmark_rms, d.registered_to_scan_mean,
-                          d.scan_to_registered_mean, d.two_sided_mean, d.registered_to_scan_p95,
-                          d.scan_to_registered_p95, d.folded_triangles, d.flipped_against_scan,
-                          detail_distance, s.seconds));
-          std::lock_guard<std::mutex> lock(mutex);
-          current[j] = 1.0;
-          ++done;
-          cli::info(fmt::format("{}: two-sided distance {:.2f} mm (registered→scan {:.2f}, "
-                                "scan→registered {:.2f}), {} folded triangles, {:.0f} s",
-                                stem, d.two_sided_mean, d.registered_to_scan_mean,
-                                d.scan_to_registered_mean, d.folded_triangles, s.seconds));
-          update(stem);
-        } catch (const std::exception& e) {
-          std::lock_guard<std::mutex> lock(mutex);
-          current[j] = 1.0;
-          failures.push_back(stem + ": " + e.what());
-          cli::warn(fmt::format("mesh {} failed and was skipped: {}", path, e.what()));
-        }
-      });
+    batch.run(fmt::format("register {} meshes", todo), [&](size_t k, const auto& progress) {
+      const std::string& path = a->meshes[k];
+      const std::string& stem = stems[k];
+      Mesh mesh = read_mesh(path);
+      mesh.V *= a->scale;
+      std::vector<Landmark> landmarks = read_mesh_landmarks(a->landmarks, body_landmarks(), mesh.V);
+      MeshScanOptions so;
+      so.samples = a->samples;
+      PointCloud scan = mesh_to_scan(mesh, so, path);
+      const PointCloud scan_copy = scan;
+      RegistrationSummary s;
+      auto report = [&](double f, std::string_view) {
+        progress(0.9 * f);  // the rest: distances, detail, writing
+        return true;
+      };
+      RegistrationResult r = register_scan(tpl, scan, landmarks, options, path, &s, report);
+      if (!a->keep_folds) unfold_triangles(r.V, r.pose.V, tpl.mesh.F);
+      const MeshScanDistance d = mesh_scan_distance(r.V, tpl.mesh.F, mesh, &r.pose.V);
+      double detail_distance = -1;
+      if (a->detail) {
+        const SurfaceDetail detail = capture_detail(r.V, tpl.mesh.F, scan_copy);
+        const Mesh detailed = apply_detail(r.V, tpl.mesh.F, detail);
+        detail_distance = mesh_scan_distance(detailed.V, detailed.F, mesh).scan_to_registered_mean;
+        write_detail(out / (stem + ".detail.npz"), detail, tpl.mesh.F);
+        write_mesh(out / (stem + ".detailed.ply"), detailed);
+      }
+      PoseRecord rec;
+      rec.scale = r.pose.scale;
+      rec.pose = r.pose.pose;
+      write_mesh(out / (stem + ".ply"), r.V, tpl.mesh.F);
+      write_pose_csv(out / (stem + ".pose.csv"), tpl.skeleton.names, rec);
+      if (r.shape) write_text_file(out / (stem + ".shape.json"), r.shape->to_json().dump(2) + "\n");
+      write_text_file(
+          out / (stem + ".register-mesh.csv"),
+          fmt::format("{},{},{},{:.6f},{},{:.4f},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},"
+                      "{:.4f},{},{},{:.4f},{:.2f}\n",
+                      stem, scan.P.rows(), landmarks.size(), r.pose.scale, s.pose.icp_iterations,
+                      s.pose.rms, s.nonrigid.iterations, s.nonrigid.data_rms, s.nonrigid.landmark_rms,
+                      d.registered_to_scan_mean, d.scan_to_registered_mean, d.two_sided_mean,
+                      d.registered_to_scan_p95, d.scan_to_registered_p95, d.folded_triangles,
+                      d.flipped_against_scan, detail_distance, s.seconds));
+      return fmt::format("{}: two-sided distance {:.2f} mm (registered→scan {:.2f}, "
+                         "scan→registered {:.2f}), {} folded triangles, {:.0f} s",
+                         stem, d.two_sided_mean, d.registered_to_scan_mean,
+                         d.scan_to_registered_mean, d.folded_triangles, s.seconds);
     });
-    bar.finish(fmt::format("{} registered, {} failed", done.load(), failures.size()));
     rebuild_csv(out);
-    if (!failures.empty())
-      throw InputError(fmt::format("{} of {} meshes failed; first: {}", failures.size(),
-                                   todo.size(), failures.front()));
+    batch.throw_if_failed();
   });
 }
 

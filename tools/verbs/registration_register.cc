@@ -7,13 +7,9 @@
 // DB/truth/ (except the --start-from-truth diagnosis).
 #include <fmt/format.h>
 
-#include <atomic>
 #include <filesystem>
 #include <fstream>
-#include <mutex>
 #include <sstream>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include "core/data_path.h"
 #include "core/error.h"
@@ -22,9 +18,10 @@
 #include "core/landmarks.h"
 #include "core/makehuman.h"
 #include <nlohmann/json.hpp>
-#include "registration/pose_io.h"
+#include "core/io/pose_csv.h"
 #include "registration/register_scan.h"
 #include "tools/console.h"
+#include "tools/pipeline/batch_jobs.h"
 #include "tools/verb.h"
 
 namespace bodymodel {
@@ -183,15 +180,12 @@ BODYMODEL_VERB(add_register_verb) {
       ids = mine;
     }
     ensure_directory(out);
-    std::vector<std::string> todo;
-    for (const auto& id : ids)
-      if (a->force || !fs::exists(out / (id + ".ply")) || !fs::exists(out / (id + ".pose.csv")) ||
-          !fs::exists(out / (id + ".summary.csv")))
-        todo.push_back(id);
-    if (todo.size() < ids.size())
-      cli::info(fmt::format("{} of {} scans already registered in {}: skipped", ids.size() - todo.size(),
-                            ids.size(), a->out));
-    if (todo.empty()) {
+    BatchJobs batch({"scan", "scans", "registered", a->jobs, a->force}, ids);
+    const size_t todo = batch.skip_done([&](size_t k) {
+      return fs::exists(out / (ids[k] + ".ply")) && fs::exists(out / (ids[k] + ".pose.csv")) &&
+             fs::exists(out / (ids[k] + ".summary.csv"));
+    }, a->out);
+    if (todo == 0) {
       rebuild_registration_csv(out);
       return;
     }
@@ -225,93 +219,64 @@ BODYMODEL_VERB(add_register_verb) {
 
     std::vector<std::string> pose_joint_names = {a->pose_joints, "bone"};
     if (a->pose_joints == "best") pose_joint_names[0] = "segment";
-    cli::ProgressBar bar(fmt::format("register {} scans", todo.size()));
-    std::mutex mutex;
-    std::atomic<int> done{0};
-    std::vector<std::string> failures;
-    std::vector<double> current(todo.size(), 0.0);
-    auto update = [&](std::string_view what) {
-      double f = 0;
-      for (double c : current) f += c;
-      bar.update(f / todo.size(), what);
-    };
-    tbb::task_arena arena(a->jobs);
-    arena.execute([&] {
-      tbb::parallel_for(size_t(0), todo.size(), size_t(1), [&](size_t k) {
-        const std::string& id = todo[k];
-        const fs::path scan_path = db / "scans" / (id + ".ply");
-        const fs::path lm_path = db / "scans" / (id + ".landmarks.json");
-        try {
-          PointCloud scan = read_point_cloud(scan_path);
-          if (a->scan_unit_mm != 1.0) scan.P *= a->scan_unit_mm;
-          if (!fs::exists(lm_path))
-            throw InputError(lm_path.string() +
-                             ": expected the scan's landmarks {name: [x, y, z]}, file not found");
-          std::vector<Landmark> landmarks = read_landmarks(lm_path, body_landmarks());
-          for (auto& l : landmarks) l.target *= a->scan_unit_mm;
-          RegistrationSummary s;
-          auto progress = [&, k](double f, std::string_view what) {
-            std::lock_guard<std::mutex> lock(mutex);
-            current[k] = f;
-            update(id);
-            return true;
-          };
-          RegistrationOptions scan_options = options;
-          if (a->start_from_truth == "mesh") {
-            const fs::path truth = db / "truth" / (id + ".ply");
-            if (!fs::exists(truth))
-              throw InputError(truth.string() + ": --start-from-truth needs the true mesh, not found");
-            scan_options.start_vertices = read_mesh(truth).V;
-          } else if (a->start_from_truth == "pose") {
-            const fs::path truth = db / "truth" / (id + ".pose.csv");
-            if (!fs::exists(truth))
-              throw InputError(truth.string() + ": --start-from-truth needs the true pose, not found");
-            scan_options.start_pose = read_pose_csv(truth, tpl.skeleton);
-          }
-          RegistrationResult r =
-              register_scan(tpl, scan, landmarks, scan_options, scan_path.string(), &s, progress);
-          PoseRecord rec;
-          rec.scale = r.pose.scale;
-          rec.pose = r.pose.pose;
-          write_mesh(out / (id + ".ply"), r.V, tpl.mesh.F);
-          write_pose_csv(out / (id + ".pose.csv"), tpl.skeleton, rec);
-          std::string shape_cols = ",0,0,,,,,,,";
-          if (r.shape) {
-            const MacroSettings& m = *r.shape;
-            write_text_file(out / (id + ".shape.json"), m.to_json().dump(2) + "\n");
-            shape_cols = fmt::format(",{},{:.2f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f}",
-                                     s.shape_rounds, s.shape_seconds, m.gender, m.age, m.muscle,
-                                     m.weight, m.height, m.proportions, m.cup);
-          }
-          write_text_file(
-              out / (id + ".summary.csv"),
-              fmt::format("{},{},{},{},{},{:.4f},{:.4f},{:.6f},{},{:.4f},{:.4f},{},{},{:.2f},{:.2f},"
-                          "{:.2f},{:.3f},{},{}{}\n",
-                          id, scan.P.rows(), s.scan.normals_estimated ? 1 : 0, landmarks.size(),
-                          s.pose.icp_iterations, s.pose.rms, s.pose.landmark_rms, r.pose.scale,
-                          s.nonrigid.iterations, s.nonrigid.data_rms, s.nonrigid.landmark_rms,
-                          s.nonrigid.matched_vertices, s.nonrigid.plane_matches, s.pose.seconds,
-                          s.nonrigid.seconds, s.seconds, s.pose.two_sided_mm,
-                          pose_joint_names[s.pose_choice], s.folded_triangles, shape_cols));
-          std::lock_guard<std::mutex> lock(mutex);
-          if (s.scan.normals_estimated)
-            cli::info(id + ": the scan has no normals; estimated them (unoriented)");
-          current[k] = 1.0;
-          ++done;
-          update(id);
-        } catch (const std::exception& e) {
-          std::lock_guard<std::mutex> lock(mutex);
-          current[k] = 1.0;
-          failures.push_back(id + ": " + e.what());
-          cli::warn(fmt::format("scan {} failed and was skipped: {}", id, e.what()));
-        }
-      });
+    batch.run(fmt::format("register {} scans", todo), [&](size_t k, const auto& progress) {
+      const std::string& id = ids[k];
+      const fs::path scan_path = db / "scans" / (id + ".ply");
+      const fs::path lm_path = db / "scans" / (id + ".landmarks.json");
+      PointCloud scan = read_point_cloud(scan_path);
+      if (a->scan_unit_mm != 1.0) scan.P *= a->scan_unit_mm;
+      if (!fs::exists(lm_path))
+        throw InputError(lm_path.string() +
+                         ": expected the scan's landmarks {name: [x, y, z]}, file not found");
+      std::vector<Landmark> landmarks = read_landmarks(lm_path, body_landmarks());
+      for (auto& l : landmarks) l.target *= a->scan_unit_mm;
+      RegistrationSummary s;
+      auto report = [&](double f, std::string_view) {
+        progress(f);
+        return true;
+      };
+      RegistrationOptions scan_options = options;
+      if (a->start_from_truth == "mesh") {
+        const fs::path truth = db / "truth" / (id + ".ply");
+        if (!fs::exists(truth))
+          throw InputError(truth.string() + ": --start-from-truth needs the true mesh, not found");
+        scan_options.start_vertices = read_mesh(truth).V;
+      } else if (a->start_from_truth == "pose") {
+        const fs::path truth = db / "truth" / (id + ".pose.csv");
+        if (!fs::exists(truth))
+          throw InputError(truth.string() + ": --start-from-truth needs the true pose, not found");
+        scan_options.start_pose = read_pose_csv(truth, tpl.skeleton.names);
+      }
+      RegistrationResult r =
+          register_scan(tpl, scan, landmarks, scan_options, scan_path.string(), &s, report);
+      PoseRecord rec;
+      rec.scale = r.pose.scale;
+      rec.pose = r.pose.pose;
+      write_mesh(out / (id + ".ply"), r.V, tpl.mesh.F);
+      write_pose_csv(out / (id + ".pose.csv"), tpl.skeleton.names, rec);
+      std::string shape_cols = ",0,0,,,,,,,";
+      if (r.shape) {
+        const MacroSettings& m = *r.shape;
+        write_text_file(out / (id + ".shape.json"), m.to_json().dump(2) + "\n");
+        shape_cols = fmt::format(",{},{:.2f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f}",
+                                 s.shape_rounds, s.shape_seconds, m.gender, m.age, m.muscle,
+                                 m.weight, m.height, m.proportions, m.cup);
+      }
+      write_text_file(
+          out / (id + ".summary.csv"),
+          fmt::format("{},{},{},{},{},{:.4f},{:.4f},{:.6f},{},{:.4f},{:.4f},{},{},{:.2f},{:.2f},"
+                      "{:.2f},{:.3f},{},{}{}\n",
+                      id, scan.P.rows(), s.scan.normals_estimated ? 1 : 0, landmarks.size(),
+                      s.pose.icp_iterations, s.pose.rms, s.pose.landmark_rms, r.pose.scale,
+                      s.nonrigid.iterations, s.nonrigid.data_rms, s.nonrigid.landmark_rms,
+                      s.nonrigid.matched_vertices, s.nonrigid.plane_matches, s.pose.seconds,
+                      s.nonrigid.seconds, s.seconds, s.pose.two_sided_mm,
+                      pose_joint_names[s.pose_choice], s.folded_triangles, shape_cols));
+      return s.scan.normals_estimated ? id + ": the scan has no normals; estimated them (unoriented)"
+                                      : std::string();
     });
-    bar.finish(fmt::format("{} registered, {} failed", done.load(), failures.size()));
     rebuild_registration_csv(out);
-    if (!failures.empty())
-      throw InputError(fmt::format("{} of {} scans failed; first: {}", failures.size(),
-                                   todo.size(), failures.front()));
+    batch.throw_if_failed();
   });
 }
 

@@ -1,7 +1,8 @@
 // `bodymodel skin candy-wrapper`: Jacka-style "twist" and "arm bend" cases on the libigl arm rig
-// (../shared/data/animations/arm-rig, README "arm-rig"). Reference frames come from dual-quaternion
-// skinning with the true weights; SSD (weights fitted to the reference frames with the true
-// transforms), Animation Space and MWE are fitted to a few frames and evaluated on all of them.
+// ($BODYMODEL_DATA/animations/arm-rig, its README "arm-rig"; docs/data.md). Reference frames come
+// from dual-quaternion skinning with the true weights; SSD (weights fitted to the reference frames
+// with the true transforms), Animation Space and MWE are fitted to a few frames and evaluated on
+// all of them.
 #include <fmt/format.h>
 
 #include <Eigen/Geometry>

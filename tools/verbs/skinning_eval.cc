@@ -1,5 +1,5 @@
 // `bodymodel skin eval SEQUENCE/ | FILES...`: Jacka et al. 2007's comparison of every skinning
-// method on a mesh sequence or an unordered set of poses (EVALUATION.md "Skinning"; issue 26).
+// method on a mesh sequence or an unordered set of poses (docs/skinning.md; issue 26).
 #include <fmt/format.h>
 
 #include <fstream>
