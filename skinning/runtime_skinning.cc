@@ -218,6 +218,9 @@ void run_blocks(int n, int threads, F&& f) {
 
 RuntimeSkinner::RuntimeSkinner(const SkinningRig& rig, const Eigen::MatrixX3d& normals) {
   rig.validate("runtime skinner");
+  if (rig.method == SkinningMethod::dqs)
+    throw InputError("runtime skinner: dqs rigs are not supported (linear kernels only); pose them with "
+                     "evaluate_rig (the reference dual-quaternion blend)");
   if (rig.max_influences() > kMaxInfluences)
     throw InputError("runtime skinner: the rig has " + std::to_string(rig.max_influences()) +
                      " influence slots, at most " + std::to_string(kMaxInfluences) + " are supported");
