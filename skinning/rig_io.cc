@@ -15,7 +15,7 @@ void save_rig(const std::filesystem::path& path, const SkinningRig& rig, const E
   Npz z;
   z.put_text("format", "bodymodel-skinning-rig-1");
   z.put_text("method", skinning_method_name(rig.method));
-  z.put("bone_count", static_cast<double>(rig.bone_count));
+  z.put_int("bone_count", rig.bone_count);
   z.put("rest", Eigen::MatrixXd(rig.rest));
   z.put("faces", Eigen::MatrixXi(faces.size() ? Eigen::MatrixXi(faces) : Eigen::MatrixXi(0, 3)));
   z.put("influences", rig.influences);

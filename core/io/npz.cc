@@ -58,6 +58,12 @@ void Npz::put(const std::string& name, double scalar) {
   a.f64 = {scalar};
   arrays_[name] = std::move(a);
 }
+void Npz::put_int(const std::string& name, int scalar) {
+  NpyArray a;
+  a.is_float = false;
+  a.i64 = {scalar};
+  arrays_[name] = std::move(a);
+}
 void Npz::put_text(const std::string& name, const std::string& text) {
   NpyArray a;
   a.is_float = false;
@@ -196,9 +202,19 @@ std::string npy_bytes(const NpyArray& a) {
   } else if (a.is_float) {
     descr = "<f8";
     payload.assign(reinterpret_cast<const char*>(a.f64.data()), a.f64.size() * 8);
-  } else {
+  } else if (a.store_int64) {
     descr = "<i8";
     payload.assign(reinterpret_cast<const char*>(a.i64.data()), a.i64.size() * 8);
+  } else {
+    // int32, as documented for every integer array (faces, influences, parents, counts).
+    descr = "<i4";
+    payload.resize(a.i64.size() * 4);
+    for (size_t i = 0; i < a.i64.size(); ++i) {
+      if (a.i64[i] < INT32_MIN || a.i64[i] > INT32_MAX)
+        throw InputError("npz: integer " + std::to_string(a.i64[i]) + " does not fit int32");
+      const int32_t v = static_cast<int32_t>(a.i64[i]);
+      std::memcpy(payload.data() + 4 * i, &v, 4);
+    }
   }
   if (a.text.empty())
     for (size_t i = 0; i < a.shape.size(); ++i)
@@ -256,6 +272,7 @@ NpyArray parse_npy(const std::string& b, const std::string& what) {
   const char* data = b.data() + hstart + hlen;
   size_t avail = b.size() - hstart - hlen;
   if (descr.size() < 3) throw bad("unsupported dtype '" + descr + "'");
+  a.dtype = descr;
   char order = descr[0];
   char kind = descr[1];
   size_t width = static_cast<size_t>(std::atoi(descr.c_str() + 2));
@@ -288,11 +305,14 @@ NpyArray parse_npy(const std::string& b, const std::string& what) {
       const char* p = data + width * i;
       int64_t v = 0;
       if (width == 1) v = kind == 'i' ? int64_t(int8_t(*p)) : int64_t(uint8_t(*p));
-      else if (width == 2) { int16_t x; uint16_t y; std::memcpy(&x, p, 2); std::memcpy(&y, p, 2); v = kind == 'i' ? x : y; }
-      else if (width == 4) { int32_t x; uint32_t y; std::memcpy(&x, p, 4); std::memcpy(&y, p, 4); v = kind == 'i' ? x : y; }
+      else if (width == 2) { int16_t x; uint16_t y; std::memcpy(&x, p, 2); std::memcpy(&y, p, 2); v = kind == 'i' ? int64_t(x) : int64_t(y); }
+      // Each branch widened on its own: `kind == 'i' ? x : y` would convert x to uint32_t, and an
+      // int32 -1 (a root's parent) came back as 4294967295.
+      else if (width == 4) { int32_t x; uint32_t y; std::memcpy(&x, p, 4); std::memcpy(&y, p, 4); v = kind == 'i' ? int64_t(x) : int64_t(y); }
       else if (width == 8) std::memcpy(&v, p, 8);
       else throw bad("unsupported integer width in '" + descr + "'");
       a.i64[i] = v;
+      if (v < INT32_MIN || v > INT32_MAX) a.store_int64 = true;  // saved again as it came
     }
   } else {
     throw bad("unsupported dtype '" + descr + "'");
