@@ -92,6 +92,12 @@ void run_eval(const EvalArgs& a) {
       t = evenly_spaced_frames(nf, k);
       protocol = fmt::format("{} evenly spaced training frames", t.size());
     }
+    // Training on every frame leaves no unseen split to report (--train-count 1000 did so silently).
+    std::set<int> trained(t.begin(), t.end());
+    if (static_cast<int>(trained.size()) >= nf)
+      throw InputError(fmt::format("{}: the training frames ({}) are all {} frames of the sequence, leaving no "
+                                   "unseen frame to measure (train on at most {})",
+                                   a.sequence, protocol, nf, nf - 1));
     folds.push_back(t);
   }
   ensure_directory(a.out);
@@ -193,8 +199,10 @@ BODYMODEL_VERB(add_skin_eval_verb) {
   cmd->add_option("sequence", a->sequence, "Folder of .obj/.ply frames sharing one connectivity")->required();
   cmd->add_option("--out", a->out, "Report folder (skinning.csv, skinning.md, per-vertex error PLYs)");
   cmd->add_option("--methods", a->methods, "Comma-separated methods: ssd, as, mwe");
-  cmd->add_option("--train-every", a->train_every, "Train on every K-th frame (frame 1, 1+K, ...)");
-  cmd->add_option("--train-count", a->train_count, "Train on N evenly spaced frames (default 10)");
+  cmd->add_option("--train-every", a->train_every, "Train on every K-th frame (frame 1, 1+K, ...)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--train-count", a->train_count, "Train on N evenly spaced frames (default 10)")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--train", a->train, "Comma-separated training frame names (file names without extension)");
   cmd->add_flag("--leave-one-out", a->leave_one_out, "Hold out each frame in turn (for sequences of few poses)");
   cmd->add_option("--rest", a->rest, "Frame used as the rest pose (default: the first)");
