@@ -324,6 +324,30 @@ NpyArray parse_npy(const std::string& b, const std::string& what) {
 
 // ---- zip container -----------------------------------------------------------------------------
 
+namespace {
+
+// Raw deflate (zip method 8), level 1. Float arrays get Huffman coding only: on the demo model's
+// bases it keeps 7.4 % of the 8.3 % that string matching saves, at 40 % of the time (2 s instead
+// of 5.5 s for 107 MB); faces, indices and text keep string matching, which shrinks them most.
+std::string deflated(const std::string& data, bool floats) {
+  z_stream s{};
+  if (deflateInit2(&s, 1, Z_DEFLATED, -MAX_WBITS, 8, floats ? Z_HUFFMAN_ONLY : Z_DEFAULT_STRATEGY) != Z_OK)
+    throw std::runtime_error("npz: zlib deflateInit2 failed");
+  std::string out(deflateBound(&s, static_cast<uLong>(data.size())), '\0');
+  s.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(data.data()));
+  s.avail_in = static_cast<uInt>(data.size());
+  s.next_out = reinterpret_cast<Bytef*>(out.data());
+  s.avail_out = static_cast<uInt>(out.size());
+  const int r = deflate(&s, Z_FINISH);
+  const uLong n = s.total_out;
+  deflateEnd(&s);
+  if (r != Z_STREAM_END) throw std::runtime_error("npz: zlib deflate failed");
+  out.resize(n);
+  return out;
+}
+
+}  // namespace
+
 std::string Npz::serialize() const {
   std::string out, central;
   uint16_t count = 0;
@@ -334,22 +358,26 @@ std::string Npz::serialize() const {
     uint32_t offset = static_cast<uint32_t>(out.size());
     if (out.size() + data.size() > 0xFFFFFFF0ull)
       throw InputError("npz: archive larger than 4 GiB is not supported");
+    // Deflated as np.savez_compressed does; a member deflate would not shrink is stored.
+    std::string packed = deflated(data, a.is_float && a.text.empty());
+    const uint16_t method = packed.size() < data.size() ? 8 : 0;
+    const std::string& body = method == 8 ? packed : data;
     // local file header
     append_u32(out, 0x04034b50);
-    append_u16(out, 20); append_u16(out, 0); append_u16(out, 0);  // version, flags, stored
-    append_u16(out, 0); append_u16(out, 0x21);                     // time, date (1980-01-01)
+    append_u16(out, 20); append_u16(out, 0); append_u16(out, method);  // version, flags, method
+    append_u16(out, 0); append_u16(out, 0x21);                          // time, date (1980-01-01)
     append_u32(out, crc);
-    append_u32(out, static_cast<uint32_t>(data.size()));
+    append_u32(out, static_cast<uint32_t>(body.size()));
     append_u32(out, static_cast<uint32_t>(data.size()));
     append_u16(out, static_cast<uint16_t>(fname.size())); append_u16(out, 0);
     out += fname;
-    out += data;
+    out += body;
     // central directory entry
     append_u32(central, 0x02014b50);
-    append_u16(central, 20); append_u16(central, 20); append_u16(central, 0); append_u16(central, 0);
+    append_u16(central, 20); append_u16(central, 20); append_u16(central, 0); append_u16(central, method);
     append_u16(central, 0); append_u16(central, 0x21);
     append_u32(central, crc);
-    append_u32(central, static_cast<uint32_t>(data.size()));
+    append_u32(central, static_cast<uint32_t>(body.size()));
     append_u32(central, static_cast<uint32_t>(data.size()));
     append_u16(central, static_cast<uint16_t>(fname.size()));
     append_u16(central, 0); append_u16(central, 0); append_u16(central, 0); append_u16(central, 0);

@@ -1,8 +1,9 @@
 // NumPy .npz archives (a zip of .npy arrays) that `np.load` opens: the format for models and
-// rigs. Arrays are stored uncompressed, little-endian, C order: float64 (or float32 where asked),
-// integer arrays and scalars int32 ('<i4'), text as numpy unicode scalars. Reading accepts stored
-// and deflated members, float64/float32 and (u)int8..64 arrays (files written before integers
-// were int32 hold int64) and unicode/bytes strings.
+// rigs. Members are deflated (as np.savez_compressed writes them; stored when that would not
+// shrink them); arrays little-endian, C order: float64 (or float32 where asked), integer arrays
+// and scalars int32 ('<i4'), text as numpy unicode scalars. Reading accepts stored and deflated
+// members, float64/float32 and (u)int8..64 arrays (files written before integers were int32 hold
+// int64) and unicode/bytes strings.
 #pragma once
 
 #include <Eigen/Core>
