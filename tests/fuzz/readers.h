@@ -21,6 +21,7 @@
 #include "core/io/libigl_formats.h"
 #include "core/io/mesh_io.h"
 #include "core/io/npz.h"
+#include "core/io/pose_csv.h"
 #include "core/landmarks.h"
 #include "core/makehuman.h"
 #include "encoding/encoding_file.h"
@@ -28,7 +29,6 @@
 #include "model/database.h"
 #include "model/model_file.h"
 #include "registration/landmarks.h"
-#include "registration/pose_io.h"
 #include "skinning/rig_io.h"
 
 namespace bodymodel::fuzz {
@@ -129,7 +129,7 @@ inline void read_pose_labels(const std::string& in) {
     s.tails << 0, 100, 0, 0, 200, 0, 0, 300, 0;
     return s;
   }();
-  const PoseRecord r = read_pose_csv(input_file(in, ".pose.csv"), skeleton);
+  const PoseRecord r = read_pose_csv(input_file(in, ".pose.csv"), skeleton.names);
   for (const auto& R : r.pose.rotations) check(R.allFinite());
   check(r.global_rotation.allFinite() && r.global_translation.allFinite() &&
         r.pose.root_translation.allFinite() && std::isfinite(r.scale));

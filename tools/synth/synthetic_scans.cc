@@ -31,6 +31,7 @@
 #include "core/measure.h"
 #include "core/point_index.h"
 #include "core/retarget.h"
+#include "core/rotation.h"
 
 namespace bodymodel {
 
@@ -102,14 +103,7 @@ std::string fmt_double(double v, int decimals) {
 
 Eigen::Matrix3d random_rotation(std::mt19937_64& rng, double sigma_rad) {
   std::normal_distribution<double> n(0.0, sigma_rad);
-  Eigen::Vector3d w(n(rng), n(rng), n(rng));
-  double a = w.norm();
-  return a > 0 ? Eigen::AngleAxisd(a, w / a).toRotationMatrix() : Eigen::Matrix3d::Identity();
-}
-
-Eigen::Vector3d rotation_vector(const Eigen::Matrix3d& R) {
-  Eigen::AngleAxisd aa(R);
-  return aa.angle() * aa.axis();
+  return rotation_from_vector(Eigen::Vector3d(n(rng), n(rng), n(rng)));
 }
 
 // Poses a subject can be scanned in. Extreme poses with self-contact or body parts hidden from
@@ -519,13 +513,13 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
           write_text_file(dir / "scans" / (id + ".landmarks.json"), lm.dump(1) + "\n");
           write_mesh(dir / "truth" / (id + ".ply"), truth, body.mesh.F);
           std::string pose_csv = "bone,rx,ry,rz\n";
-          Eigen::Vector3d g = rotation_vector(place.R);
+          Eigen::Vector3d g = rotation_vector_of(place.R);
           pose_csv += "_global_rotation," + fmt_double(g.x(), 9) + "," + fmt_double(g.y(), 9) + "," +
                       fmt_double(g.z(), 9) + "\n";
           pose_csv += "_global_translation_mm," + fmt_double(place.t.x(), 4) + "," +
                       fmt_double(place.t.y(), 4) + "," + fmt_double(place.t.z(), 4) + "\n";
           for (int b = 0; b < body.skeleton.bone_count(); ++b) {
-            Eigen::Vector3d w = rotation_vector(pose.rotations[b]);
+            Eigen::Vector3d w = rotation_vector_of(pose.rotations[b]);
             pose_csv += body.skeleton.names[b] + "," + fmt_double(w.x(), 9) + "," +
                         fmt_double(w.y(), 9) + "," + fmt_double(w.z(), 9) + "\n";
           }

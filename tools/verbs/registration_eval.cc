@@ -17,13 +17,14 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/geometry.h"
 #include "core/io/atomic_write.h"
 #include "core/io/file_names.h"
-#include "core/geometry.h"
 #include "core/io/mesh_io.h"
+#include "core/io/pose_csv.h"
 #include "core/makehuman.h"
+#include "core/rotation.h"
 #include "registration/metrics.h"
-#include "registration/pose_io.h"
 #include "tools/console.h"
 #include "tools/verb.h"
 
@@ -236,8 +237,8 @@ BODYMODEL_VERB(add_eval_registration_verb) {
       }
       double jmed = std::nan(""), jmax = std::nan(""), fmed = std::nan("");
       if (fs::exists(reg / (id + ".pose.csv")) && fs::exists(db / "truth" / (id + ".pose.csv"))) {
-        const auto Qe = read_pose_csv(reg / (id + ".pose.csv"), sk).world_rotations(sk);
-        const auto Qt = read_pose_csv(db / "truth" / (id + ".pose.csv"), sk).world_rotations(sk);
+        const auto Qe = read_pose_csv(reg / (id + ".pose.csv"), sk.names).world_rotations(sk);
+        const auto Qt = read_pose_csv(db / "truth" / (id + ".pose.csv"), sk.names).world_rotations(sk);
         std::vector<double> je;
         for (size_t j = 0; j < joints.size(); ++j) {
           je.push_back(rotation_angle_deg(Qe[joints[j]], Qt[joints[j]]));

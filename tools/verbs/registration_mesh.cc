@@ -18,7 +18,7 @@
 #include <nlohmann/json.hpp>
 #include "registration/detail_transfer.h"
 #include "registration/mesh_scan.h"
-#include "registration/pose_io.h"
+#include "core/io/pose_csv.h"
 #include "registration/register_scan.h"
 #include "tools/console.h"
 #include "tools/pipeline/batch_jobs.h"
@@ -213,7 +213,7 @@ BODYMODEL_VERB(add_register_mesh_verb) {
       rec.scale = r.pose.scale;
       rec.pose = r.pose.pose;
       write_mesh(out / (stem + ".ply"), r.V, tpl.mesh.F);
-      write_pose_csv(out / (stem + ".pose.csv"), tpl.skeleton, rec);
+      write_pose_csv(out / (stem + ".pose.csv"), tpl.skeleton.names, rec);
       if (r.shape) write_text_file(out / (stem + ".shape.json"), r.shape->to_json().dump(2) + "\n");
       write_text_file(
           out / (stem + ".register-mesh.csv"),

@@ -19,7 +19,7 @@
 #include "core/landmarks.h"
 #include "core/makehuman.h"
 #include <nlohmann/json.hpp>
-#include "registration/pose_io.h"
+#include "core/io/pose_csv.h"
 #include "registration/register_scan.h"
 #include "tools/console.h"
 #include "tools/pipeline/batch_jobs.h"
@@ -262,7 +262,7 @@ BODYMODEL_VERB(add_register_verb) {
         const fs::path truth = db / "truth" / (id + ".pose.csv");
         if (!fs::exists(truth))
           throw InputError(truth.string() + ": --start-from-truth needs the true pose, not found");
-        scan_options.start_pose = read_pose_csv(truth, tpl.skeleton);
+        scan_options.start_pose = read_pose_csv(truth, tpl.skeleton.names);
       }
       RegistrationResult r =
           register_scan(tpl, scan, landmarks, scan_options, scan_path.string(), &s, report);
@@ -270,7 +270,7 @@ BODYMODEL_VERB(add_register_verb) {
       rec.scale = r.pose.scale;
       rec.pose = r.pose.pose;
       write_mesh(out / (id + ".ply"), r.V, tpl.mesh.F);
-      write_pose_csv(out / (id + ".pose.csv"), tpl.skeleton, rec);
+      write_pose_csv(out / (id + ".pose.csv"), tpl.skeleton.names, rec);
       std::string shape_cols = ",0,0,,,,,,,";
       if (r.shape) {
         const MacroSettings& m = *r.shape;
