@@ -1,0 +1,8 @@
+// The viewer's static files (tools/viewer/index.html, viewer.js), compiled into the executable
+// by CMake (a generated .cc with their text), so `bodymodel viewer` needs no source tree.
+#pragma once
+
+namespace bodymodel::cli {
+const char* viewer_index_html();
+const char* viewer_js();
+}  // namespace bodymodel::cli
