@@ -196,14 +196,16 @@ let t0 = performance.now();
 function draw() {
   resize();
   placeCamera();
-  if (skinned) skinned.material.uniforms.uFrame.value = state.frame;
+  if (skinned) {
+    skinned.material.uniforms.uFrame.value = state.frame;
+    el('frameText').textContent = 'frame ' + (state.frame + 1) + ' / ' + D.frames;
+  }
   renderer.render(scene, camera);
   state.framesDrawn++;
 }
 function tick(now) {
   if (skinned && state.playing) {
     state.frame = Math.floor((now - t0) / 1000 / D.frame_time) % D.frames;
-    el('frameText').textContent = 'frame ' + (state.frame + 1) + ' / ' + D.frames;
   }
   draw();
   requestAnimationFrame(tick);
