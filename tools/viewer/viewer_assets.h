@@ -5,4 +5,5 @@
 namespace bodymodel::cli {
 const char* viewer_index_html();
 const char* viewer_js();
+const char* serve_html();   // `bodymodel serve`'s page
 }  // namespace bodymodel::cli
