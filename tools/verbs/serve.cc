@@ -135,6 +135,9 @@ class MorphService {
     } else {
       MorphOptions o;
       o.sex = sex;
+      // "quick" (the page's slider drags): one decode, no measured correction, so the body
+      // follows the slider at interactive rates; the measured labels shown are the drawn body's.
+      if (body.contains("quick") && body["quick"].is_boolean() && body["quick"].get<bool>()) o.max_iterations = 1;
       const Eigen::VectorXd x0 = Eigen::VectorXd::Zero(model_->tmpl->encoding_size());
       b.V = cond.empty() ? morpher_.decode(x0) : morpher_.morph_encoding(x0, cond, o, nullptr);
       b.measured = morpher_.measure(b.V, sex);
@@ -265,7 +268,8 @@ BODYMODEL_VERB(add_serve_verb) {
       "for generate, the measured labels and an OBJ download, and its JSON API:\n"
       "  GET /api/model         labels (name, unit, min, max, mean) and the faces\n"
       "  POST /api/body         {\"labels\": {LABEL: VALUE, ...}} morphs the mean body, {\"seed\": N, ...}\n"
-      "                         generates one; answers positions (base64 float32) and measured labels\n"
+      "                         generates one, \"quick\": true = one decode (no measured correction);\n"
+      "                         answers positions (base64 float32) and the measured labels\n"
       "  POST /api/body.obj     the same body as an OBJ file\n"
       "Bad JSON or values far outside the data: 400 with the message. Loopback unless --host.");
   cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`)")->required();
