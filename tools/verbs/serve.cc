@@ -198,14 +198,6 @@ void handle(const httplib::Request& req, httplib::Response& res, F&& f) {
   }
 }
 
-fs::path default_three() {
-  if (const char* e = std::getenv("BODYMODEL_THREE"); e && *e) return e;
-#ifdef BODYMODEL_BUILD_DIR
-  return fs::path(BODYMODEL_BUILD_DIR) / "npm" / "node_modules" / "three" / "build" / "three.min.js";
-#else
-  return {};
-#endif
-}
 
 httplib::Server* g_server = nullptr;
 void stop_server(int) {
@@ -213,7 +205,7 @@ void stop_server(int) {
 }
 
 void run_serve(const ServeArgs& a) {
-  const fs::path three = a.three.empty() ? default_three() : fs::path(a.three);
+  const fs::path three = a.three.empty() ? cli::default_three_js() : fs::path(a.three);
   if (three.empty() || !fs::is_regular_file(three))
     throw InputError("three.js not found at '" + three.string() +
                      "' (scripts/setup.sh installs it into the build folder; or give --three FILE / BODYMODEL_THREE)");

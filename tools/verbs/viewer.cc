@@ -75,20 +75,12 @@ struct NamedRig {
   SkinningRig rig;
 };
 
-fs::path default_three() {
-  if (const char* e = std::getenv("BODYMODEL_THREE"); e && *e) return e;
-#ifdef BODYMODEL_BUILD_DIR
-  return fs::path(BODYMODEL_BUILD_DIR) / "npm" / "node_modules" / "three" / "build" / "three.min.js";
-#else
-  return {};
-#endif
-}
 
 void run_viewer(const ViewerArgs& a) {
   if (a.rigs.empty() && a.meshes.empty()) throw InputError("give at least one --rig or --mesh");
   if (!a.rigs.empty() && a.bvh.empty()) throw InputError("--rig needs --bvh (the clip to play)");
   if (a.frames < 1) throw InputError(fmt::format("--frames must be at least 1, found {}", a.frames));
-  const fs::path three = a.three.empty() ? default_three() : fs::path(a.three);
+  const fs::path three = a.three.empty() ? default_three_js() : fs::path(a.three);
   if (three.empty() || !fs::is_regular_file(three))
     throw InputError("three.js not found at '" + three.string() +
                      "' (scripts/setup.sh installs it into the build folder; or give --three FILE / BODYMODEL_THREE)");
