@@ -278,6 +278,14 @@ window.viewerApi = {
 };
 
 show(skinned ? -1 : 0);
+// A view can be linked: index.html?rig=0&reference=1&error=1&frame=12 (frame given: paused there).
+const q = new URLSearchParams(location.search);
+for (const id of ['rig', 'reference']) if (q.has(id) && rigs[Number(q.get(id))]) el(id === 'rig' ? 'method' : id).value = q.get(id);
+if (q.get('error') === '1') el('error').checked = true;
 applyRig();
+if (skinned && q.has('frame')) {
+  state.playing = false; el('play').textContent = 'play';
+  state.frame = Math.max(0, Math.min(D.frames - 1, Number(q.get('frame')) || 0));
+}
 requestAnimationFrame((now) => { t0 = now; state.ready = true; tick(now); });
 })();
