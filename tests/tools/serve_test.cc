@@ -142,6 +142,15 @@ TEST(ServeApi, MorphsAndRefusesBadRequestsWithTheCliMessage) {
   const json b = json::parse(r->body);
   EXPECT_NEAR(b["measured"]["height_cm"].get<double>(), 172, 0.5) << r->body.substr(0, 300);
   EXPECT_EQ(b["positions"].get<std::string>().size(), 4u * ((12u * m["vertex_count"].get<unsigned>() + 2) / 3));
+  // A quick morph (slider dragging: one decode) still moves the height towards the request.
+  auto q = cli.Post("/api/body", R"({"labels": {"height_cm": 172}, "quick": true})", "application/json");
+  ASSERT_TRUE(q);
+  ASSERT_EQ(q->status, 200) << q->body;
+  const auto mean_body = cli.Post("/api/body", "{}", "application/json");
+  ASSERT_TRUE(mean_body);
+  const double h_mean = json::parse(mean_body->body)["measured"]["height_cm"].get<double>();
+  const double h_quick = json::parse(q->body)["measured"]["height_cm"].get<double>();
+  EXPECT_LT(std::abs(h_quick - 172), std::abs(h_mean - 172) + 1e-9) << "mean " << h_mean << ", quick " << h_quick;
   auto g1 = cli.Post("/api/body", R"({"seed": 3})", "application/json");
   auto g2 = cli.Post("/api/body", R"({"seed": 3})", "application/json");
   auto g3 = cli.Post("/api/body", R"({"seed": 4})", "application/json");

@@ -137,10 +137,12 @@ class MorphService {
       o.sex = sex;
       // "quick" (the page's slider drags): one decode, no measured correction, so the body
       // follows the slider at interactive rates; the measured labels shown are the drawn body's.
-      if (body.contains("quick") && body["quick"].is_boolean() && body["quick"].get<bool>()) o.max_iterations = 1;
+      // Its measured labels are the cheap ones (height, volume, weight; no girths).
+      const bool quick = body.contains("quick") && body["quick"].is_boolean() && body["quick"].get<bool>();
+      if (quick) o.max_iterations = 1;
       const Eigen::VectorXd x0 = Eigen::VectorXd::Zero(model_->tmpl->encoding_size());
       b.V = cond.empty() ? morpher_.decode(x0) : morpher_.morph_encoding(x0, cond, o, nullptr);
-      b.measured = morpher_.measure(b.V, sex);
+      b.measured = quick ? measure_height_and_weight(b.V, model_->tmpl->faces()) : morpher_.measure(b.V, sex);
     }
     b.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return b;
@@ -153,7 +155,7 @@ class MorphService {
       for (int k = 0; k < 3; ++k) p.push_back(static_cast<float>(b.V(v, k)));
     json j = {{"positions", base64(p.data(), p.size() * 4)}, {"seconds", b.seconds}};
     for (auto& l : model_->shape.regression.labels)
-      if (auto m = measured_label(l.name, b.measured)) j["measured"][l.name] = *m;
+      if (auto m = measured_label(l.name, b.measured); m && std::isfinite(*m)) j["measured"][l.name] = *m;
     return j;
   }
 
