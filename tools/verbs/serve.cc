@@ -207,12 +207,12 @@ void stop_server(int) {
 }
 
 void run_serve(const ServeArgs& a) {
+  auto model = std::make_shared<const BodyModel>(model_cli::load_model_for_cli(a.model));
   const fs::path three = a.three.empty() ? cli::default_three_js() : fs::path(a.three);
   if (three.empty() || !fs::is_regular_file(three))
     throw InputError("three.js not found at '" + three.string() +
                      "' (scripts/setup.sh installs it into the build folder; or give --three FILE / BODYMODEL_THREE)");
   const std::string three_js = read_text_file(three);
-  auto model = std::make_shared<const BodyModel>(model_cli::load_model_for_cli(a.model));
   auto service = std::make_shared<MorphService>(model, a.max_decodes);
   const std::string describe = service->describe().dump();
 

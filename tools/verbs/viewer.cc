@@ -80,11 +80,6 @@ void run_viewer(const ViewerArgs& a) {
   if (a.rigs.empty() && a.meshes.empty()) throw InputError("give at least one --rig or --mesh");
   if (!a.rigs.empty() && a.bvh.empty()) throw InputError("--rig needs --bvh (the clip to play)");
   if (a.frames < 1) throw InputError(fmt::format("--frames must be at least 1, found {}", a.frames));
-  const fs::path three = a.three.empty() ? default_three_js() : fs::path(a.three);
-  if (three.empty() || !fs::is_regular_file(three))
-    throw InputError("three.js not found at '" + three.string() +
-                     "' (scripts/setup.sh installs it into the build folder; or give --three FILE / BODYMODEL_THREE)");
-
   std::vector<NamedRig> rigs;
   Eigen::MatrixX3i F;
   Skeleton skeleton;
@@ -199,6 +194,11 @@ void run_viewer(const ViewerArgs& a) {
     }
   }
 
+  // Checked after the inputs, so a bad input is named first.
+  const fs::path three = a.three.empty() ? default_three_js() : fs::path(a.three);
+  if (three.empty() || !fs::is_regular_file(three))
+    throw InputError("three.js not found at '" + three.string() +
+                     "' (scripts/setup.sh installs it into the build folder; or give --three FILE / BODYMODEL_THREE)");
   StagedFolder out(a.out, a.force);
   write_text_file(out / "index.html", viewer_index_html());
   write_text_file(out / "viewer.js", viewer_js());
