@@ -229,7 +229,7 @@ BODYMODEL_VERB(add_demo_verb) {
                         {"viewer", "--rig", p("character/rig.npz"), "--bvh", (cmu / "12_03.bvh").string(), "--frames", "60",
                          "--every", "2", "--mesh", p("reg/" + reg_ids[0] + ".ply"), "--mesh", p("sweeps/height_155.obj"),
                          "--mesh", p("sweeps/height_195.obj"), "--mesh", p("sweeps/weight_50.obj"), "--mesh",
-                         p("sweeps/weight_110.obj"), "--out", p("viewer"), "--force"},
+                         p("sweeps/weight_110.obj"), "--no-check", "--out", p("viewer"), "--force"},
                         {"character (MWE rig)", "register scan " + reg_ids[0], "height sweep 155 cm", "height sweep 195 cm",
                          "weight sweep 50 kg", "weight sweep 110 kg"}});
     else

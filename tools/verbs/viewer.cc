@@ -35,7 +35,7 @@ struct ViewerArgs {
   std::string bvh, out, three;
   int frames = 48, every = 2, first = 0;
   std::vector<int> check_frames = {0, 1, 2};
-  bool force = false;
+  bool force = false, no_check = false;
 };
 
 std::string base64(const void* data, size_t n) {
@@ -174,7 +174,7 @@ void run_viewer(const ViewerArgs& a) {
 
   // check.json: the C++ (double precision) evaluator's positions on the check frames.
   nlohmann::json check;
-  if (!rigs.empty()) {
+  if (!rigs.empty() && !a.no_check) {
     check["height"] = d["height"];
     for (int f : a.check_frames) {
       if (f < 0 || f >= static_cast<int>(maps.size()))
@@ -203,7 +203,7 @@ void run_viewer(const ViewerArgs& a) {
   write_text_file(out / "index.html", viewer_index_html());
   write_text_file(out / "viewer.js", viewer_js());
   write_text_file(out / "viewer_data.js", "window.VIEWER_DATA = " + d.dump() + ";\n");
-  if (!rigs.empty()) write_text_file(out / "check.json", check.dump());
+  if (!rigs.empty() && !a.no_check) write_text_file(out / "check.json", check.dump());
   std::error_code ec;
   fs::copy_file(three, out / "three.min.js", ec);
   if (ec) throw InputError("cannot copy '" + three.string() + "': " + ec.message());
@@ -231,6 +231,7 @@ BODYMODEL_VERB(add_viewer_verb) {
   cmd->add_option("--check-frames", a->check_frames, "Stored frames evaluated in C++ into check.json")
       ->delimiter(',')
       ->capture_default_str();
+  cmd->add_flag("--no-check", a->no_check, "Write no check.json (it is for tests: ~1.5 MB per rig)");
   cmd->add_option("--three", a->three, "three.min.js to copy (default: the build folder's npm install)");
   cmd->add_option("--out", a->out, "Output folder (must not exist unless --force)")->required();
   cmd->add_flag("--force", a->force, "Replace an existing output folder");
