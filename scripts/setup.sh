@@ -15,6 +15,7 @@ packages=(
   libceres-dev libnanoflann-dev libsuitesparse-dev libtbb-dev
   libcli11-dev nlohmann-json3-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev libtinygltf-dev libstb-dev libsvm-dev zlib1g-dev
+  libcpp-httplib-dev chromium
 )
 
 missing=()
@@ -28,9 +29,19 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -q --no-install-recommends "${missing[@]}"
 fi
 
+build="${BODYMODEL_BUILD:-$here/build}"
+# three.js (npm, pinned) for `bodymodel viewer` and the report's viewer, kept inside the build
+# folder and copied into each viewer folder (no CDN: the report opens offline). Best effort:
+# without node/npm the viewer verb says what is missing.
+three_version=0.160.0
+if [ ! -f "$build/npm/node_modules/three/build/three.min.js" ] && command -v npm >/dev/null; then
+  mkdir -p "$build/npm"
+  npm install --prefix "$build/npm" --no-audit --no-fund --silent "three@$three_version" >/dev/null 2>&1 ||
+    echo "setup: npm could not install three@$three_version; bodymodel viewer will need --three" >&2
+fi
+
 [ "${1:-}" = "--no-build" ] && exit 0
 
-build="${BODYMODEL_BUILD:-$here/build}"
 jobs="${BODYMODEL_JOBS:-2}"
 if [ ! -f "$build/build.ninja" ]; then
   cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
