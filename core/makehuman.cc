@@ -22,6 +22,7 @@
 
 #include "core/data_path.h"
 #include "core/error.h"
+#include "core/plausibility.h"
 #include "core/point_index.h"
 
 namespace bodymodel {
@@ -990,25 +991,7 @@ Skeleton MakeHuman::skeleton_from_body(const Eigen::MatrixX3d& body_vertices) co
 }
 
 std::vector<char> MakeHuman::trunk_and_limbs_region() const {
-  const auto& names = impl_->bone_names;
-  const auto& parents = impl_->parents;
-  const int nb = static_cast<int>(names.size());
-  std::vector<char> excluded(nb, 0);
-  for (int b = 0; b < nb; ++b) {  // parents come first
-    const std::string& n = names[b];
-    excluded[b] = n == "head" || n == "wrist.L" || n == "wrist.R" || n == "foot.L" || n == "foot.R" ||
-                  (parents[b] >= 0 && excluded[parents[b]]);
-  }
-  const SkinWeights& W = impl_->weights_body;
-  std::vector<char> region(kBodyVertexCount, 0);
-  for (int v = 0; v < kBodyVertexCount; ++v) {
-    int best = -1;
-    double weight = -1;
-    for (SkinWeights::InnerIterator it(W, v); it; ++it)
-      if (it.value() > weight) weight = it.value(), best = static_cast<int>(it.col());
-    region[v] = best >= 0 && !excluded[best];
-  }
-  return region;
+  return bodymodel::trunk_and_limbs_region(impl_->bone_names, impl_->parents, impl_->weights_body);
 }
 
 MakeHuman::Body MakeHuman::body(const MacroSettings& settings) const {

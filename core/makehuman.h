@@ -129,10 +129,9 @@ class MakeHuman {
   const SkinWeights& body_weights() const;  // 13380 by #bones
   const SkinWeights& weights() const;       // 19158 by #bones (helpers included)
 
-  // The trunk and limbs of the body template (13380 entries, 1 = in the region): every body vertex
-  // whose largest skinning weight belongs to a bone outside the head (the "head" bone and its
-  // descendants: jaw, eyes, tongue, face), the hands ("wrist.L/R" and descendants) and the feet
-  // ("foot.L/R" and descendants). core/plausibility.h's roughness is reported over it.
+  // The trunk and limbs of the body template (13380 entries, 1 = in the region;
+  // core/plausibility.h trunk_and_limbs_region with the default skeleton and body weights): the
+  // region core/plausibility.h's roughness is reported over.
   std::vector<char> trunk_and_limbs_region() const;
 
   struct Body {

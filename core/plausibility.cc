@@ -48,6 +48,26 @@ Roughness roughness(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const 
   return r;
 }
 
+std::vector<char> trunk_and_limbs_region(const std::vector<std::string>& names, const std::vector<int>& parents,
+                                         const SkinWeights& W) {
+  const int nb = static_cast<int>(names.size());
+  std::vector<char> excluded(nb, 0);
+  for (int b = 0; b < nb; ++b) {  // parents come first
+    const std::string& n = names[b];
+    excluded[b] = n == "head" || n == "wrist.L" || n == "wrist.R" || n == "foot.L" || n == "foot.R" ||
+                  (parents[b] >= 0 && parents[b] < b && excluded[parents[b]]);
+  }
+  std::vector<char> region(W.rows(), 0);
+  for (int v = 0; v < W.rows(); ++v) {
+    int best = -1;
+    double weight = -1;
+    for (SkinWeights::InnerIterator it(W, v); it; ++it)
+      if (it.value() > weight) weight = it.value(), best = static_cast<int>(it.col());
+    region[v] = best >= 0 && best < nb && !excluded[best];
+  }
+  return region;
+}
+
 int self_intersecting_triangle_pairs(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F) {
   using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
   // One box per triangle; its info is the face index.

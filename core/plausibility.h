@@ -14,7 +14,10 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <string>
 #include <vector>
+
+#include "core/skeleton.h"
 
 namespace bodymodel {
 
@@ -30,6 +33,14 @@ Eigen::VectorXd vertex_roughness_deg(const Eigen::MatrixX3d& V, const Eigen::Mat
 
 // p95 and max of vertex_roughness_deg over the vertices with region[v] != 0 (empty region = all).
 Roughness roughness(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const std::vector<char>& region = {});
+
+// The trunk and limbs of a skinned body (#V entries, 1 = in the region): every vertex whose
+// largest skinning weight belongs to a bone outside the head ("head" and its descendants: jaw,
+// eyes, tongue, face), the hands ("wrist.L/R" and descendants) and the feet ("foot.L/R" and
+// descendants) of MakeHuman's default skeleton. bone_names #B, parents #B (parents first),
+// weights #V by #B.
+std::vector<char> trunk_and_limbs_region(const std::vector<std::string>& bone_names, const std::vector<int>& parents,
+                                         const SkinWeights& weights);
 
 // Number of intersecting triangle pairs that share no vertex.   V #V by 3, F #F by 3.
 int self_intersecting_triangle_pairs(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F);
