@@ -340,3 +340,37 @@ MeasurementFit fit_measurements(const MakeHuman& mh, const PersonSpec& person, c
 }
 
 }  // namespace bodymodel
+
+namespace bodymodel {
+
+PlausibilityReport plausibility_against_makehuman(const MakeHuman& mh, const Eigen::MatrixX3d& V,
+                                                  const Eigen::MatrixX3i& F, Sex sex, double age_years,
+                                                  const FitMeasurementsOptions& options) {
+  PlausibilityReport r;
+  r.measured = measure_body(V, F, sex, options.measure);
+  const std::vector<char> region = mh.trunk_and_limbs_region();
+  r.roughness = roughness(V, F, region);
+  r.self_intersections = self_intersecting_triangle_pairs(V, F);
+  PersonSpec p;
+  p.sex = sex == Sex::unknown ? Sex::female : sex;
+  p.age_years = std::clamp(age_years, 18.0, 90.0);
+  for (const char* n : {"height_cm", "weight_kg", "waist_iliac_cm", "hips_cm"}) {
+    const double v = measurement_value(r.measured, n);
+    const auto ok = [&] {
+      try {
+        validate_measurement_targets({{n, v}});
+        return true;
+      } catch (const InputError&) {
+        return false;
+      }
+    }();
+    if (ok) p.targets.push_back({n, v});
+  }
+  const MeasurementFit f = fit_measurements(mh, p, options);
+  r.reference = f.roughness;
+  r.reference_self_intersections = f.self_intersections;
+  r.reference_reached = f.reached;
+  return r;
+}
+
+}  // namespace bodymodel

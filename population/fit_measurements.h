@@ -133,3 +133,25 @@ MeasurementFit fit_measurements(const MakeHuman& makehuman, const PersonSpec& pe
 double age_slider_for_years(double years, bool adult_shape_below_25);
 
 }  // namespace bodymodel
+
+namespace bodymodel {
+
+// How plausible a body (hm08 topology, mm, standard pose) is against MakeHuman's own body with
+// the nearest sliders: the MakeHuman body fitted (fit_measurements) to the body's measured
+// height, weight, waist at the iliac crest and hip, and the roughness of both over MakeHuman's
+// trunk and limbs (core/plausibility.h).
+struct PlausibilityReport {
+  BodyMeasurements measured;     // of the body
+  Roughness roughness;           // of the body
+  int self_intersections = 0;    // of the body
+  Roughness reference;           // of the nearest MakeHuman body
+  int reference_self_intersections = 0;
+  bool reference_reached = false;  // the reference measures as the body (fit reached)
+  double p95_ratio() const { return reference.p95_deg > 0 ? roughness.p95_deg / reference.p95_deg : 0; }
+};
+// V 13380 by 3 (mm), F the template's faces; `age_years` for the reference's age slider.
+PlausibilityReport plausibility_against_makehuman(const MakeHuman& makehuman, const Eigen::MatrixX3d& V,
+                                                  const Eigen::MatrixX3i& F, Sex sex, double age_years,
+                                                  const FitMeasurementsOptions& options = {});
+
+}  // namespace bodymodel
