@@ -1,6 +1,6 @@
 // Plausibility figures of a body mesh: surface roughness and self-intersections.
 //
-// ROUGHNESS (issue 23, EVALUATION.md "Roughness"): per vertex, the angle between its
+// ROUGHNESS (issue 23; docs/population.md §5): per vertex, the angle between its
 // area-weighted normal and the mean of its one-ring neighbours' normals, in degrees. A smooth
 // surface scores a few degrees (the angle grows with curvature × edge length); a crease, a fold
 // or a crumpled patch scores tens. Reported as the 95th percentile and the maximum over a vertex

@@ -1,4 +1,4 @@
-// People with recorded body measurements: an NHANES file (../shared/data/anthropometry) or a
+// People with recorded body measurements: an NHANES file ($BODYMODEL_DATA/anthropometry) or a
 // people.csv of one's own, and the weighted sampling of a population from them.
 //
 // Columns (case-sensitive; NHANES names or ours, either works):
