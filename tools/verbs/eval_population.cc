@@ -167,7 +167,10 @@ BODYMODEL_VERB(add_eval_population_verb) {
         o.sex = p.sex;
         o.prior_weighted = a->change == "likely";
         MorphSummary s;
-        const Eigen::MatrixX3d V = morpher.morph_encoding(model->shape.pca.mean, cond, o, &s);
+        Eigen::MatrixX3d V = morpher.morph_encoding(model->shape.pca.mean, cond, o, &s);
+        FoldRepairOptions repair;  // generate's fold repair (model/morph.h), measured after it
+        repair.passes = 8;
+        repair_body_folds(*model, V, repair);
         Row& r = rows[k];
         r.m = morpher.measure(V, p.sex);
         r.converged = s.converged;

@@ -110,6 +110,7 @@ void print_population_match(const PeopleTable& table, const std::vector<int>& el
     std::stringstream r(line);
     std::string c;
     while (std::getline(r, c, ',')) cells.push_back(c);
+    if (!line.empty() && line.back() == ',') cells.emplace_back();  // getline drops a last empty cell
     if (cells.size() < header.size()) continue;
     for (const char* m : {"height_cm", "weight_kg"})
       if (!cells[col(m)].empty()) crowd[cells[col("sex")]][m].push_back(std::stod(cells[col(m)]));

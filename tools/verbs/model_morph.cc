@@ -90,14 +90,19 @@ BODYMODEL_VERB(add_model_morph_verb) {
         o.triangle_mask = triangle_mask_from_vertices(model->tmpl->faces(), body_region_vertex_mask(model->rig, a->mask));
       out = morpher.morph(body.V, cond, o, &sum);
     }
+    // generate's fold repair (model/morph.h): the few tiny triangles a decoded body can fold.
+    FoldRepairOptions repair;
+    repair.passes = 8;
+    const int flipped_before = repair_body_folds(*model, out, repair).flipped_before;
     write_mesh(a->out, out, body.F);
     fmt::print("{}", sum.report());
     if (out.rows() == MakeHuman::kBodyVertexCount) {
       const MakeHuman mh = MakeHuman::load();
       const Roughness r = roughness(out, body.F, mh.trunk_and_limbs_region());
       fmt::print("plausibility: roughness p95 {:.1f} deg, max {:.1f} deg (trunk and limbs), {} self-intersecting "
-                 "triangle pairs, {} flipped triangles\n",
-                 r.p95_deg, r.max_deg, self_intersecting_triangle_pairs(out, body.F), flipped_triangle_count(*model, out));
+                 "triangle pairs, {} flipped triangles ({} before the fold repair)\n",
+                 r.p95_deg, r.max_deg, self_intersecting_triangle_pairs(out, body.F), flipped_triangle_count(*model, out),
+                 flipped_before);
       if (a->reference) {
         // The reference's age: the --set one, else the data's mean age (40 without an age label).
         const int age = model->shape.regression.find("age_years");

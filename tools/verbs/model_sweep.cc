@@ -37,7 +37,7 @@ struct SweepRow {
   double value = 0;
   MorphSummary summary;
   PlausibilityReport plausibility;
-  int flipped = 0;
+  int flipped = 0, flipped_before = 0;  // after / before the fold repair
   std::string file;
 };
 
@@ -51,7 +51,7 @@ BODYMODEL_VERB(add_model_sweep_verb) {
       "labels, roughness (p95 and max of the vertex-normal angle to the one-ring mean, trunk and\n"
       "limbs, core/plausibility.h) against the MakeHuman body with the nearest sliders (fitted to\n"
       "the body's height, weight, waist and hip), self-intersecting triangle pairs, flipped\n"
-      "triangles. Start: the model's mean body with the most likely change (as `morph` without\n"
+      "triangles (after generate's fold repair; before it in sweep.csv). Start: the model's mean body with the most likely change (as `morph` without\n"
       "--in), or --in BODY with the smallest. Writes OUT/<label>_<value>.obj, OUT/sweep.csv and\n"
       "OUT/sweep.png (front and side).");
   cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`)")->required();
@@ -131,6 +131,12 @@ BODYMODEL_VERB(add_model_sweep_verb) {
         r.value = values[k];
         bodies[k] = a->in.empty() ? morpher.morph_encoding(model->shape.pca.mean, cond, o, &r.summary)
                                   : morpher.morph(start.V, cond, o, &r.summary);
+        // The fold repair generate applies (model/morph.h GenerateOptions): a decoded body can
+        // fold a few tiny triangles (toes, eyelids, under-bust); measured after the repair.
+        FoldRepairOptions repair;
+        repair.passes = 8;
+        const FoldRepairSummary folds = repair_body_folds(*model, bodies[k], repair);
+        r.flipped_before = folds.flipped_before;
         r.flipped = flipped_triangle_count(*model, bodies[k]);
         if (a->no_reference) {
           r.plausibility.measured = measure_body(bodies[k], F, o.sex);
@@ -150,23 +156,25 @@ BODYMODEL_VERB(add_model_sweep_verb) {
     std::string csv =
         "value,file,converged,height_cm,weight_kg,waist_iliac_cm,hips_cm,roughness_p95_deg,roughness_max_deg,"
         "reference_p95_deg,reference_max_deg,p95_ratio,reference_reached,self_intersections,"
-        "reference_self_intersections,flipped_triangles\n";
+        "reference_self_intersections,flipped_triangles,flipped_before_repair\n";
     auto num = [](double v) { return std::isfinite(v) ? fmt::format("{:.2f}", v) : std::string(); };
     fmt::print("{:>8} {:>8} {:>8} {:>8} {:>8}  {:>9} {:>9} {:>6}  {:>9} {:>8}\n", a->label, "height", "weight", "waist",
-               "hip", "rough p95", "reference", "ratio", "self-int", "flipped");
+               "hip", "rough p95", "reference", "ratio", "self-int", "flipped (before repair)");
     for (const auto& r : rows) {
       const PlausibilityReport& p = r.plausibility;
       const bool ref = !a->no_reference;
-      csv += fmt::format("{:g},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", r.value, r.file, r.summary.converged ? 1 : 0,
+      csv += fmt::format("{:g},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", r.value, r.file, r.summary.converged ? 1 : 0,
                          num(p.measured.height_cm), num(p.measured.weight_kg), num(p.measured.waist_iliac_cm),
                          num(p.measured.hips_cm), num(p.roughness.p95_deg), num(p.roughness.max_deg),
                          ref ? num(p.reference.p95_deg) : "", ref ? num(p.reference.max_deg) : "",
                          ref ? num(p.p95_ratio()) : "", ref ? (p.reference_reached ? "1" : "0") : "",
-                         p.self_intersections, ref ? std::to_string(p.reference_self_intersections) : "", r.flipped);
+                         p.self_intersections, ref ? std::to_string(p.reference_self_intersections) : "", r.flipped,
+                         r.flipped_before);
       fmt::print("{:>8g} {:>8.1f} {:>8.1f} {:>8.1f} {:>8.1f}  {:>9.1f} {:>9} {:>6}  {:>9} {:>8}{}\n", r.value,
                  p.measured.height_cm, p.measured.weight_kg, p.measured.waist_iliac_cm, p.measured.hips_cm,
                  p.roughness.p95_deg, ref ? fmt::format("{:.1f}", p.reference.p95_deg) : "-",
-                 ref ? fmt::format("{:.2f}", p.p95_ratio()) : "-", p.self_intersections, r.flipped,
+                 ref ? fmt::format("{:.2f}", p.p95_ratio()) : "-", p.self_intersections,
+                 fmt::format("{} ({})", r.flipped, r.flipped_before),
                  r.summary.converged ? "" : "  (labels not all met)");
     }
     write_text_file(out / "sweep.csv", csv);
