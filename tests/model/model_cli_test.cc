@@ -2,6 +2,9 @@
 // in-test MakeHuman model (model_test_util.h).
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <limits>
+
 #include <filesystem>
 #include <fstream>
 
@@ -76,6 +79,23 @@ TEST(ModelFile, BasesTakeHalfTheSpaceOfFloat64) {
   z.put("full_basis", model->full.pca.basis);
   const size_t v1 = z.serialize().size();
   EXPECT_LT(static_cast<double>(v2), 0.6 * static_cast<double>(v1)) << v2 << " vs " << v1 << " bytes";
+}
+
+// A population subject's unrecorded NHANES value is a missing label (NaN): the file keeps it;
+// an infinite label is still corruption.
+TEST(ModelFile, MissingLabelValuesLoadInfiniteOnesDoNot) {
+  Npz z = model_to_npz(*shape_test_model());
+  Eigen::MatrixXd labels = z.matrix("labels");
+  ASSERT_GT(labels.rows(), 0);
+  const Eigen::Index c = labels.cols() - 1;
+  labels(0, c) = std::numeric_limits<double>::quiet_NaN();
+  z.put("labels", labels);
+  const BodyModel m = model_from_npz(z, "m.npz");
+  EXPECT_TRUE(std::isnan(m.shape.labels(0, c)));
+  EXPECT_TRUE(std::isfinite(m.shape.labels(labels.rows() - 1, c)));
+  labels(0, c) = std::numeric_limits<double>::infinity();
+  z.put("labels", labels);
+  EXPECT_THROW(model_from_npz(z, "m.npz"), InputError);
 }
 
 TEST(ModelFile, ForeignOrWrongVersionFilesAreInputErrors) {
