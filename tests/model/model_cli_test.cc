@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
+#include "model/database.h"
 #include "model/model_file.h"
 #include "model/morph.h"
 #include "model/pose_edit.h"
@@ -96,6 +97,22 @@ TEST(ModelFile, MissingLabelValuesLoadInfiniteOnesDoNot) {
   labels(0, c) = std::numeric_limits<double>::infinity();
   z.put("labels", labels);
   EXPECT_THROW(model_from_npz(z, "m.npz"), InputError);
+}
+
+// A population database's subjects.csv: the person id (seqn) and text or all-empty columns are
+// not labels; an empty cell of a label is a missing value.
+TEST(SubjectTable, PersonIdsAndEmptyColumnsAreNotLabels) {
+  fixtures::TempDir dir;
+  std::ofstream(dir / "subjects.csv") << "subject_id,sex,seqn,height_cm,fit_reached,fit_reason\n"
+                                         "s0,female,109273,160.5,yes,\n"
+                                         "s1,male,109312,,no,\n";
+  const SubjectTable t = read_subject_table(dir / "subjects.csv");
+  ASSERT_EQ(t.labels.size(), 2u);
+  EXPECT_EQ(t.labels[0].name, "sex");
+  EXPECT_EQ(t.labels[1].name, "height_cm");
+  EXPECT_DOUBLE_EQ(t.values(0, 1), 160.5);
+  EXPECT_TRUE(std::isnan(t.values(1, 1)));
+  EXPECT_DOUBLE_EQ(t.values(1, 0), 1.0);
 }
 
 TEST(ModelFile, ForeignOrWrongVersionFilesAreInputErrors) {
