@@ -157,8 +157,10 @@ BODYMODEL_VERB(add_model_generate_verb) {
                   "waist_iliac_cm,hips_cm for the girths)")
       ->capture_default_str();
   cmd->add_option("--seed", a->seed, "Random seed (the crowd is a function of it)")->capture_default_str();
-  cmd->add_option("--spread", a->spread, "Scale of the random coefficients (1 = the data's spread)")
-      ->capture_default_str();
+  auto* spread = cmd->add_option("--spread", a->spread,
+                                 "Scale of the random coefficients (1 = the data's spread; with --population the\n"
+                                 "default is 0: each body is its person's typical body, the people give the variety)")
+                     ->capture_default_str();
   cmd->add_option("--format", a->format, "obj or ply")->check(CLI::IsMember({"obj", "ply"}))->capture_default_str();
   cmd->add_flag("--no-girths", a->no_girths,
                 "labels.csv without the girths and body fat (height, volume, weight only): about a third "
@@ -171,7 +173,7 @@ BODYMODEL_VERB(add_model_generate_verb) {
                 "Replace a crowd generated in OUT with other settings (without it such a folder is refused; "
                 "a rerun with the same settings skips the bodies already written)");
   cmd->add_option("--out", a->out, "Output folder")->required();
-  cmd->callback([a] {
+  cmd->callback([a, spread] {
     // A population is read and drawn before the model is loaded: bad input fails fast.
     PeopleTable table;
     std::vector<int> eligible, drawn;
@@ -227,7 +229,9 @@ BODYMODEL_VERB(add_model_generate_verb) {
     }
     if (!model->rig.empty())
       co.roughness_region = trunk_and_limbs_region(model->rig.bone_names, model->rig.parents, model->rig.weights);
-    co.crowd.generate.spread = a->spread;
+    // A population crowd's variety comes from its people; random coefficients on top roughen the
+    // bodies (200 bodies of a 200-person model: self-intersection median 16 at spread 1, 0 at 0).
+    co.crowd.generate.spread = !a->population.empty() && spread->count() == 0 ? 0.0 : a->spread;
     co.crowd.generate.measure_girths = !a->no_girths;
     co.crowd.seed = a->seed;
     co.crowd.threads = a->jobs;
