@@ -37,6 +37,7 @@
 #include "core/geometry.h"
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
+#include "core/io/pose_csv.h"
 #include "core/makehuman.h"
 #include "core/measure.h"
 #include "model/database.h"
@@ -513,7 +514,7 @@ void BM_PoseMorph(benchmark::State& state) {
     for (auto& [st, posed] : cases) {
       Mesh body = read_mesh(db / "truth" / (st + ".ply"));
       Mesh truth = read_mesh(db / "truth" / (posed + ".ply"));
-      Pose pose = read_pose_csv((db / "truth" / (posed + ".pose.csv")).string(), model.rig.bone_names);
+      Pose pose = read_pose_csv(db / "truth" / (posed + ".pose.csv"), model.rig.bone_names).pose;
       Eigen::MatrixX3d out = pose_morph(model, decoder, body.V, pose, o);
       errors.push_back(mean_vertex_error_after_rigid_fit(out, truth.V));
       // Reference: the body skinned with the model's rig (what the positional constraints use).

@@ -18,6 +18,7 @@
 
 #include "core/geometry.h"
 #include "core/io/mesh_io.h"
+#include "core/io/pose_csv.h"
 #include "model/database.h"
 #include "model/model_file.h"
 #include "model/pose_edit.h"
@@ -60,7 +61,7 @@ void BM_PoseMorphStages(benchmark::State& state) {
     for (auto& [st, posed] : cases) {
       const Mesh body = read_mesh(db / "truth" / (st + ".ply"));
       const Mesh truth = read_mesh(db / "truth" / (posed + ".ply"));
-      const Pose pose = read_pose_csv((db / "truth" / (posed + ".pose.csv")).string(), model.rig.bone_names);
+      const Pose pose = read_pose_csv(db / "truth" / (posed + ".pose.csv"), model.rig.bone_names).pose;
       const double v0 = signed_volume(body.V, F);
       const Eigen::MatrixX3d rt = decoder.decode(model.encode(body.V));
       PoseMorphOptions o;

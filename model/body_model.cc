@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "core/geometry.h"
+#include "core/rotation.h"
 #include "core/skeleton.h"
 
 namespace bodymodel {
@@ -39,16 +40,6 @@ std::string ModelBuildSummary::report() const {
       "kept {} (dropped {} that never vary); PCA {:.1f} s",
       scans, subjects, encode_seconds, shape_pca.one_line(), full_pca.one_line(), pose_labels_kept,
       pose_labels_dropped, pca_seconds);
-}
-
-Eigen::Vector3d rotation_vector_of(const Eigen::Matrix3d& R) {
-  Eigen::AngleAxisd aa(R);
-  return aa.angle() * aa.axis();
-}
-
-Eigen::Matrix3d rotation_from_vector(const Eigen::Vector3d& w) {
-  double a = w.norm();
-  return a > 0 ? Eigen::AngleAxisd(a, w / a).toRotationMatrix() : Eigen::Matrix3d::Identity();
 }
 
 Eigen::VectorXd pose_label_values(const std::vector<LabelInfo>& labels,

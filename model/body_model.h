@@ -95,10 +95,6 @@ struct ModelBuildSummary {
 BodyModel build_body_model(const ModelBuildInput& input, const ModelBuildOptions& options = {},
                            ModelBuildSummary* summary = nullptr, const ProgressCallback& progress = {});
 
-// Rotation vector (axis · angle, radians) of a rotation matrix, and back.
-Eigen::Vector3d rotation_vector_of(const Eigen::Matrix3d& R);
-Eigen::Matrix3d rotation_from_vector(const Eigen::Vector3d& w);
-
 // The pose-label values (for `labels`, names "pose:<bone>:rx|ry|rz") of a pose of a skeleton
 // with bone names `bones`; labels whose bone is not in the skeleton get 0.
 Eigen::VectorXd pose_label_values(const std::vector<LabelInfo>& labels,

@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
-#include <sstream>
 #include <numeric>
 
 #include "core/error.h"
@@ -440,36 +438,6 @@ Eigen::MatrixX3d blend_pose_morphs(const BodyModel& model, RelativeRotationDecod
     if (target != before * v0) restore_volume(out, F, target);
   }
   return out;
-}
-
-Pose read_pose_csv(const std::string& path, const std::vector<std::string>& bones) {
-  std::ifstream f(path);
-  if (!f) throw InputError("cannot open '" + path + "'");
-  Pose p = Pose::rest(static_cast<int>(bones.size()));
-  std::string line;
-  int ln = 0;
-  auto number = [&](const std::string& t) {
-    char* end = nullptr;
-    double v = std::strtod(t.c_str(), &end);
-    if (t.empty() || !end || *end != '\0' || !std::isfinite(v))
-      throw InputError(fmt::format("'{}' line {}: expected a number, found '{}'", path, ln, t));
-    return v;
-  };
-  while (std::getline(f, line)) {
-    ++ln;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (ln == 1 || line.empty() || line[0] == '_') continue;
-    std::stringstream ss(line);
-    std::string name, a, b, c;
-    std::getline(ss, name, ',');
-    std::getline(ss, a, ',');
-    std::getline(ss, b, ',');
-    std::getline(ss, c, ',');
-    auto it = std::find(bones.begin(), bones.end(), name);
-    if (it == bones.end()) continue;
-    p.rotations[it - bones.begin()] = rotation_from_vector(Eigen::Vector3d(number(a), number(b), number(c)));
-  }
-  return p;
 }
 
 }  // namespace bodymodel

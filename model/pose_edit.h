@@ -150,12 +150,6 @@ Eigen::MatrixX3d blend_pose_morphs(const BodyModel& model, RelativeRotationDecod
                                    const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& A, const Eigen::MatrixX3d& B,
                                    double t, const Pose& pose, const PoseMorphOptions& options = {});
 
-// A pose file as the synthetic database writes it (DB/truth/<scan>.pose.csv: a header, then
-// bone,rx,ry,rz rotation vectors in radians; rows starting with '_' are global and skipped) as
-// a Pose of the skeleton with bone names `bones` (bones not in the file keep the rest rotation).
-// InputError naming the file and line for a malformed number.
-Pose read_pose_csv(const std::string& path, const std::vector<std::string>& bones);
-
 // Mean vertex distance (mm) between A and B after the best rigid fit of A onto B.
 double mean_vertex_error_after_rigid_fit(const Eigen::MatrixX3d& A, const Eigen::MatrixX3d& B);
 

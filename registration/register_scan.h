@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "core/io/pose_csv.h"
 #include "core/makehuman.h"
 #include "core/mesh.h"
 #include "core/progress.h"
@@ -14,7 +15,6 @@
 #include "registration/landmarks.h"
 #include "registration/nonrigid.h"
 #include "registration/pose_fit.h"
-#include "registration/pose_io.h"
 #include "registration/proportions.h"
 #include "registration/scan.h"
 #include "registration/shape_fit.h"

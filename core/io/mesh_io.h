@@ -1,4 +1,4 @@
-// Mesh and point-cloud files: OBJ and PLY (ASCII and binary little-endian).
+// Mesh and point-cloud files: OBJ and PLY (ASCII and binary little-endian); OFF read only.
 //
 // Readers are strict: a malformed file throws InputError naming the file, the line (or
 // element) and what was wrong. Writers go through write_atomically, so a failed write never
@@ -31,8 +31,16 @@ ObjContents parse_obj(std::string_view text, const std::string& source);
 // Triangulates polygons as fans (a quad a b c d gives a b c and a c d).
 Eigen::MatrixX3i triangulate(const std::vector<std::vector<int>>& polygons);
 
-// Reads OBJ or PLY (by extension) as a triangle mesh; quads and polygons are triangulated.
+// Reads OBJ, PLY or OFF (by extension) as a triangle mesh; OBJ/PLY quads and polygons are
+// triangulated.
 Mesh read_mesh(const std::filesystem::path& path);
+
+// Plain ASCII OFF (SCAPE, FAUST registrations): the line "OFF", a counts line "#V #F [#E]"
+// (it may also follow "OFF" on the same line), #V lines "x y z", #F lines "3 a b c" with 0-based
+// indices. Triangles only, no colours, '#' comments and blank lines skipped; anything else —
+// a polygon, an index out of range, a missing or extra line — throws InputError naming the file
+// and line. `source` names the input in errors.
+Mesh parse_off(std::string_view text, const std::string& source);
 // Writes OBJ or PLY (by extension). PLY is binary little-endian unless `ascii`.
 // colors: #V by 3 in [0,1] (PLY only; ignored for OBJ), or empty.
 void write_mesh(const std::filesystem::path& path, const Eigen::MatrixX3d& V,
@@ -45,7 +53,7 @@ inline void write_mesh(const std::filesystem::path& path, const Mesh& m) {
 // PLY point cloud with optional normals (nx ny nz). Faces in the file are ignored.
 PointCloud read_point_cloud(const std::filesystem::path& path);
 
-// From memory (tests, fuzzing): `format` is "obj" or "ply"; `source` names it in errors.
+// From memory (tests, fuzzing): `format` is "obj", "ply" or "off"; `source` names it in errors.
 Mesh parse_mesh(const std::string& bytes, const std::string& format, const std::string& source);
 PointCloud parse_ply_point_cloud(const std::string& bytes, const std::string& source);
 void write_point_cloud(const std::filesystem::path& path, const PointCloud& cloud,

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cmath>
 #include <map>
 #include <vector>
@@ -159,6 +160,11 @@ inline PointCloud scan_of(const Mesh& m, int count, unsigned seed, double noise_
     }
   }
   return c;
+}
+
+// Rotation (3×3) by `deg` degrees about `axis` (any length).
+inline Eigen::Matrix3d rot(double deg, const Eigen::Vector3d& axis) {
+  return Eigen::AngleAxisd(deg * M_PI / 180.0, axis.normalized()).toRotationMatrix();
 }
 
 }  // namespace bodymodel::test

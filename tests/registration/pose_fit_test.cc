@@ -4,24 +4,19 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <string>
 
 #include "core/error.h"
 #include "core/geometry.h"
 #include "core/makehuman.h"
+#include "core/rotation.h"
 #include "registration/metrics.h"
 #include "registration/fixtures.h"
 
 namespace bodymodel {
 namespace {
 
-double angle_deg(const Eigen::Matrix3d& A, const Eigen::Matrix3d& B) {
-  const Eigen::Matrix3d D = A * B.transpose();
-  return std::acos(std::clamp((D.trace() - 1) / 2, -1.0, 1.0)) * 180.0 / M_PI;
-}
-
-Eigen::Matrix3d rot(double deg, Eigen::Vector3d axis) {
-  return Eigen::AngleAxisd(deg * M_PI / 180.0, axis.normalized()).toRotationMatrix();
-}
+using test::rot;
 
 // Three-bone limb posed with a known global motion, scale and joint rotations: the fit must
 // recover them from a dense scan.
@@ -103,7 +98,7 @@ TEST(PoseFit, RecoversKnownBodyPose) {
   // bones of a segment is not observable).
   for (const std::string& name : major_joints()) {
     const int b = sk.index(name);
-    errors.push_back(angle_deg(Qe[b], Qt[b]));
+    errors.push_back(rotation_angle_deg(Qe[b], Qt[b]));
     std::printf("  %-14s %.2f°\n", name.c_str(), errors.back());
   }
   std::sort(errors.begin(), errors.end());
@@ -134,6 +129,40 @@ TEST(PoseFit, BadInput) {
   fixed.fit_scale = false;
   fixed.free_bones = {"lower"};
   EXPECT_THROW(fit_pose(limb.mesh, limb.skeleton, limb.weights, far, {}, fixed), InputError);
+}
+
+// Options out of range are refused before any work, with the option named; the defaults and the
+// hand-stage parameterisation are valid.
+TEST(PoseFit, OptionsValidate) {
+  PoseFitOptions o;
+  EXPECT_NO_THROW(o.validate());
+  o.parameters = hand_stage_pose_parameters();
+  EXPECT_NO_THROW(o.validate());
+  auto message = [](const PoseFitOptions& bad) {
+    try {
+      bad.validate();
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  PoseFitOptions bad;
+  bad.max_distance = -5;
+  EXPECT_NE(message(bad).find("max_distance"), std::string::npos) << message(bad);
+  bad = {};
+  bad.trim_fraction = 1.0;
+  EXPECT_NE(message(bad).find("trim_fraction"), std::string::npos) << message(bad);
+  bad = {};
+  bad.hand_start_margin = std::nan("");
+  EXPECT_NE(message(bad).find("hand_start_margin"), std::string::npos) << message(bad);
+  bad = {};
+  bad.parameters = {{{"finger1-2.L"}, false, 1.0, false, false, true, true}};  // a tuck, not late
+  EXPECT_NE(message(bad).find("finger1-2.L"), std::string::npos) << message(bad);
+  test::Limb limb = test::limb();
+  const PointCloud scan = test::scan_of(limb.mesh, 2000, 1);
+  PoseFitOptions threads;
+  threads.threads = 0;
+  EXPECT_THROW(fit_pose(limb.mesh, limb.skeleton, limb.weights, scan, {}, threads), InputError);
 }
 
 }  // namespace

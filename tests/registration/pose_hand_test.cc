@@ -12,20 +12,14 @@
 #include "core/makehuman.h"
 #include "core/point_index.h"
 #include "core/retarget.h"
+#include "core/rotation.h"
 #include "registration/fixtures.h"
 #include "registration/pose_fit.h"
 
 namespace bodymodel {
 namespace {
 
-double angle_deg(const Eigen::Matrix3d& A, const Eigen::Matrix3d& B) {
-  const Eigen::Matrix3d D = A * B.transpose();
-  return std::acos(std::clamp((D.trace() - 1) / 2, -1.0, 1.0)) * 180.0 / M_PI;
-}
-
-Eigen::Matrix3d rot(double deg, Eigen::Vector3d axis) {
-  return Eigen::AngleAxisd(deg * M_PI / 180.0, axis.normalized()).toRotationMatrix();
-}
+using test::rot;
 
 // The points of a dense sampling (unit normals) that one of four pillars at 45°, 135°, … sees
 // along horizontal rays (y up): in front in a 3 mm depth buffer of 4 mm cells, hit at less than
@@ -131,7 +125,7 @@ struct HandCase {
   void errors(const PoseFitResult& r, double* median, double* max, double* hand_mm) const {
     const auto Qt = world_rotations(body.skeleton, truth), Qe = world_rotations(body.skeleton, r.pose);
     std::vector<double> e;
-    for (int b : phalanges) e.push_back(angle_deg(Qe[b], Qt[b]));
+    for (int b : phalanges) e.push_back(rotation_angle_deg(Qe[b], Qt[b]));
     std::sort(e.begin(), e.end());
     *median = e[e.size() / 2];
     *max = e.back();
@@ -169,7 +163,7 @@ struct HandCase {
     const Skeleton& sk = body.skeleton;
     const auto Qt = world_rotations(sk, truth), Qe = world_rotations(sk, r.pose);
     double e = 0;
-    for (const char* b : bones) e = std::max(e, angle_deg(Qe[sk.index(b)], Qt[sk.index(b)]));
+    for (const char* b : bones) e = std::max(e, rotation_angle_deg(Qe[sk.index(b)], Qt[sk.index(b)]));
     return e;
   }
 

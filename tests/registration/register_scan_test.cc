@@ -23,9 +23,7 @@
 namespace bodymodel {
 namespace {
 
-Eigen::Matrix3d rot(double deg, Eigen::Vector3d axis) {
-  return Eigen::AngleAxisd(deg * M_PI / 180.0, axis.normalized()).toRotationMatrix();
-}
+using test::rot;
 
 double angle_deg(const Eigen::Matrix3d& A, const Eigen::Matrix3d& B) {
   const Eigen::Matrix3d D = A * B.transpose();

@@ -6,10 +6,11 @@
 #include <fstream>
 
 #include "core/error.h"
+#include "core/io/pose_csv.h"
+#include "core/rotation.h"
 #include "registration/fixtures.h"
 #include "registration/landmarks.h"
 #include "registration/metrics.h"
-#include "registration/pose_io.h"
 
 namespace bodymodel {
 namespace {
@@ -83,11 +84,11 @@ TEST(Metrics, PointTriangleDistanceAndPoseRoundTrip) {
   PoseRecord r;
   r.scale = 1.05;
   r.pose = Pose::rest(3);
-  r.pose.rotations[1] = vector_to_rotation({0.3, -0.2, 0.1});
+  r.pose.rotations[1] = rotation_from_vector({0.3, -0.2, 0.1});
   r.pose.root_translation = {1, 2, 3};
   const auto path = std::filesystem::temp_directory_path() / "bodymodel_reg_pose_test.csv";
-  write_pose_csv(path, limb.skeleton, r);
-  PoseRecord back = read_pose_csv(path, limb.skeleton);
+  write_pose_csv(path, limb.skeleton.names, r);
+  PoseRecord back = read_pose_csv(path, limb.skeleton.names);
   EXPECT_NEAR(back.scale, 1.05, 1e-9);
   EXPECT_LT(rotation_angle_deg(back.pose.rotations[1], r.pose.rotations[1]), 1e-4);  // acos near 1: ~1e-6° noise
   EXPECT_LT((back.pose.root_translation - r.pose.root_translation).norm(), 1e-6);

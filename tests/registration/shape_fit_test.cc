@@ -14,9 +14,7 @@
 namespace bodymodel {
 namespace {
 
-Eigen::Matrix3d rot(double deg, Eigen::Vector3d axis) {
-  return Eigen::AngleAxisd(deg * M_PI / 180.0, axis.normalized()).toRotationMatrix();
-}
+using test::rot;
 
 double mean_distance(const Eigen::MatrixX3d& A, const Eigen::MatrixX3d& B) {
   return (A - B).rowwise().norm().mean();

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/makehuman.h"
+#include "core/rotation.h"
 #include "core/skeleton.h"
 #include "model/body_model.h"
 #include "model/model_rig.h"

@@ -27,6 +27,7 @@
 #include "core/error.h"
 #include "core/geometry.h"
 #include "core/io/atomic_write.h"
+#include "tools/pipeline/folder_settings.h"
 #include "core/io/bvh.h"
 #include "core/io/interrupt_cleanup.h"
 #include "core/io/mesh_io.h"
@@ -35,6 +36,7 @@
 #include "core/point_index.h"
 #include "core/retarget.h"
 #include "population/people.h"
+#include "core/rotation.h"
 
 namespace bodymodel {
 
@@ -106,14 +108,7 @@ std::string fmt_double(double v, int decimals) {
 
 Eigen::Matrix3d random_rotation(std::mt19937_64& rng, double sigma_rad) {
   std::normal_distribution<double> n(0.0, sigma_rad);
-  Eigen::Vector3d w(n(rng), n(rng), n(rng));
-  double a = w.norm();
-  return a > 0 ? Eigen::AngleAxisd(a, w / a).toRotationMatrix() : Eigen::Matrix3d::Identity();
-}
-
-Eigen::Vector3d rotation_vector(const Eigen::Matrix3d& R) {
-  Eigen::AngleAxisd aa(R);
-  return aa.angle() * aa.axis();
+  return rotation_from_vector(Eigen::Vector3d(n(rng), n(rng), n(rng)));
 }
 
 // Poses a subject can be scanned in. Extreme poses with self-contact or body parts hidden from
@@ -326,27 +321,10 @@ std::string description_json(const SyntheticDatabaseOptions& o, const std::vecto
   return meta.dump(2) + "\n";
 }
 
-// Compares an existing database.json with the expected description; "" when they agree.
+// Compares an existing database.json with the expected description; "" when they agree (the
+// comparison of every resumable folder's settings record, tools/pipeline/folder_settings.h).
 std::string description_difference(const fs::path& file, const std::string& expected) {
-  std::error_code ec;
-  if (!fs::is_regular_file(file, ec)) return "no " + file.filename().string();
-  nlohmann::json old, now = nlohmann::json::parse(expected);
-  try {
-    old = nlohmann::json::parse(read_text_file(file));
-  } catch (const std::exception&) {
-    return file.filename().string() + " does not parse";
-  }
-  if (!old.is_object()) return file.filename().string() + " is not a JSON object";
-  for (auto& [key, value] : now.items()) {
-    if (!old.contains(key)) return key + " not recorded";
-    if (old[key] != value) {
-      if (value.is_array() || value.is_object()) return "other " + key;
-      return key + " " + old[key].dump() + ", not " + value.dump();
-    }
-  }
-  for (auto& [key, value] : old.items())
-    if (!now.contains(key)) return "unknown entry " + key;
-  return "";
+  return settings_difference(file, nlohmann::json::parse(expected));
 }
 
 // The process id in a write_atomically temporary name ".<name>.tmp<pid>_<n>", or -1.
@@ -758,13 +736,13 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
           write_text_file(dir / "scans" / (id + ".landmarks.json"), lm.dump(1) + "\n");
           write_mesh(dir / "truth" / (id + ".ply"), truth, body.mesh.F);
           std::string pose_csv = "bone,rx,ry,rz\n";
-          Eigen::Vector3d g = rotation_vector(place.R);
+          Eigen::Vector3d g = rotation_vector_of(place.R);
           pose_csv += "_global_rotation," + fmt_double(g.x(), 9) + "," + fmt_double(g.y(), 9) + "," +
                       fmt_double(g.z(), 9) + "\n";
           pose_csv += "_global_translation_mm," + fmt_double(place.t.x(), 4) + "," +
                       fmt_double(place.t.y(), 4) + "," + fmt_double(place.t.z(), 4) + "\n";
           for (int b = 0; b < body.skeleton.bone_count(); ++b) {
-            Eigen::Vector3d w = rotation_vector(pose.rotations[b]);
+            Eigen::Vector3d w = rotation_vector_of(pose.rotations[b]);
             pose_csv += body.skeleton.names[b] + "," + fmt_double(w.x(), 9) + "," +
                         fmt_double(w.y(), 9) + "," + fmt_double(w.z(), 9) + "\n";
           }

@@ -156,7 +156,10 @@ BODYMODEL_VERB(add_model_generate_verb) {
                   "With --population: the person's labels each body is morphed to (comma-separated; add\n"
                   "waist_iliac_cm,hips_cm for the girths)")
       ->capture_default_str();
-  cmd->add_option("--seed", a->seed, "Random seed (the crowd is a function of it)")->capture_default_str();
+  // NonNegativeNumber: CLI11 would read -1 into the unsigned seed as 18446744073709551615.
+  cmd->add_option("--seed", a->seed, "Random seed (the crowd is a function of it)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   auto* spread = cmd->add_option("--spread", a->spread,
                                  "Scale of the random coefficients (1 = the data's spread; with --population the\n"
                                  "default is 0: each body is its person's typical body, the people give the variety)")

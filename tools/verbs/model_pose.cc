@@ -4,8 +4,10 @@
 #include "core/data_path.h"
 #include "core/io/bvh.h"
 #include "core/io/mesh_io.h"
+#include "core/io/pose_csv.h"
 #include "core/retarget.h"
 #include "model/pose_edit.h"
+#include "tools/console.h"
 #include "tools/verb.h"
 #include "tools/verbs/model_common.h"
 
@@ -68,7 +70,15 @@ BODYMODEL_VERB(add_model_pose_verb) {
       std::vector<Pose> poses = poses_from_bvh(clip, sk, data_file("makehuman"), false);
       pose = poses[a->frame];
     } else {
-      pose = read_pose_csv(a->pose_csv, model.rig.bone_names);
+      // A file of another skeleton may name bones the model's rig lacks: they are skipped and
+      // named. The root translation (a registration's placement on its scan) is not part of
+      // the pose the body is morphed into.
+      std::vector<std::string> skipped;
+      pose = read_pose_csv(a->pose_csv, model.rig.bone_names, &skipped).pose;
+      pose.root_translation.setZero();
+      if (!skipped.empty())
+        cli::warn(fmt::format("'{}': skipped {} bone(s) that the model's skeleton does not have: {}",
+                              a->pose_csv, skipped.size(), fmt::join(skipped, ", ")));
     }
     RelativeRotationDecoder decoder(model.tmpl);
     PoseMorphOptions o;

@@ -17,12 +17,14 @@
 #include <sstream>
 
 #include "core/error.h"
-#include "core/io/atomic_write.h"
 #include "core/geometry.h"
+#include "core/io/atomic_write.h"
+#include "core/io/file_names.h"
 #include "core/io/mesh_io.h"
+#include "core/io/pose_csv.h"
 #include "core/makehuman.h"
+#include "core/rotation.h"
 #include "registration/metrics.h"
-#include "registration/pose_io.h"
 #include "tools/console.h"
 #include "tools/verb.h"
 
@@ -107,8 +109,13 @@ BODYMODEL_VERB(add_eval_registration_verb) {
       std::istringstream in(read_text_file(db / "scans.csv"));
       std::string line;
       std::getline(in, line);
-      while (std::getline(in, line))
-        if (!line.empty()) ids.push_back(line.substr(0, line.find(',')));
+      for (int lineno = 2; std::getline(in, line); ++lineno) {
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        if (line.empty()) continue;
+        ids.push_back(line.substr(0, line.find(',')));
+        // The id names files read from DB/truth/ and REG/: one plain name.
+        check_file_name(ids.back(), (db / "scans.csv").string() + ":" + std::to_string(lineno), "scan id");
+      }
     }
     MakeHuman mh = MakeHuman::load();
     MakeHuman::Body body = mh.body(MacroSettings{});
@@ -230,8 +237,8 @@ BODYMODEL_VERB(add_eval_registration_verb) {
       }
       double jmed = std::nan(""), jmax = std::nan(""), fmed = std::nan("");
       if (fs::exists(reg / (id + ".pose.csv")) && fs::exists(db / "truth" / (id + ".pose.csv"))) {
-        const auto Qe = read_pose_csv(reg / (id + ".pose.csv"), sk).world_rotations(sk);
-        const auto Qt = read_pose_csv(db / "truth" / (id + ".pose.csv"), sk).world_rotations(sk);
+        const auto Qe = read_pose_csv(reg / (id + ".pose.csv"), sk.names).world_rotations(sk);
+        const auto Qt = read_pose_csv(db / "truth" / (id + ".pose.csv"), sk.names).world_rotations(sk);
         std::vector<double> je;
         for (size_t j = 0; j < joints.size(); ++j) {
           je.push_back(rotation_angle_deg(Qe[joints[j]], Qt[joints[j]]));

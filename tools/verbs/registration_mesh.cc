@@ -18,10 +18,11 @@
 #include <nlohmann/json.hpp>
 #include "registration/detail_transfer.h"
 #include "registration/mesh_scan.h"
-#include "registration/pose_io.h"
+#include "core/io/pose_csv.h"
 #include "registration/register_scan.h"
 #include "tools/console.h"
 #include "tools/pipeline/batch_jobs.h"
+#include "tools/pipeline/folder_settings.h"
 #include "tools/verb.h"
 
 namespace bodymodel {
@@ -118,7 +119,9 @@ BODYMODEL_VERB(add_register_mesh_verb) {
   cmd->add_option("--pose-iterations", a->pose_iterations,
                   "ICP iterations of the pose fit (0: landmarks only)")
       ->capture_default_str();
-  cmd->add_flag("--force", a->force, "Register again meshes that are already done");
+  cmd->add_flag("--force", a->force,
+                "Register again meshes that are already done; replace the results in OUT made with other settings "
+                "(without it such a folder is refused)");
   cmd->callback([a] {
     if (!(a->scale > 0) || !std::isfinite(a->scale))
       throw InputError("--scale must be a positive number of millimetres per mesh unit, got " +
@@ -140,7 +143,20 @@ BODYMODEL_VERB(add_register_mesh_verb) {
     }
     if (!fs::is_regular_file(a->landmarks))
       throw InputError("--landmarks '" + a->landmarks + "': file not found");
-    ensure_directory(out);
+    // Every setting that changes a registration, the landmarks by content: a rerun with other
+    // settings is refused instead of keeping the earlier results (tools/pipeline/folder_settings.h).
+    const nlohmann::json settings = {
+        {"verb", "register-mesh"}, {"landmarks", file_fingerprint(a->landmarks)},
+        {"scale", a->scale},       {"schedule", a->schedule},
+        {"fast_steps", a->fast_steps}, {"fast_stiffness_end", a->fast_k_end},
+        {"samples", a->samples},   {"detail", a->detail},
+        {"pose_only", a->pose_only}, {"keep_folds", a->keep_folds},
+        {"proportions", !a->no_proportions}, {"shape_fit", !a->no_shape_fit},
+        {"pose_iterations", a->pose_iterations}};
+    ResumableFolder folder(out, "register-mesh.json", settings, a->force,
+                           outputs_named({"register-mesh.csv"}, {".ply", ".pose.csv", ".shape.json", ".register-mesh.csv",
+                                                                 ".detail.npz"}));
+    folder.open();
     BatchJobs batch({"mesh", "meshes", "registered", a->jobs, a->force}, stems, a->meshes);
     const size_t todo = batch.skip_done([&](size_t k) {
       const std::string& s = stems[k];
@@ -197,7 +213,7 @@ BODYMODEL_VERB(add_register_mesh_verb) {
       rec.scale = r.pose.scale;
       rec.pose = r.pose.pose;
       write_mesh(out / (stem + ".ply"), r.V, tpl.mesh.F);
-      write_pose_csv(out / (stem + ".pose.csv"), tpl.skeleton, rec);
+      write_pose_csv(out / (stem + ".pose.csv"), tpl.skeleton.names, rec);
       if (r.shape) write_text_file(out / (stem + ".shape.json"), r.shape->to_json().dump(2) + "\n");
       write_text_file(
           out / (stem + ".register-mesh.csv"),
