@@ -13,6 +13,7 @@ packages=(
   libceres-dev libnanoflann-dev libsuitesparse-dev libtbb-dev
   libcli11-dev nlohmann-json3-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev libtinygltf-dev libstb-dev libsvm-dev zlib1g-dev
+  pybind11-dev python3-pybind11 python3-numpy python3-pytest python3-matplotlib   # the Python module
 )
 
 missing=()
@@ -26,9 +27,25 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -q --no-install-recommends "${missing[@]}"
 fi
 
+build="${BODYMODEL_BUILD:-$here/build}"
+
+# `import bodymodel` for every python3 here (docs/python.md): a .pth file in each interpreter's
+# user site names the build's python folder, and, for an interpreter without numpy of its own
+# (a pyenv python3 on PATH), Debian's dist-packages (python3-numpy) when the versions match.
+for py in $(command -v python3 || true) /usr/bin/python3; do
+  [ -x "$py" ] || continue
+  site="$("$py" -m site --user-site 2>/dev/null)" || continue
+  mkdir -p "$site" 2>/dev/null || continue
+  pth="$build/python"
+  if ! "$py" -c "import numpy" 2>/dev/null && [ -d /usr/lib/python3/dist-packages ] &&
+     [ "$("$py" -c 'import sys; print(sys.version_info[:2])')" = "$(/usr/bin/python3 -c 'import sys; print(sys.version_info[:2])' 2>/dev/null)" ]; then
+    pth="$pth"$'\n'/usr/lib/python3/dist-packages
+  fi
+  printf '%s\n' "$pth" > "$site/bodymodel.pth" 2>/dev/null || true
+done
+
 [ "${1:-}" = "--no-build" ] && exit 0
 
-build="${BODYMODEL_BUILD:-$here/build}"
 jobs="${BODYMODEL_JOBS:-2}"
 if [ ! -f "$build/build.ninja" ]; then
   cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
