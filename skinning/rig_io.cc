@@ -12,7 +12,7 @@ namespace bodymodel {
 namespace {
 void put_base(Npz& z, const std::filesystem::path& path, const SkinningRig& rig, const Eigen::MatrixX3i& faces,
               const std::vector<BoneTransforms>& poses) {
-  z.put("bone_count", static_cast<double>(rig.bone_count));
+  z.put_int("bone_count", rig.bone_count);
   z.put("rest", Eigen::MatrixXd(rig.rest));
   z.put("faces", Eigen::MatrixXi(faces.size() ? Eigen::MatrixXi(faces) : Eigen::MatrixXi(0, 3)));
   z.put("influences", rig.influences);
@@ -216,7 +216,7 @@ void save_pose_space_rig(const std::filesystem::path& path, const PoseSpaceRig& 
   z.put_text("format", "bodymodel-pose-space-rig-1");
   z.put_text("method", pose_space_method_name(rig.method));
   put_base(z, path, rig.base, faces, poses);
-  z.put("poses", static_cast<double>(rig.poses));
+  z.put_int("poses", rig.poses);
   z.put("pairs", Eigen::MatrixXi(rig.pairs.rows() ? rig.pairs : Eigen::MatrixXi(0, 2)));
   z.put("pair_features", rig.pair_features);
   z.put("primary", Eigen::VectorXi(rig.primary));

@@ -1,7 +1,7 @@
 // Skinning rigs as NumPy .npz (np.load opens them). Keys:
 //   format            text  "bodymodel-skinning-rig-1"
 //   method            text  "ssd" | "as" | "mwe"
-//   bone_count        scalar #B
+//   bone_count        int32 scalar #B
 //   rest              #V by 3 float64 rest positions (data units)
 //   faces             #F by 3 int32 triangles, 0-based (0 rows when unknown)
 //   influences        #V by K int32 bone per slot, −1 = unused slot

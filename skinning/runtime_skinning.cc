@@ -16,7 +16,9 @@ namespace {
 
 constexpr int kBlock = 256;
 
-#if defined(__GNUC__) && defined(__x86_64__)
+// GCC only: clang rejects target_clones on the function templates below, so a clang build
+// compiles the kernels once, for the target it is given (e.g. -march=native for its speed).
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
 #define BODYMODEL_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=haswell", "default")))
 #else
 #define BODYMODEL_CLONES

@@ -212,6 +212,11 @@ void run_eval(const EvalArgs& a) {
       t = evenly_spaced_frames(nf, k);
       protocol = fmt::format("{} evenly spaced training frames", t.size());
     }
+    // Training on every frame leaves no unseen split to report (--train-count 1000 did so silently).
+    if (static_cast<int>(std::set<int>(t.begin(), t.end()).size()) >= nf)
+      throw InputError(fmt::format("skin eval: the training frames ({}) are all {} frames of the sequence, leaving "
+                                   "no unseen frame to measure (train on at most {})",
+                                   protocol, nf, nf - 1));
     if (rest < 0) rest = *std::min_element(t.begin(), t.end());
     folds.push_back(t);
   }
@@ -375,8 +380,10 @@ BODYMODEL_VERB(add_skin_eval_verb) {
       ->capture_default_str();
   cmd->add_option("--methods", a->methods, "Comma-separated methods: ssd, dqs, as, mwe, psd, eigenskin, quadratic")
       ->capture_default_str();
-  cmd->add_option("--train-every", a->train_every, "Train on every K-th frame (frame 1, 1+K, ...)");
-  cmd->add_option("--train-count", a->train_count, "Train on N evenly spaced frames (default 10)");
+  cmd->add_option("--train-every", a->train_every, "Train on every K-th frame (frame 1, 1+K, ...)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--train-count", a->train_count, "Train on N evenly spaced frames (default 10)")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--train-fraction", a->train_fraction, "Train on the first fraction of the frames (0.6 = first 60 %)");
   cmd->add_option("--train", a->train, "Training frame names, comma-separated or @file (one per line)");
   cmd->add_option("--test", a->test, "Unseen frame names (with --train): every other frame is ignored");
