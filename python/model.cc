@@ -85,7 +85,7 @@ class PyModel {
   }
 
   pyb::tuple morph(const pyb::handle& V, const std::string& sex, int iterations, const pyb::handle& mask,
-                   const pyb::kwargs& labels) const {
+                   bool closest, const pyb::kwargs& labels) const {
     const SemanticRegression& reg = model_->shape.regression;
     if (labels.empty()) throw InputError("morph: nothing to do: give at least one LABEL=VALUE");
     std::vector<LabelCondition> cond;
@@ -114,6 +114,16 @@ class PyModel {
       const ShapeMorpher& mo = morpher();
       pyb::gil_scoped_release nogil;
       out = mo.morph(X, cond, o, &sum);
+    }
+    // As `bodymodel morph`: a target the model cannot meet is an error unless the closest body is
+    // asked for.
+    if (!sum.converged && !closest) {
+      std::string missed;
+      for (const auto& l : sum.labels)
+        if (!l.satisfied)
+          missed += fmt::format("{}{} = {:.4g} (reached {:.4g})", missed.empty() ? "" : ", ", l.label, l.target, l.achieved);
+      throw InputError(fmt::format("morph: the model cannot meet {} from '{}' after {} iterations (closest=True returns "
+                                   "the closest body)", missed, V.is_none() ? "the mean body" : "V", sum.iterations));
     }
     return pyb::make_tuple(to_array(Eigen::MatrixXd(out)), summary_dict(sum));
   }
@@ -230,8 +240,8 @@ morph() and generate() use. Encodings are 15 values per triangle relative to enc
              return to_array(Eigen::VectorXd(bm.shape.regression.predict(c)));
            }, "V"_a, "predict_labels(V) -> (L,): the eq. 10 regression's labels of body V (label_names' order).")
       .def("morph", &PyModel::morph, "V"_a = pyb::none(), pyb::kw_only(), "sex"_a = "unknown", "iterations"_a = 8,
-           "mask"_a = pyb::none(),
-           R"(morph(V=None, *, sex='unknown', iterations=8, mask=None, **labels) -> (V', summary)
+           "mask"_a = pyb::none(), "closest"_a = false,
+           R"(morph(V=None, *, sex='unknown', iterations=8, mask=None, closest=False, **labels) -> (V', summary)
 
 Changes body V ((n, 3), mm, the model's topology; None = the model's mean body) to meet the
 label values given as keywords, as `bodymodel morph`: height_cm=185 (exact), weight_kg='keep'
@@ -239,7 +249,8 @@ label values given as keywords, as `bodymodel morph`: height_cm=185 (exact), wei
 labels (height, weight, girths) are met as measured on the output (a few corrected decodes).
 mask: (m,) per-triangle weights in [0, 1] restricting the change. Returns the morphed vertices
 (n, 3), rigidly placed onto V, and a summary dict (iterations, converged, decodes, labels: per
-label target/start/achieved/satisfied, report: the CLI's table).)")
+label target/start/achieved/satisfied, report: the CLI's table). A target the model cannot meet
+raises InputError, as the CLI fails, unless closest=True (the CLI's --closest).)")
       .def("generate", &PyModel::generate, "n"_a, "seed"_a = 1, pyb::kw_only(), "where"_a = pyb::none(),
            "spread"_a = 1.0, "measure_girths"_a = true, "progress"_a = pyb::none(),
            R"(generate(n, seed=1, *, where=None, spread=1.0, measure_girths=True, progress=None) -> list

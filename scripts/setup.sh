@@ -34,16 +34,20 @@ build="${BODYMODEL_BUILD:-$here/build}"
 # `import bodymodel` for every python3 here (docs/python.md): a .pth file in each interpreter's
 # user site names the build's python folder, and, for an interpreter without numpy of its own
 # (a pyenv python3 on PATH), Debian's dist-packages (python3-numpy) when the versions match.
+# Interpreters of one version share the user site, so the file gets the lines all of them need.
+declare -A pth_lines=()
 for py in $(command -v python3 || true) /usr/bin/python3; do
   [ -x "$py" ] || continue
   site="$("$py" -m site --user-site 2>/dev/null)" || continue
-  mkdir -p "$site" 2>/dev/null || continue
-  pth="$build/python"
+  lines="${pth_lines[$site]:-$build/python}"
   if ! "$py" -c "import numpy" 2>/dev/null && [ -d /usr/lib/python3/dist-packages ] &&
      [ "$("$py" -c 'import sys; print(sys.version_info[:2])')" = "$(/usr/bin/python3 -c 'import sys; print(sys.version_info[:2])' 2>/dev/null)" ]; then
-    pth="$pth"$'\n'/usr/lib/python3/dist-packages
+    lines="$lines"$'\n'/usr/lib/python3/dist-packages
   fi
-  printf '%s\n' "$pth" > "$site/bodymodel.pth" 2>/dev/null || true
+  pth_lines[$site]="$lines"
+done
+for site in "${!pth_lines[@]}"; do
+  mkdir -p "$site" 2>/dev/null && printf '%s\n' "${pth_lines[$site]}" > "$site/bodymodel.pth" 2>/dev/null || true
 done
 
 [ "${1:-}" = "--no-build" ] && exit 0
