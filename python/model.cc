@@ -68,13 +68,14 @@ pyb::dict summary_dict(const MorphSummary& s) {
 class PyModel {
  public:
   explicit PyModel(std::shared_ptr<const BodyModel> m) : model_(std::move(m)) {}
-  static PyModel load(const std::string& path) {
+  // A pointer: the object holds a mutex (not movable).
+  static std::unique_ptr<PyModel> load(const std::string& path) {
     std::shared_ptr<const BodyModel> m;
     {
       pyb::gil_scoped_release nogil;
       m = std::make_shared<const BodyModel>(load_model(path));
     }
-    return PyModel(std::move(m));
+    return std::make_unique<PyModel>(std::move(m));
   }
   const BodyModel& model() const { return *model_; }
   // The morpher (and its decoder's factorisations) is built on first use and reused.

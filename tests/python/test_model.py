@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import bodymodel
+from conftest import cli_error_line
 
 pytestmark = pytest.mark.slow
 
@@ -47,7 +48,7 @@ def test_morph_matches_the_cli(model, model_path, tmp_path, cli):
     with pytest.raises(bodymodel.InputError) as e:
         model.morph(Vb, hight_cm=180)
     assert "hight_cm" in str(e.value) and str(e.value) == \
-        cli(f"morph {model_path} --in {body} --set hight_cm=180 --out {tmp_path / 'x.ply'}", check=False).stderr.strip()[len("bodymodel: error: "):]
+        cli_error_line(cli(f"morph {model_path} --in {body} --set hight_cm=180 --out {tmp_path / 'x.ply'}", check=False))
     with pytest.raises(bodymodel.InputError, match="vertices|vertex"):
         model.morph(Vb[:100], height_cm=170)
 
