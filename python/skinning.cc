@@ -128,12 +128,22 @@ maps are (B, 3, 4) arrays [R t] (or (B, 4, 4)) taking rest positions to posed on
             Eigen::MatrixX3i Fi = F.is_none() ? r.faces : faces(F, "F", r.rig.vertex_count());
             save_rig(path, r.rig, Fi);
           }, "path"_a, "F"_a = pyb::none(), "save(path, F=None): writes the rig .npz (F (m, 3) triangles for viewers).")
-      .def("deform", [](const PyRig& r, const pyb::handle& M) { return to_array(Eigen::MatrixXd(deform(r, M))); },
+      .def("deform", [](const PyRig& r, const pyb::handle& M) {
+            // No copy: the array takes over the evaluated matrix (column-major, so the array is
+            // Fortran-ordered); deform is called per frame and a copy cost as much as MWE's work.
+            auto* V = new Eigen::MatrixX3d(deform(r, M));
+            pyb::capsule owner(V, [](void* p) { delete static_cast<Eigen::MatrixX3d*>(p); });
+            const pyb::ssize_t n = V->rows();
+            return pyb::array_t<double>({n, pyb::ssize_t(3)},
+                                        {pyb::ssize_t(sizeof(double)), pyb::ssize_t(sizeof(double)) * n}, V->data(),
+                                        owner);
+          },
            "bone_transforms"_a,
            R"(deform(bone_transforms) -> V (n, 3)
 
 Posed vertices for B bone maps (B, 3, 4) (or (B, 4, 4)): the reference double-precision
-evaluation (skinning/skinning_rig.h evaluate_rig), in the rig's unit. Releases the GIL.)")
+evaluation (skinning/skinning_rig.h evaluate_rig), in the rig's unit. Releases the GIL. The
+array is Fortran-ordered (it is the evaluator's own matrix, not a copy).)")
       .def("time_native", [](const PyRig& r, const pyb::handle& M_in, int repeats) {
             BoneTransforms M = bone_transforms(M_in, "bone_transforms");
             if (static_cast<int>(M.size()) != r.rig.bone_count) throw InputError("bone_transforms: wrong bone count");
