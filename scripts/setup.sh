@@ -16,6 +16,7 @@ packages=(
   libcli11-dev nlohmann-json3-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev libtinygltf-dev libstb-dev libsvm-dev zlib1g-dev
   pybind11-dev python3-pybind11 python3-numpy python3-pytest python3-matplotlib   # the Python module
+  libcpp-httplib-dev chromium
 )
 
 missing=()
@@ -49,6 +50,16 @@ done
 for site in "${!pth_lines[@]}"; do
   mkdir -p "$site" 2>/dev/null && printf '%s\n' "${pth_lines[$site]}" > "$site/bodymodel.pth" 2>/dev/null || true
 done
+
+# three.js (npm, pinned) for `bodymodel viewer` and the report's viewer, kept inside the build
+# folder and copied into each viewer folder (no CDN: the report opens offline). Best effort:
+# without node/npm the viewer verb says what is missing.
+three_version=0.160.0
+if [ ! -f "$build/npm/node_modules/three/build/three.min.js" ] && command -v npm >/dev/null; then
+  mkdir -p "$build/npm"
+  npm install --prefix "$build/npm" --no-audit --no-fund --silent "three@$three_version" >/dev/null 2>&1 ||
+    echo "setup: npm could not install three@$three_version; bodymodel viewer will need --three" >&2
+fi
 
 [ "${1:-}" = "--no-build" ] && exit 0
 

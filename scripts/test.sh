@@ -8,8 +8,9 @@ set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # ccache: paths relative to the checkout, so a fresh clone elsewhere still hits the cache.
 export CCACHE_BASEDIR="$here" CCACHE_NOHASHDIR=1
-"$here/scripts/setup.sh" --no-build
 build="$here/build"
+[ "${1:-}" = "--sanitize" ] && build="$here/build-asan"
+BODYMODEL_BUILD="$build" "$here/scripts/setup.sh" --no-build
 config=(-DCMAKE_BUILD_TYPE=Release)
 ctest_args=()   # the sanitizer phase selects labels
 if [ "${1:-}" = "--sanitize" ]; then

@@ -208,7 +208,8 @@ void run_eval(const EvalArgs& a) {
       for (int f = 0; f < nf; f += a.train_every) t.push_back(f);
       protocol = fmt::format("every {}th frame trained", a.train_every);
     } else {
-      const int k = a.train_count > 0 ? a.train_count : 10;
+      // Default: 10 frames, but always leave one unseen on short sequences.
+      const int k = a.train_count > 0 ? a.train_count : std::max(1, std::min(10, nf - 1));
       t = evenly_spaced_frames(nf, k);
       protocol = fmt::format("{} evenly spaced training frames", t.size());
     }
@@ -382,7 +383,7 @@ BODYMODEL_VERB(add_skin_eval_verb) {
       ->capture_default_str();
   cmd->add_option("--train-every", a->train_every, "Train on every K-th frame (frame 1, 1+K, ...)")
       ->check(CLI::NonNegativeNumber);
-  cmd->add_option("--train-count", a->train_count, "Train on N evenly spaced frames (default 10)")
+  cmd->add_option("--train-count", a->train_count, "Train on N evenly spaced frames (default 10, at most all frames but one)")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--train-fraction", a->train_fraction, "Train on the first fraction of the frames (0.6 = first 60 %)");
   cmd->add_option("--train", a->train, "Training frame names, comma-separated or @file (one per line)");
