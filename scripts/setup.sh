@@ -15,6 +15,7 @@ packages=(
   libceres-dev libnanoflann-dev libsuitesparse-dev libtbb-dev
   libcli11-dev nlohmann-json3-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev libtinygltf-dev libstb-dev libsvm-dev zlib1g-dev
+  pybind11-dev python3-pybind11 python3-numpy python3-pytest python3-matplotlib   # the Python module
   libcpp-httplib-dev chromium
 )
 
@@ -30,6 +31,26 @@ if ((${#missing[@]})); then
 fi
 
 build="${BODYMODEL_BUILD:-$here/build}"
+
+# `import bodymodel` for every python3 here (docs/python.md): a .pth file in each interpreter's
+# user site names the build's python folder, and, for an interpreter without numpy of its own
+# (a pyenv python3 on PATH), Debian's dist-packages (python3-numpy) when the versions match.
+# Interpreters of one version share the user site, so the file gets the lines all of them need.
+declare -A pth_lines=()
+for py in $(command -v python3 || true) /usr/bin/python3; do
+  [ -x "$py" ] || continue
+  site="$("$py" -m site --user-site 2>/dev/null)" || continue
+  lines="${pth_lines[$site]:-$build/python}"
+  if ! "$py" -c "import numpy" 2>/dev/null && [ -d /usr/lib/python3/dist-packages ] &&
+     [ "$("$py" -c 'import sys; print(sys.version_info[:2])')" = "$(/usr/bin/python3 -c 'import sys; print(sys.version_info[:2])' 2>/dev/null)" ]; then
+    lines="$lines"$'\n'/usr/lib/python3/dist-packages
+  fi
+  pth_lines[$site]="$lines"
+done
+for site in "${!pth_lines[@]}"; do
+  mkdir -p "$site" 2>/dev/null && printf '%s\n' "${pth_lines[$site]}" > "$site/bodymodel.pth" 2>/dev/null || true
+done
+
 # three.js (npm, pinned) for `bodymodel viewer` and the report's viewer, kept inside the build
 # folder and copied into each viewer folder (no CDN: the report opens offline). Best effort:
 # without node/npm the viewer verb says what is missing.

@@ -21,7 +21,8 @@ if [ "${1:-}" = "--sanitize" ]; then
     rm -rf "$build"
   fi
   config=(-DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo
-          "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG" -DBODYMODEL_SANITIZE=ON -DBODYMODEL_BENCH=OFF)
+          "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG" -DBODYMODEL_SANITIZE=ON -DBODYMODEL_BENCH=OFF
+          -DBODYMODEL_PYTHON=OFF)
   # halt_on_error: the first report fails the test (UBSan too: -fno-sanitize-recover).
   # Leak checking is off by default (LeakSanitizer cannot run under ptrace, as in some CI
   # containers); BODYMODEL_DETECT_LEAKS=1 turns it on.
