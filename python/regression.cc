@@ -1,5 +1,4 @@
-// Regression (regression/) on plain matrices: the regressors and cross-validation. Its own file:
-// regression/ and skinning/ both declare a bodymodel::CrossValidationOptions.
+// Regression (regression/) on plain matrices: the regressors and cross-validation.
 #include <fmt/format.h>
 
 #include "core/error.h"

@@ -87,8 +87,8 @@ MeshSequence read_inputs(const EvalArgs& a) {
 }
 
 // "auto", "none", "folds:K", "last:N" (N = 0: a third).
-CrossValidationOptions parse_cv(const std::string& s, bool future_split) {
-  CrossValidationOptions o;
+SkinCrossValidationOptions parse_cv(const std::string& s, bool future_split) {
+  SkinCrossValidationOptions o;
   auto number = [&](const std::string& v) {
     try {
       size_t used = 0;
@@ -115,7 +115,7 @@ CrossValidationOptions parse_cv(const std::string& s, bool future_split) {
   return o;
 }
 
-std::string cv_text(const CrossValidationOptions& o) {
+std::string cv_text(const SkinCrossValidationOptions& o) {
   if (o.scheme == CvScheme::none) return "none (settings as given)";
   if (o.scheme == CvScheme::interleaved) return fmt::format("{}-fold interleaved over the training frames", o.folds);
   return o.held_out > 0 ? fmt::format("the last {} training frames held back", o.held_out)
