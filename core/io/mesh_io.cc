@@ -442,6 +442,80 @@ void write_obj(const fs::path& path, const Eigen::MatrixX3d& V, const Eigen::Mat
 
 }  // namespace
 
+// ---- OFF ---------------------------------------------------------------------------------------
+
+Mesh parse_off(std::string_view text, const std::string& path) {
+  // OFF: a header line "OFF", a counts line "#V #F [#E]", #V lines "x y z", #F lines
+  // "3 a b c" (0-based). Comments (#) and blank lines are skipped. Only triangles are accepted:
+  // the registered meshes this reads (FAUST, SCAPE) are triangle meshes, and a polygon here
+  // means a file of another kind.
+  std::vector<std::string_view> tok;
+  size_t line_no = 0;
+  const char* p = text.data();
+  const char* end = p + text.size();
+  auto next_line = [&]() -> bool {
+    while (p < end) {
+      const char* eol = static_cast<const char*>(std::memchr(p, '\n', end - p));
+      if (!eol) eol = end;
+      ++line_no;
+      const char* hash = static_cast<const char*>(std::memchr(p, '#', eol - p));
+      split(p, hash ? hash : eol, tok);
+      p = eol + 1;
+      if (!tok.empty()) return true;
+    }
+    return false;
+  };
+  if (!next_line() || tok[0] != "OFF")
+    throw InputError("'" + path + "': not an OFF file (the first line must be 'OFF')");
+  tok.erase(tok.begin());  // "OFF 3 1 0" on one line is legal
+  if (tok.empty() && !next_line())
+    throw InputError("'" + path + "': OFF file ends before the counts line");
+  long nv = 0, nf = 0;
+  if (tok.size() < 2 || !parse_int(tok[0], nv) || !parse_int(tok[1], nf) || nv <= 0 || nf < 0)
+    throw InputError(where(path, line_no) + ": expected the counts line '#vertices #faces [#edges]'");
+  // Each vertex line has at least 6 bytes and each face line at least 8: bounds a hostile count.
+  if (static_cast<size_t>(nv) > text.size() / 6 + 1 || static_cast<size_t>(nf) > text.size() / 8 + 1)
+    throw InputError(where(path, line_no) + ": the counts (" + std::to_string(nv) + " vertices, " +
+                     std::to_string(nf) + " faces) exceed what the file can hold (file truncated?)");
+  Mesh m;
+  m.V.resize(nv, 3);
+  for (long i = 0; i < nv; ++i) {
+    if (!next_line())
+      throw InputError("'" + path + "': file ends after " + std::to_string(i) + " of " +
+                       std::to_string(nv) + " vertices (file truncated?)");
+    if (tok.size() < 3)
+      throw InputError(where(path, line_no) + ": a vertex needs 3 coordinates, found " +
+                       std::to_string(tok.size()));
+    for (int k = 0; k < 3; ++k)
+      if (!parse_double(tok[k], m.V(i, k)))
+        throw InputError(where(path, line_no) + ": '" + std::string(tok[k]) + "' is not a number");
+  }
+  m.F.resize(nf, 3);
+  for (long f = 0; f < nf; ++f) {
+    if (!next_line())
+      throw InputError("'" + path + "': file ends after " + std::to_string(f) + " of " +
+                       std::to_string(nf) + " faces (file truncated?)");
+    long n = 0;
+    if (!parse_int(tok[0], n) || n < 3)
+      throw InputError(where(path, line_no) + ": a face must start with its vertex count (3), found '" +
+                       std::string(tok[0]) + "'");
+    if (n != 3)
+      throw InputError(where(path, line_no) + ": a face of " + std::to_string(n) +
+                       " vertices; only triangle meshes are read");
+    if (tok.size() < 4)
+      throw InputError(where(path, line_no) + ": a triangle needs 3 vertex indices, found " +
+                       std::to_string(tok.size() - 1));
+    for (int k = 0; k < 3; ++k) {
+      long idx = 0;
+      if (!parse_int(tok[k + 1], idx) || idx < 0 || idx >= nv)
+        throw InputError(where(path, line_no) + ": '" + std::string(tok[k + 1]) +
+                         "' is not a vertex index in 0.." + std::to_string(nv - 1));
+      m.F(f, k) = static_cast<int>(idx);
+    }
+  }
+  return m;
+}
+
 Mesh parse_mesh(const std::string& bytes, const std::string& format, const std::string& source) {
   Mesh m;
   if (format == "obj") {
@@ -452,8 +526,10 @@ Mesh parse_mesh(const std::string& bytes, const std::string& format, const std::
     PlyContents ply = parse_ply(bytes, source);
     m.V = std::move(ply.V);
     m.F = triangulate(ply.faces);
+  } else if (format == "off") {
+    m = parse_off(bytes, source);
   } else {
-    throw InputError("'" + source + "': unknown mesh format '" + format + "' (expected obj or ply)");
+    throw InputError("'" + source + "': unknown mesh format '" + format + "' (expected obj, ply or off)");
   }
   if (m.F.rows() == 0) throw InputError("'" + source + "': the file has no faces");
   if (!m.V.allFinite())
@@ -476,9 +552,9 @@ Mesh read_mesh(const fs::path& path) {
   if (fs::is_directory(path, ec))
     throw InputError("cannot read '" + path.string() + "': it is a folder, not a mesh file");
   const std::string ext = lower_ext(path);
-  if (ext != ".obj" && ext != ".ply")
+  if (ext != ".obj" && ext != ".ply" && ext != ".off")
     throw InputError("'" + path.string() + "': unknown mesh format '" + ext +
-                     "' (expected .obj or .ply)");
+                     "' (expected .obj, .ply or .off)");
   return parse_mesh(read_text_file(path), ext.substr(1), path.string());
 }
 

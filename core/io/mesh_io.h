@@ -1,4 +1,5 @@
-// Mesh and point-cloud files: OBJ and PLY (ASCII and binary little-endian).
+// Mesh and point-cloud files: OBJ and PLY (ASCII and binary little-endian); OFF triangle
+// meshes are read (not written).
 //
 // Readers are strict: a malformed file throws InputError naming the file, the line (or
 // element) and what was wrong. Writers go through write_atomically, so a failed write never
@@ -31,7 +32,8 @@ ObjContents parse_obj(std::string_view text, const std::string& source);
 // Triangulates polygons as fans (a quad a b c d gives a b c and a c d).
 Eigen::MatrixX3i triangulate(const std::vector<std::vector<int>>& polygons);
 
-// Reads OBJ or PLY (by extension) as a triangle mesh; quads and polygons are triangulated.
+// Reads OBJ, PLY or OFF (by extension) as a triangle mesh; OBJ/PLY quads and polygons are
+// triangulated, OFF must be triangles (0-based indices; FAUST and SCAPE registrations).
 Mesh read_mesh(const std::filesystem::path& path);
 // Writes OBJ or PLY (by extension). PLY is binary little-endian unless `ascii`.
 // colors: #V by 3 in [0,1] (PLY only; ignored for OBJ), or empty.
@@ -45,8 +47,10 @@ inline void write_mesh(const std::filesystem::path& path, const Mesh& m) {
 // PLY point cloud with optional normals (nx ny nz). Faces in the file are ignored.
 PointCloud read_point_cloud(const std::filesystem::path& path);
 
-// From memory (tests, fuzzing): `format` is "obj" or "ply"; `source` names it in errors.
+// From memory (tests, fuzzing): `format` is "obj", "ply" or "off"; `source` names it in errors.
 Mesh parse_mesh(const std::string& bytes, const std::string& format, const std::string& source);
+// OFF triangle mesh from memory (header, counts line, vertices, '3 a b c' faces, 0-based).
+Mesh parse_off(std::string_view text, const std::string& source);
 PointCloud parse_ply_point_cloud(const std::string& bytes, const std::string& source);
 void write_point_cloud(const std::filesystem::path& path, const PointCloud& cloud,
                        bool ascii = false);
