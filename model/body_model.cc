@@ -99,10 +99,13 @@ BodyModel build_body_model(const ModelBuildInput& in, const ModelBuildOptions& o
   std::vector<int> standard;
   for (int i = 0; i < S; ++i)
     if (in.is_standard_pose[i]) standard.push_back(i);
-  if (standard.size() < 2)
+  const bool pose_only = standard.size() < 2 && o.allow_pose_only;
+  if (standard.size() < 2 && !pose_only)
     throw InputError(fmt::format("model build: {} standard-pose scans, need at least 2 subjects in the "
                                  "standard pose for the shape model",
                                  standard.size()));
+  if (pose_only && S < 2) throw InputError(fmt::format("model build: {} mesh(es), need at least 2", S));
+  if (standard.empty()) standard.push_back(0);
   auto t0 = std::chrono::steady_clock::now();
   // Template rest shape: mean of the standard-pose meshes, rigidly aligned to the first.
   Eigen::MatrixX3d rest = Eigen::MatrixX3d::Zero(nV, 3);
@@ -148,6 +151,15 @@ BodyModel build_body_model(const ModelBuildInput& in, const ModelBuildOptions& o
     Yfull.col(Ls + j) = in.pose_label_values.col(pose_keep[j]);
   }
 
+  ModelBuildSummary sum;
+  if (pose_only) {
+    // One person: no shape variation to model; the pose model serves as both.
+    report_progress(progress, 0.9, "full PCA");
+    model.full = fit_sub_model(X, o.full_pca, o.regression, Yfull, full_labels, in.scan_ids,
+                               o.semantic_basis_labels, &sum.full_pca);
+    model.shape = model.full;
+    sum.shape_pca = sum.full_pca;
+  } else {
   report_progress(progress, 0.85, "shape PCA");
   Eigen::MatrixXd Xs(D, standard.size());
   Eigen::MatrixXd Ys(standard.size(), Ls);
@@ -157,18 +169,18 @@ BodyModel build_body_model(const ModelBuildInput& in, const ModelBuildOptions& o
     Ys.row(k) = in.subject_label_values.row(standard[k]);
     subject_ids.push_back(in.subject_ids[standard[k]]);
   }
-  ModelBuildSummary sum;
   model.shape = fit_sub_model(Xs, o.shape_pca, o.regression, Ys, in.subject_labels, subject_ids,
                               o.semantic_basis_labels, &sum.shape_pca);
   Xs.resize(0, 0);
   report_progress(progress, 0.92, "full PCA");
   model.full = fit_sub_model(X, o.full_pca, o.regression, Yfull, full_labels, in.scan_ids,
                              o.semantic_basis_labels, &sum.full_pca);
+  }
   auto t2 = std::chrono::steady_clock::now();
   report_progress(progress, 1.0, "done");
 
   sum.scans = S;
-  sum.subjects = static_cast<int>(standard.size());
+  sum.subjects = pose_only ? 1 : static_cast<int>(standard.size());
   sum.pose_labels_kept = Lp;
   sum.pose_labels_dropped = static_cast<int>(in.pose_labels.size()) - Lp;
   sum.encode_seconds = std::chrono::duration<double>(t1 - t0).count();
@@ -185,6 +197,9 @@ BodyModel build_body_model(const ModelBuildInput& in, const ModelBuildOptions& o
                     {"full_variance_threshold", o.full_pca.variance_threshold},
                     {"shape_explained", sum.shape_pca.explained},
                     {"full_explained", sum.full_pca.explained},
+                    {"shape_total_variance", sum.shape_pca.total_variance},
+                    {"full_total_variance", sum.full_pca.total_variance},
+                    {"shape_model", pose_only ? "full" : "standard-pose scans"},
                     {"units", "mm"}};
   if (summary) *summary = sum;
   return model;
