@@ -8,6 +8,7 @@
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/io/npz_write.h"
 
 namespace bodymodel {
 
@@ -304,33 +305,70 @@ NpyArray parse_npy(const std::string& b, const std::string& what) {
 
 // ---- zip container -----------------------------------------------------------------------------
 
-std::string Npz::serialize() const {
+namespace {
+
+// Raw deflate (zip method 8, as numpy's savez_compressed writes) of `data`.
+std::string deflate_raw(const std::string& data, int level) {
+  z_stream s{};
+  if (deflateInit2(&s, level, Z_DEFLATED, -MAX_WBITS, 8, Z_DEFAULT_STRATEGY) != Z_OK)
+    throw NumericalError("npz: zlib deflateInit failed");
+  std::string out;
+  out.resize(deflateBound(&s, static_cast<uLong>(data.size())));
+  s.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(data.data()));
+  s.avail_in = static_cast<uInt>(data.size());
+  s.next_out = reinterpret_cast<Bytef*>(out.data());
+  s.avail_out = static_cast<uInt>(out.size());
+  const int r = deflate(&s, Z_FINISH);
+  const size_t n = s.total_out;
+  deflateEnd(&s);
+  if (r != Z_STREAM_END) throw NumericalError("npz: zlib deflate failed");
+  out.resize(n);
+  return out;
+}
+
+}  // namespace
+
+std::string Npz::serialize() const { return serialize_npz(*this, {}); }
+
+std::string serialize_npz(const Npz& npz, const NpzWriteOptions& options) {
+  if (options.compress && (options.level < 1 || options.level > 9))
+    throw InputError("npz: compression level must be 1..9, got " + std::to_string(options.level));
   std::string out, central;
   uint16_t count = 0;
-  for (auto& [name, a] : arrays_) {
+  for (auto& [name, a] : npz.arrays()) {
     std::string fname = name + ".npy";
     std::string data = npy_bytes(a);
+    if (data.size() > 0xFFFFFFF0ull) throw InputError("npz: member '" + name + "' is larger than 4 GiB");
     uint32_t crc = static_cast<uint32_t>(crc32(0L, reinterpret_cast<const Bytef*>(data.data()), data.size()));
+    const uint32_t usize = static_cast<uint32_t>(data.size());
+    uint16_t method = 0;
+    if (options.compress) {
+      std::string z = deflate_raw(data, options.level);
+      if (z.size() < data.size()) {  // a member deflate cannot shrink stays stored
+        data = std::move(z);
+        method = 8;
+      }
+    }
     uint32_t offset = static_cast<uint32_t>(out.size());
     if (out.size() + data.size() > 0xFFFFFFF0ull)
       throw InputError("npz: archive larger than 4 GiB is not supported");
     // local file header
     append_u32(out, 0x04034b50);
-    append_u16(out, 20); append_u16(out, 0); append_u16(out, 0);  // version, flags, stored
+    append_u16(out, 20); append_u16(out, 0); append_u16(out, method);  // version, flags, method
     append_u16(out, 0); append_u16(out, 0x21);                     // time, date (1980-01-01)
     append_u32(out, crc);
     append_u32(out, static_cast<uint32_t>(data.size()));
-    append_u32(out, static_cast<uint32_t>(data.size()));
+    append_u32(out, usize);
     append_u16(out, static_cast<uint16_t>(fname.size())); append_u16(out, 0);
     out += fname;
     out += data;
     // central directory entry
     append_u32(central, 0x02014b50);
-    append_u16(central, 20); append_u16(central, 20); append_u16(central, 0); append_u16(central, 0);
+    append_u16(central, 20); append_u16(central, 20); append_u16(central, 0); append_u16(central, method);
     append_u16(central, 0); append_u16(central, 0x21);
     append_u32(central, crc);
     append_u32(central, static_cast<uint32_t>(data.size()));
-    append_u32(central, static_cast<uint32_t>(data.size()));
+    append_u32(central, usize);
     append_u16(central, static_cast<uint16_t>(fname.size()));
     append_u16(central, 0); append_u16(central, 0); append_u16(central, 0); append_u16(central, 0);
     append_u32(central, 0);
@@ -420,8 +458,10 @@ Npz Npz::parse(const std::string& z, const std::string& what) {
   return npz;
 }
 
-void Npz::save(const std::filesystem::path& path) const {
-  std::string bytes = serialize();
+void Npz::save(const std::filesystem::path& path) const { save_npz(path, *this, {}); }
+
+void save_npz(const std::filesystem::path& path, const Npz& npz, const NpzWriteOptions& options) {
+  std::string bytes = serialize_npz(npz, options);
   write_atomically(path, [&](std::ostream& out) { out.write(bytes.data(), bytes.size()); });
 }
 

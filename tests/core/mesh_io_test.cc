@@ -6,6 +6,7 @@
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
 #include "core/io/npz.h"
+#include "core/io/npz_write.h"
 #include "support/fixtures.h"
 
 using namespace bodymodel;
@@ -139,6 +140,37 @@ TEST(Npz, CorruptFilesAreRejected) {
   flipped[100] ^= 0x55;  // inside the array payload: CRC must catch it
   EXPECT_THROW(Npz::parse(flipped), InputError);
   EXPECT_THROW(Npz::parse("PK not really a zip file at all......"), InputError);
+}
+
+// Compressed archives (numpy's savez_compressed layout: deflated members) read back bit for
+// bit, are smaller when the data is compressible, and the uncompressed form is still read.
+TEST(Npz, CompressedRoundTrip) {
+  Npz z;
+  Eigen::MatrixXd A = Eigen::MatrixXd::Random(50, 40);
+  Eigen::MatrixXd smooth(200, 30);  // compressible: a few distinct values
+  for (Eigen::Index i = 0; i < smooth.size(); ++i) smooth(i) = static_cast<double>(i % 7) * 0.25;
+  z.put("A", A);
+  z.put_float32("smooth", smooth);
+  z.put_text("meta", "{}");
+  z.put("tiny", 1.0);  // too small to shrink: stays stored
+  const std::string stored = z.serialize();
+  NpzWriteOptions o;
+  o.compress = true;
+  const std::string packed = serialize_npz(z, o);
+  EXPECT_LT(packed.size(), stored.size() * 0.8) << packed.size() << " vs " << stored.size();
+  for (const std::string* bytes : {&stored, &packed}) {
+    Npz r = Npz::parse(*bytes);
+    EXPECT_EQ(r.matrix("A"), A);
+    EXPECT_EQ(r.matrix("smooth"), smooth);
+    EXPECT_EQ(r.text("meta"), "{}");
+    EXPECT_EQ(r.scalar("tiny"), 1.0);
+  }
+  // A corrupted deflated member is rejected (inflate or CRC).
+  std::string bad = packed;
+  bad[bad.size() / 3] ^= 0x5a;
+  EXPECT_THROW(Npz::parse(bad), InputError);
+  o.level = 0;
+  EXPECT_THROW(serialize_npz(z, o), InputError);
 }
 
 TEST(MeshIO, OffTriangles) {
