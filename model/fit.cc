@@ -78,8 +78,8 @@ void ModelFitOptions::validate() const {
 std::string ModelFitSummary::report() const {
   return fmt::format(
       "{} components: mean vertex error {:.3f} (start {:.3f}), RMS {:.3f}, p95 {:.3f}, max {:.3f}; {} "
-      "iterations, {} decodes, {:.2f} s{}",
-      components, mean_mm, start_mean_mm, rms_mm, p95_mm, max_mm, iterations, evaluations, seconds,
+      "iterations, {} Jacobians, {} decodes, {:.2f} s{}",
+      components, mean_mm, start_mean_mm, rms_mm, p95_mm, max_mm, iterations, jacobians, evaluations, seconds,
       converged ? "" : " (iteration limit)");
 }
 
@@ -373,14 +373,23 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
     double mu = 1e-4;
     const int P = Kc + 6;
     Eigen::MatrixXd Jraw;
+    // Steps since Jraw was computed (−1: none yet, or it must be recomputed).
+    int age = -1;
     for (int it = 0; it < max_iterations; ++it) {
       report_progress(progress, std::min(0.99, static_cast<double>(out.summary.iterations) / std::max(1, o.max_iterations)),
                       fmt::format("iteration {} ({} components)", out.summary.iterations + 1, Kc));
-      if (!factor_is_current) {
-        cur = evaluate_at(c);
-        factor_is_current = true;
+      const bool fresh = age < 0 || age >= o.jacobian_reuse;
+      if (fresh) {
+        if (!factor_is_current) {
+          cur = evaluate_at(c);
+          factor_is_current = true;
+        }
+        jacobian(ws, Kc, Jraw);
+        ++out.summary.jacobians;
+        age = 0;
+      } else {
+        ++age;
       }
-      jacobian(ws, Kc, Jraw);
       ++out.summary.iterations;
       // Jacobian in the target's frame: [Q·dv/dc | rotation about the centroid | translation].
       const Eigen::Matrix3d& Q = cur.rigid.R;
@@ -406,7 +415,9 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
         g(k) += o.prior_weight * inv_lambda(k) * c(k);
       }
       bool accepted = false, done = false;
-      for (int attempt = 0; attempt < 8 && !accepted; ++attempt) {
+      // A chord step (stale Jacobian) gets one try: if it fails, the next step is a fresh one
+      // rather than a more damped step along a stale model.
+      for (int attempt = 0; attempt < (fresh ? 8 : 1) && !accepted; ++attempt) {
         Eigen::MatrixXd A = H;
         for (int i = 0; i < P; ++i) A(i, i) += mu * std::max(H(i, i), 1e-12);
         const Eigen::VectorXd step = A.ldlt().solve(-g);
@@ -428,10 +439,14 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
           if (decrease < tolerance || moved < o.step_tolerance_mm) done = true;
         } else {
           factor_is_current = false;
-          mu *= 4;
+          if (fresh) mu *= 4;
         }
       }
       out.summary.history_mean_mm.push_back((cur.placed - Y).rowwise().norm().mean());
+      if (!fresh && (!accepted || done)) {
+        age = -1;  // only a fresh Jacobian may fail or stop the fit
+        continue;
+      }
       if (!accepted) return true;  // no descent along the damped steps: a minimum (to tolerance)
       if (done) return true;
     }

@@ -41,7 +41,12 @@ namespace bodymodel {
 
 struct ModelFitOptions {
   int components = -1;            // K: leading components used (−1 = all of the PCA's)
-  int max_iterations = 20;        // Levenberg–Marquardt iterations (Jacobian evaluations)
+  int max_iterations = 20;        // Levenberg–Marquardt iterations (steps tried)
+  // Each Jacobian (the costly part: a set of solves per component) also serves this many
+  // further steps, with the residual and the rigid columns recomputed (a chord step); a chord
+  // step that fails, or that would stop the fit, is retried with a fresh Jacobian. 0 = a fresh
+  // Jacobian every step.
+  int jacobian_reuse = 2;
   // Stop when an accepted step lowers the sum of squared vertex errors by less than this
   // fraction of it (or after a step that changes no vertex by more than step_tolerance_mm).
   double relative_tolerance = 1e-4;
@@ -63,7 +68,8 @@ struct ModelFitOptions {
 
 struct ModelFitSummary {
   int components = 0;
-  int iterations = 0;             // Jacobian evaluations
+  int iterations = 0;             // steps (loop iterations)
+  int jacobians = 0;              // Jacobian evaluations
   int evaluations = 0;            // decodes (residual evaluations), including rejected steps
   bool converged = false;
   double start_mean_mm = 0;       // mean vertex error at the start (projection or mean body)
