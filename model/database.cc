@@ -250,13 +250,20 @@ ModelBuildInput read_registered_folder(const fs::path& reg, const fs::path& csv,
   for (size_t i = 0; i < n; ++i) {
     report_progress(progress, 0.9 * static_cast<double>(i) / static_cast<double>(n), table[i].mesh);
     Mesh m = read_mesh(paths[i]);
-    if (in.meshes.empty())
+    if (in.meshes.empty()) {
       in.F = m.F;
-    else if (m.V.rows() != in.meshes[0].rows() || m.F.rows() != in.F.rows() || m.F != in.F)
+    } else if (o.use_first_mesh_faces) {
+      if (m.V.rows() != in.meshes[0].rows())
+        throw InputError(fmt::format("'{}': {} vertices, '{}' has {}: registered meshes must have the same vertices",
+                                     paths[i].string(), m.V.rows(), paths[0].string(), in.meshes[0].rows()));
+      if (m.F.rows() != in.F.rows() || m.F != in.F) ++sum.meshes_with_other_faces;
+    } else if (m.V.rows() != in.meshes[0].rows() || m.F.rows() != in.F.rows() || m.F != in.F) {
       throw InputError(fmt::format("'{}': {} vertices / {} triangles with different faces than '{}' "
-                                   "({} / {}): registered meshes must share one topology",
+                                   "({} / {}): registered meshes must share one topology (or, if only the "
+                                   "triangulation differs, use the first mesh's faces)",
                                    paths[i].string(), m.V.rows(), m.F.rows(), paths[0].string(),
                                    in.meshes[0].rows(), in.F.rows()));
+    }
     in.meshes.push_back(m.V * o.mm_per_unit);
     in.scan_ids.push_back(table[i].mesh);
     in.subject_ids.push_back(table[i].subject);

@@ -51,6 +51,10 @@ struct RegisteredFolderOptions {
   bool measure_labels = true;
   int up_axis = 1;                  // for the measurements: 0 x (SCAPE), 1 y (FAUST, MakeHuman), 2 z
   double density_kg_per_l = 1.01;
+  // Vertex i is the same point of the body on every mesh but the triangles may differ (SCAPE
+  // re-triangulates each pose): every mesh takes the first mesh's triangles, and only the
+  // vertex counts must agree. Off: the triangles must be the same too.
+  bool use_first_mesh_faces = false;
 };
 
 struct RegisteredFolderSummary {
@@ -60,6 +64,7 @@ struct RegisteredFolderSummary {
   int measurement_failures = 0;            // subjects whose mesh could not be measured (NaN labels)
   std::string first_measurement_failure;
   std::vector<std::string> dropped_labels;  // known for < 2 subjects or equal for all
+  int meshes_with_other_faces = 0;          // use_first_mesh_faces: meshes whose triangles differed
 };
 
 // Reads the meshes subjects.csv lists from `registered_dir`. Throws InputError (naming the file

@@ -24,6 +24,7 @@ struct BuildArgs {
   std::string standard_pose = "standard";
   std::string up = "y";
   bool no_measure = false;
+  bool first_mesh_faces = false;
 };
 
 int axis_of(const std::string& s) {
@@ -66,6 +67,9 @@ BODYMODEL_VERB(add_model_build_verb) {
       ->capture_default_str();
   cmd->add_option("--up", a->up, "Up axis of the meshes for the measured labels: x, y or z")->capture_default_str();
   cmd->add_flag("--no-measure", a->no_measure, "Do not measure height, weight and girths on the meshes");
+  cmd->add_flag("--first-mesh-faces", a->first_mesh_faces,
+                "With --subjects: the meshes share their vertices but not their triangles (SCAPE re-triangulates "
+                "each pose): use the first mesh's triangles for all");
   cmd->add_option("--shape-variance", a->shape_variance,
                   "Fraction of variance the shape model's components keep")
       ->capture_default_str();
@@ -93,9 +97,13 @@ BODYMODEL_VERB(add_model_build_verb) {
       ro.standard_pose = a->standard_pose;
       ro.up_axis = axis_of(a->up);
       ro.measure_labels = !a->no_measure;
+      ro.use_first_mesh_faces = a->first_mesh_faces;
       RegisteredFolderSummary rs;
       in = read_registered_folder(a->reg, a->subjects, ro, &rs, read_bar.callback());
       read_bar.finish(fmt::format("{} meshes of {} subjects", rs.meshes, rs.subjects));
+      if (rs.meshes_with_other_faces > 0)
+        cli::info(fmt::format("{} meshes had other triangles than the first: the first mesh's are used for all",
+                              rs.meshes_with_other_faces));
       if (rs.subjects_without_standard_pose > 0)
         cli::info(fmt::format("{} of {} subjects have no mesh with pose '{}': their first listed mesh is their "
                               "standard pose",
@@ -171,7 +179,8 @@ BODYMODEL_VERB(add_model_build_verb) {
                                   {"subjects", absolute(a->subjects)},
                                   {"mm_per_unit", a->scale},
                                   {"up_axis", a->up},
-                                  {"standard_pose", a->standard_pose}};
+                                  {"standard_pose", a->standard_pose},
+                                  {"first_mesh_faces", a->first_mesh_faces}};
     else
       model.metadata["source"] = {{"registered", a->reg}, {"database", a->db}, {"mm_per_unit", 1.0}};
     save_model(a->out, model);
