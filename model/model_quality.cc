@@ -156,8 +156,8 @@ ModelQuality evaluate_model_quality(const BodyModel& model, const std::vector<Ei
   out.rows.resize(jobs.size());
   out.pooled_errors.resize(jobs.size());
   out.specificity_samples_mm.resize(jobs.size());
-  const double total_units = static_cast<double>(jobs.size()) * (static_cast<double>(test.size()) +
-                                                                  (train.empty() ? 0.0 : o.specificity_samples / 20.0));
+  const double total_units = static_cast<double>(jobs.size()) * static_cast<double>(test.size()) +
+                             (train.empty() ? 0.0 : 6.0 * o.specificity_samples / 20.0);
   double done = 0;
   std::mutex mtx;
   auto tick = [&](double units, const std::string& what) {
@@ -221,7 +221,11 @@ ModelQuality evaluate_model_quality(const BodyModel& model, const std::vector<Ei
       row.compactness = vpca.pca.eigenvalues.head(job.K).sum() / vpca_total;
     // Specificity: samples c_k ~ N(0, λ_k), k < K, seeded per (model, K, sample).
     row.specificity_mean_mm = row.specificity_std_mm = std::numeric_limits<double>::quiet_NaN();
-    if (!train.empty() && o.specificity_samples > 0) {
+    const int max_k = rre ? pca.component_count() : vpca.pca.component_count();
+    std::vector<int> spec_ks = o.specificity_components.empty() ? std::vector<int>{5, 20, max_k} : o.specificity_components;
+    for (auto& k : spec_ks) k = std::min(k, max_k);
+    const bool want_specificity = std::find(spec_ks.begin(), spec_ks.end(), job.K) != spec_ks.end();
+    if (!train.empty() && o.specificity_samples > 0 && want_specificity) {
       std::vector<double> d(o.specificity_samples);
       const Eigen::VectorXd& lambda = rre ? pca.eigenvalues : vpca.pca.eigenvalues;
       tbb::parallel_for(0, o.specificity_samples, [&](int s) {

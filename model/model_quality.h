@@ -60,6 +60,9 @@ VertexPcaFit fit_vertex_pca(const VertexPcaModel& model, const Eigen::MatrixX3d&
 struct ModelQualityOptions {
   std::vector<int> components;      // K values (clamped to each model's count; empty = a default grid)
   int specificity_samples = 1000;
+  // K values at which the specificity is computed (each costs specificity_samples decodes and
+  // nearest-neighbour searches); empty = 5, 20 and each model's maximum (those ≤ it).
+  std::vector<int> specificity_components;
   uint64_t seed = 1;
   bool vertex_baseline = true;
   ModelFitOptions fit;              // components field ignored (set per K)

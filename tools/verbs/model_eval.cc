@@ -23,12 +23,12 @@ namespace fs = std::filesystem;
 struct EvalArgs {
   std::string model, test, test_subjects, train, out;
   std::string cross_validate, registered, subjects, standard_pose = "standard";
-  std::string components;
+  std::string components, specificity_components;
   int samples = 1000;
   uint64_t seed = 1;
   double scale = 0;
   double full_variance = 1.0;
-  bool no_baseline = false, force = false;
+  bool no_baseline = false, force = false, first_mesh_faces = false;
 };
 
 std::vector<int> parse_components(const std::string& s) {
@@ -75,7 +75,10 @@ std::vector<Eigen::MatrixX3d> read_checked(const BodyModel& model, const std::ve
   for (const auto& [name, path] : list) {
     Mesh m = read_mesh(path);
     m.V *= scale;
-    model.check_topology(m.V, m.F, fmt::format("{} '{}'", what, path.string()));
+    // A model built with --first-mesh-faces takes meshes with its vertices and any triangles.
+    const bool any_faces = model.metadata.contains("source") && model.metadata["source"].value("first_mesh_faces", false);
+    model.check_topology(m.V, any_faces && m.V.rows() == model.tmpl->vertex_count() ? Eigen::MatrixX3i(model.tmpl->faces()) : m.F,
+                         fmt::format("{} '{}'", what, path.string()));
     out.push_back(std::move(m.V));
   }
   return out;
@@ -174,16 +177,21 @@ BODYMODEL_VERB(add_model_eval_verb) {
   cmd->add_option("--components", a->components,
                   "Comma-separated K values (default 1,2,5,10,20,40,80,... and each model's maximum)");
   cmd->add_option("--samples", a->samples, "Random samples for the specificity (0: skip it)")->capture_default_str();
+  cmd->add_option("--specificity-components", a->specificity_components,
+                  "Comma-separated K values for the specificity (default 5,20 and each model's maximum)");
   cmd->add_option("--seed", a->seed, "Seed of the specificity samples")->capture_default_str();
   cmd->add_option("--scale", a->scale, "Millimetres per mesh unit (0: the model's, from build --scale)")
       ->capture_default_str();
   cmd->add_flag("--no-baseline", a->no_baseline, "Skip the vertex-PCA baseline");
+  cmd->add_flag("--first-mesh-faces", a->first_mesh_faces,
+                "With --cross-validate: meshes share their vertices, not their triangles (as build --first-mesh-faces)");
   cmd->add_option("--out", a->out, "Output folder")->required();
   cmd->add_flag("--force", a->force, "Replace an existing output folder");
   (void)cv;
   cmd->callback([a] {
     ModelQualityOptions qo;
     qo.components = parse_components(a->components);
+    qo.specificity_components = parse_components(a->specificity_components);
     if (a->samples < 0) throw InputError("--samples must be ≥ 0");
     qo.specificity_samples = a->samples;
     qo.seed = a->seed;
@@ -245,6 +253,7 @@ BODYMODEL_VERB(add_model_eval_verb) {
       ro.mm_per_unit = a->scale > 0 ? a->scale : 1.0;
       ro.standard_pose = a->standard_pose;
       ro.measure_labels = false;
+      ro.use_first_mesh_faces = a->first_mesh_faces;
       cli::ProgressBar read_bar("reading");
       const ModelBuildInput all = read_registered_folder(a->registered, a->subjects, ro, nullptr, read_bar.callback());
       read_bar.finish(fmt::format("{} meshes", all.meshes.size()));

@@ -77,6 +77,10 @@ BODYMODEL_VERB(add_model_fit_verb) {
         scale = model->metadata["source"]["mm_per_unit"].get<double>();
     }
     Mesh mesh = read_mesh(a->in);
+    // A model built with --first-mesh-faces takes meshes with its vertices and any triangles.
+    if (model->metadata.contains("source") && model->metadata["source"].value("first_mesh_faces", false) &&
+        mesh.V.rows() == model->tmpl->vertex_count())
+      mesh.F = model->tmpl->faces();
     model->check_topology(mesh.V * scale, mesh.F, "'" + a->in + "'");
     const Eigen::MatrixX3d Y = mesh.V * scale;
     ModelFitter fitter(model->tmpl, model->mean, sub.pca);
@@ -131,7 +135,10 @@ BODYMODEL_VERB(add_model_fit_verb) {
          {{"mean", fit.summary.mean_mm}, {"rms", fit.summary.rms_mm}, {"p95", fit.summary.p95_mm}, {"max", fit.summary.max_mm}}},
         {"start_mean_vertex_error_mm", fit.summary.start_mean_mm},
         {"iterations", fit.summary.iterations},
+        {"jacobians", fit.summary.jacobians},
         {"decodes", fit.summary.evaluations},
+        {"converged", fit.summary.converged},
+        {"history_mean_vertex_error_mm", fit.summary.history_mean_mm},
         {"seconds", fit.summary.seconds},
         {"labels", labels},
         {"note", "measured_* values assume a closed mesh in a standing pose (core/measure.h); predicted values "
