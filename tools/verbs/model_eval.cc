@@ -205,6 +205,12 @@ BODYMODEL_VERB(add_model_eval_verb) {
       if (a->test.empty()) throw InputError("eval-model needs --test DIR with the meshes the model never saw");
       refuse_existing_output(a->out, a->force);
       const BodyModel model = model_cli::load_model_for_cli(a->model);
+      // With a model file K is the user's choice for that model: more than it has is an error
+      // (cross-validation folds clamp K to each fold's count instead).
+      for (int K : qo.components)
+        if (K > model.full.component_count())
+          throw InputError(fmt::format("--components {}: the full model of '{}' has {} components", K, a->model,
+                                       model.full.component_count()));
       double scale = a->scale;
       const nlohmann::json src = model.metadata.value("source", nlohmann::json::object());
       if (scale == 0) scale = src.value("mm_per_unit", 1.0);
