@@ -8,6 +8,7 @@
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
+#include "model/model_file.h"
 #include "model/model_quality.h"
 #include "support/fixtures.h"
 #include "support/run_cli.h"
@@ -159,6 +160,28 @@ TEST(ModelCli, BuildFitAndEvalOnRegisteredFolder) {
   std::string header;
   std::getline(qc, header);
   EXPECT_EQ(header.rfind("model,components,generalisation_mean_mm", 0), 0u) << header;
+}
+
+// One person in many poses: the shape model is the full model, whose basis the file stores once
+// (full_basis_is_shape_basis) and deflated; it reads back as the same model.
+TEST(ModelCli, PoseModelStoresItsBasisOnce) {
+  const fs::path dir = folder().dir;
+  const fs::path csv = dir / "one_person.csv";
+  write_text_file(csv, "mesh,subject,pose\nc2_0,s2,p0\nc2_1,s2,p1\nc2_2,s2,p2\n");
+  const fs::path out = dir / "pose_model.npz";
+  auto r = run_cli("build " + q(folder().reg) + " --subjects " + q(csv) + " --standard-pose p0 --full-variance 1 --out " +
+                   q(out));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const Npz z = Npz::load(out);
+  EXPECT_TRUE(z.has("shape_basis"));
+  EXPECT_FALSE(z.has("full_basis"));
+  ASSERT_TRUE(z.has("full_basis_is_shape_basis"));
+  EXPECT_EQ(z.scalar("full_basis_is_shape_basis"), 1.0);
+  const BodyModel m = load_model(out);
+  ASSERT_EQ(m.full.component_count(), 2);
+  EXPECT_TRUE(m.full.pca.basis == m.shape.pca.basis);
+  // Stored deflated: smaller than the same archive stored.
+  EXPECT_LT(fs::file_size(out), model_to_npz(m).serialize().size());
 }
 
 // Bad input ends with one line "bodymodel: error: ..." naming the file and the problem, exit 2,
