@@ -187,7 +187,8 @@ class PlyBody {
     if (format_ == 0) return read_ascii();
     size_t n = type_size(t);
     if (pos_ + n > d_.size())
-      throw InputError("'" + path_ + "': binary PLY body ends early (file truncated?)");
+      throw InputError("'" + path_ + "': binary PLY body ends early: " + counts_ +
+                       " (file truncated, or header counts that disagree with the data?)");
     unsigned char b[8];
     std::memcpy(b, d_.data() + pos_, n);
     pos_ += n;
@@ -211,7 +212,8 @@ class PlyBody {
     size_t s = pos_;
     while (pos_ < d_.size() && !std::isspace(static_cast<unsigned char>(d_[pos_]))) ++pos_;
     if (s == pos_)
-      throw InputError("'" + path_ + "': ASCII PLY body ends early (file truncated?)");
+      throw InputError("'" + path_ + "': ASCII PLY body ends early: " + counts_ +
+                       " (file truncated, or header counts that disagree with the data?)");
     double v;
     std::string_view tok(d_.data() + s, pos_ - s);
     if (!parse_double(tok, v))
@@ -219,6 +221,17 @@ class PlyBody {
     return v;
   }
 
+ public:
+  // "the header announces vertex 8, face 12": quoted by the errors that a wrong count causes.
+  std::string counts_;
+  // Bytes of the body not read (ASCII: whitespace does not count).
+  size_t unread() const {
+    size_t p = pos_;
+    while (p < d_.size() && std::isspace(static_cast<unsigned char>(d_[p]))) ++p;
+    return p < d_.size() ? d_.size() - pos_ : 0;
+  }
+
+ private:
   const std::string& d_;
   size_t pos_;
   int format_;  // 0 ascii, 1 binary LE, 2 binary BE
@@ -292,6 +305,9 @@ PlyContents parse_ply(const std::string& data, const std::string& path) {
       throw InputError("'" + path + "': element '" + e.name + "' count exceeds file size");
   }
   PlyBody reader(data, body, format, path);
+  reader.counts_ = "the header announces";
+  for (size_t i = 0; i < elements.size(); ++i)
+    reader.counts_ += (i ? ", " : " ") + elements[i].name + " " + std::to_string(elements[i].count);
   PlyContents out;
   for (auto& e : elements) {
     if (e.name == "vertex") {
@@ -334,7 +350,8 @@ PlyContents parse_ply(const std::string& data, const std::string& path) {
             double nd = reader.read(p.count_type);
             if (!(nd >= 0 && nd <= 1000))  // also NaN (a float count type)
               throw InputError("'" + path + "': " + e.name + " " + std::to_string(i) +
-                               " has an implausible list length " + std::to_string(nd));
+                               " has an implausible list length " + std::to_string(nd) + " (" + reader.counts_ +
+                               ")");
             size_t n = static_cast<size_t>(nd);
             std::vector<int> poly(n);
             for (size_t j = 0; j < n; ++j) {
@@ -342,14 +359,14 @@ PlyContents parse_ply(const std::string& data, const std::string& path) {
               if (is_face && !(v >= 0 && v < static_cast<double>(out.V.rows())))
                 throw InputError("'" + path + "': face " + std::to_string(i) +
                                  " refers to vertex " + std::to_string(static_cast<long long>(v)) +
-                                 " but the file has " + std::to_string(out.V.rows()) +
-                                 " vertices");
+                                 " but " + reader.counts_ +
+                                 " (a header count that disagrees with the data, or a corrupt face)");
               poly[j] = is_face ? static_cast<int>(v) : 0;  // checked above; other lists unused
             }
             if (is_face && (p.name == "vertex_indices" || p.name == "vertex_index")) {
               if (n < 3)
-                throw InputError("'" + path + "': face " + std::to_string(i) +
-                                 " has fewer than 3 vertices");
+                throw InputError("'" + path + "': face " + std::to_string(i) + " has fewer than 3 vertices (" +
+                                 reader.counts_ + ")");
               out.faces.push_back(std::move(poly));
             }
           } else {
@@ -359,6 +376,11 @@ PlyContents parse_ply(const std::string& data, const std::string& path) {
       }
     }
   }
+  // Data beyond the announced elements: a header count smaller than the data (its last faces
+  // would be dropped without a word).
+  if (const size_t extra = reader.unread(); extra > 0)
+    throw InputError("'" + path + "': " + std::to_string(extra) + " bytes of data follow the last element, but " +
+                     reader.counts_ + ": the header's counts disagree with the data");
   return out;
 }
 
@@ -445,74 +467,81 @@ void write_obj(const fs::path& path, const Eigen::MatrixX3d& V, const Eigen::Mat
 // ---- OFF ---------------------------------------------------------------------------------------
 
 Mesh parse_off(std::string_view text, const std::string& path) {
-  // OFF: a header line "OFF", a counts line "#V #F [#E]", #V lines "x y z", #F lines
-  // "3 a b c" (0-based). Comments (#) and blank lines are skipped. Only triangles are accepted:
-  // the registered meshes this reads (FAUST, SCAPE) are triangle meshes, and a polygon here
-  // means a file of another kind.
+  // Lines without comments ('#' to the end of the line) and blank lines, with their numbers.
   std::vector<std::string_view> tok;
   size_t line_no = 0;
   const char* p = text.data();
   const char* end = p + text.size();
-  auto next_line = [&]() -> bool {
+  auto next_line = [&]() -> bool {   // the next non-blank line's tokens in `tok`
     while (p < end) {
       const char* eol = static_cast<const char*>(std::memchr(p, '\n', end - p));
       if (!eol) eol = end;
-      ++line_no;
       const char* hash = static_cast<const char*>(std::memchr(p, '#', eol - p));
+      ++line_no;
       split(p, hash ? hash : eol, tok);
       p = eol + 1;
       if (!tok.empty()) return true;
     }
+    tok.clear();
     return false;
   };
-  if (!next_line() || tok[0] != "OFF")
-    throw InputError("'" + path + "': not an OFF file (the first line must be 'OFF')");
-  tok.erase(tok.begin());  // "OFF 3 1 0" on one line is legal
-  if (tok.empty() && !next_line())
-    throw InputError("'" + path + "': OFF file ends before the counts line");
-  long nv = 0, nf = 0;
-  if (tok.size() < 2 || !parse_int(tok[0], nv) || !parse_int(tok[1], nf) || nv <= 0 || nf < 0)
-    throw InputError(where(path, line_no) + ": expected the counts line '#vertices #faces [#edges]'");
-  // Each vertex line has at least 6 bytes and each face line at least 8: bounds a hostile count.
-  if (static_cast<size_t>(nv) > text.size() / 6 + 1 || static_cast<size_t>(nf) > text.size() / 8 + 1)
-    throw InputError(where(path, line_no) + ": the counts (" + std::to_string(nv) + " vertices, " +
-                     std::to_string(nf) + " faces) exceed what the file can hold (file truncated?)");
+  if (!next_line()) throw InputError("'" + path + "': empty file (expected an OFF header)");
+  if (tok[0] != "OFF")
+    throw InputError(where(path, line_no) + ": expected the header 'OFF', found '" + std::string(tok[0]) +
+                     "' (only plain OFF is read: no COFF, NOFF, STOFF or binary OFF)");
+  if (tok.size() == 1 && !next_line())
+    throw InputError("'" + path + "': the counts line (vertices faces edges) is missing");
+  const size_t first = tok[0] == "OFF" ? 1 : 0;   // counts may follow 'OFF' on its line
+  if (tok.size() - first < 2 || tok.size() - first > 3)
+    throw InputError(where(path, line_no) + ": expected the counts 'vertices faces [edges]', found " +
+                     std::to_string(tok.size() - first) + " numbers");
+  long nv = 0, nf = 0, ne = 0;
+  if (!parse_int(tok[first], nv) || !parse_int(tok[first + 1], nf) ||
+      (tok.size() - first == 3 && !parse_int(tok[first + 2], ne)) || nv <= 0 || nf < 0 || ne < 0 ||
+      nv > 100000000 || nf > 200000000)
+    throw InputError(where(path, line_no) + ": the counts line must hold whole numbers (vertices ≥ 1, "
+                     "faces ≥ 0), found '" + std::string(tok[first]) + " " + std::string(tok[first + 1]) + "'");
   Mesh m;
   m.V.resize(nv, 3);
   for (long i = 0; i < nv; ++i) {
     if (!next_line())
-      throw InputError("'" + path + "': file ends after " + std::to_string(i) + " of " +
-                       std::to_string(nv) + " vertices (file truncated?)");
-    if (tok.size() < 3)
-      throw InputError(where(path, line_no) + ": a vertex needs 3 coordinates, found " +
+      throw InputError("'" + path + "': the file ends after " + std::to_string(i) + " of " + std::to_string(nv) +
+                       " vertices (file truncated?)");
+    if (tok.size() != 3)
+      throw InputError(where(path, line_no) + ": vertex " + std::to_string(i) + " needs 3 coordinates, found " +
                        std::to_string(tok.size()));
-    for (int k = 0; k < 3; ++k)
-      if (!parse_double(tok[k], m.V(i, k)))
-        throw InputError(where(path, line_no) + ": '" + std::string(tok[k]) + "' is not a number");
+    for (int k = 0; k < 3; ++k) {
+      double v;
+      if (!parse_double(tok[static_cast<size_t>(k)], v))
+        throw InputError(where(path, line_no) + ": '" + std::string(tok[static_cast<size_t>(k)]) + "' is not a number");
+      m.V(i, k) = v;
+    }
   }
   m.F.resize(nf, 3);
   for (long f = 0; f < nf; ++f) {
     if (!next_line())
-      throw InputError("'" + path + "': file ends after " + std::to_string(f) + " of " +
-                       std::to_string(nf) + " faces (file truncated?)");
-    long n = 0;
-    if (!parse_int(tok[0], n) || n < 3)
-      throw InputError(where(path, line_no) + ": a face must start with its vertex count (3), found '" +
-                       std::string(tok[0]) + "'");
-    if (n != 3)
-      throw InputError(where(path, line_no) + ": a face of " + std::to_string(n) +
-                       " vertices; only triangle meshes are read");
-    if (tok.size() < 4)
-      throw InputError(where(path, line_no) + ": a triangle needs 3 vertex indices, found " +
-                       std::to_string(tok.size() - 1));
+      throw InputError("'" + path + "': the file ends after " + std::to_string(f) + " of " + std::to_string(nf) +
+                       " faces (file truncated?)");
+    long count = 0;
+    if (!parse_int(tok[0], count))
+      throw InputError(where(path, line_no) + ": '" + std::string(tok[0]) + "' is not a vertex count");
+    if (count != 3)
+      throw InputError(where(path, line_no) + ": face " + std::to_string(f) + " has " + std::to_string(count) +
+                       " vertices; only triangles are read");
+    if (tok.size() != 4)   // no per-face colours
+      throw InputError(where(path, line_no) + ": a triangle needs 3 vertex indices after its count, found " +
+                       std::to_string(tok.size() - 1) + " numbers");
     for (int k = 0; k < 3; ++k) {
-      long idx = 0;
-      if (!parse_int(tok[k + 1], idx) || idx < 0 || idx >= nv)
-        throw InputError(where(path, line_no) + ": '" + std::string(tok[k + 1]) +
-                         "' is not a vertex index in 0.." + std::to_string(nv - 1));
+      long idx;
+      if (!parse_int(tok[static_cast<size_t>(k) + 1], idx) || idx < 0 || idx >= nv)
+        throw InputError(where(path, line_no) + ": '" + std::string(tok[static_cast<size_t>(k) + 1]) +
+                         "' is not a vertex index in 0.." + std::to_string(nv - 1) + " (OFF faces are 0-based)");
       m.F(f, k) = static_cast<int>(idx);
     }
   }
+  if (next_line())
+    throw InputError(where(path, line_no) + ": more data after the " + std::to_string(nv) + " vertices and " +
+                     std::to_string(nf) + " faces the counts line declares");
   return m;
 }
 

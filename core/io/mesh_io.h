@@ -1,5 +1,4 @@
-// Mesh and point-cloud files: OBJ and PLY (ASCII and binary little-endian); OFF triangle
-// meshes are read (not written).
+// Mesh and point-cloud files: OBJ and PLY (ASCII and binary little-endian); OFF read only.
 //
 // Readers are strict: a malformed file throws InputError naming the file, the line (or
 // element) and what was wrong. Writers go through write_atomically, so a failed write never
@@ -33,8 +32,15 @@ ObjContents parse_obj(std::string_view text, const std::string& source);
 Eigen::MatrixX3i triangulate(const std::vector<std::vector<int>>& polygons);
 
 // Reads OBJ, PLY or OFF (by extension) as a triangle mesh; OBJ/PLY quads and polygons are
-// triangulated, OFF must be triangles (0-based indices; FAUST and SCAPE registrations).
+// triangulated.
 Mesh read_mesh(const std::filesystem::path& path);
+
+// Plain ASCII OFF (SCAPE, FAUST registrations): the line "OFF", a counts line "#V #F [#E]"
+// (it may also follow "OFF" on the same line), #V lines "x y z", #F lines "3 a b c" with 0-based
+// indices. Triangles only, no colours, '#' comments and blank lines skipped; anything else —
+// a polygon, an index out of range, a missing or extra line — throws InputError naming the file
+// and line. `source` names the input in errors.
+Mesh parse_off(std::string_view text, const std::string& source);
 // Writes OBJ or PLY (by extension). PLY is binary little-endian unless `ascii`.
 // colors: #V by 3 in [0,1] (PLY only; ignored for OBJ), or empty.
 void write_mesh(const std::filesystem::path& path, const Eigen::MatrixX3d& V,
@@ -49,8 +55,6 @@ PointCloud read_point_cloud(const std::filesystem::path& path);
 
 // From memory (tests, fuzzing): `format` is "obj", "ply" or "off"; `source` names it in errors.
 Mesh parse_mesh(const std::string& bytes, const std::string& format, const std::string& source);
-// OFF triangle mesh from memory (header, counts line, vertices, '3 a b c' faces, 0-based).
-Mesh parse_off(std::string_view text, const std::string& source);
 PointCloud parse_ply_point_cloud(const std::string& bytes, const std::string& source);
 void write_point_cloud(const std::filesystem::path& path, const PointCloud& cloud,
                        bool ascii = false);

@@ -147,7 +147,9 @@ TEST(ModelCli, BuildFitAndEvalOnRegisteredFolder) {
   write_mesh(test / "t0.ply", bent_cylinder(118, 1560, 0.18));
   write_mesh(test / "t1.ply", bent_cylinder(95, 1480, -0.05));
   const fs::path q1 = folder().dir / "q1";
-  r = run_cli("eval-model " + q(model) + " --test " + q(test) + " --samples 20 --out " + q(q1));
+  // Model files keep no absolute paths: the training meshes' folder is given.
+  r = run_cli("eval-model " + q(model) + " --test " + q(test) + " --train " + q(folder().reg) + " --samples 20 --out " +
+              q(q1));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   for (const char* f : {"quality.csv", "quality.md", "generalisation.csv", "model_quality.png"})
     EXPECT_TRUE(fs::exists(q1 / f)) << f;
@@ -163,9 +165,9 @@ TEST(ModelCli, BuildFitAndEvalOnRegisteredFolder) {
 }
 
 // One person in many poses: the shape model is the full model, whose basis the file stores once
-// (full_basis_is_shape_basis) and deflated; it reads back as the same model.
+// (full_basis_is_shape_basis); it reads back as the same model.
 TEST(ModelCli, PoseModelStoresItsBasisOnce) {
-  const fs::path dir = folder().dir;
+  const fs::path dir = folder().dir.path;
   const fs::path csv = dir / "one_person.csv";
   write_text_file(csv, "mesh,subject,pose\nc2_0,s2,p0\nc2_1,s2,p1\nc2_2,s2,p2\n");
   const fs::path out = dir / "pose_model.npz";
@@ -180,15 +182,13 @@ TEST(ModelCli, PoseModelStoresItsBasisOnce) {
   const BodyModel m = load_model(out);
   ASSERT_EQ(m.full.component_count(), 2);
   EXPECT_TRUE(m.full.pca.basis == m.shape.pca.basis);
-  // Stored deflated: smaller than the same archive stored.
-  EXPECT_LT(fs::file_size(out), model_to_npz(m).serialize().size());
 }
 
 // Bad input ends with one line "bodymodel: error: ..." naming the file and the problem, exit 2,
 // and writes nothing.
 TEST(ModelCli, FitBuildEvalBadInput) {
   const fs::path& model = built_model();
-  const fs::path dir = folder().dir;
+  const fs::path dir = folder().dir.path;
   // subjects.csv naming meshes the folder does not have.
   const fs::path bad_csv = dir / "bad_subjects.csv";
   write_text_file(bad_csv, "mesh,subject,pose\nc0_0,s0,p0\nghost_a,s9,p0\nghost_b,s9,p1\n");

@@ -152,18 +152,19 @@ BODYMODEL_VERB(add_model_eval_verb) {
       "rotation-invariant model's full (pose + shape) PCA and for a vertex-position PCA of the same\n"
       "training meshes built in the same run. Writes OUT/quality.csv, quality.md, generalisation.csv\n"
       "(per mesh) and model_quality.png.\n"
-      "  With a model: its training meshes are re-read from where `build` found them (or --train).\n"
+      "  With a model: --train names the folder `build` read (model files keep no absolute paths).\n"
       "  With --cross-validate subject|pose: one model per left-out subject (or pose name) is built\n"
       "  in memory from --registered/--subjects, with every component (--full-variance 1), and\n"
       "  the folds are pooled.\n"
       "Examples:\n"
-      "  bodymodel eval-model faust6.npz --test $BODYMODEL_DATA/faust-registrations --test-subjects s6.csv --out q/\n"
+      "  bodymodel eval-model faust6.npz --test $BODYMODEL_DATA/faust-registrations --test-subjects s6.csv \\\n"
+      "      --train $BODYMODEL_DATA/faust-registrations --out q/\n"
       "  bodymodel eval-model --cross-validate subject --registered $BODYMODEL_DATA/faust-registrations \\\n"
       "      --subjects faust.csv --scale 1000 --standard-pose p0 --out loso/");
   cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`)");
   cmd->add_option("--test", a->test, "Folder of test meshes (the model's topology)");
   cmd->add_option("--test-subjects", a->test_subjects, "CSV (mesh,subject,pose) selecting the test meshes of --test");
-  cmd->add_option("--train", a->train, "Folder of the model's training meshes (default: the one `build` read)");
+  cmd->add_option("--train", a->train, "Folder of the model's training meshes (the one `build` read; needed for the specificity and the baseline)");
   auto* cv = cmd->add_option("--cross-validate", a->cross_validate,
                              "subject: leave one subject out; pose: leave one pose name out (instead of a model)")
                  ->check(CLI::IsMember({"subject", "pose"}));
