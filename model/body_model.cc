@@ -4,7 +4,10 @@
 #include <chrono>
 #include <cmath>
 #include "model/format.h"
+#include "model/pca_float.h"
 #include <map>
+#include <numeric>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include "core/error.h"
@@ -62,12 +65,41 @@ Eigen::VectorXd pose_label_values(const std::vector<LabelInfo>& labels,
 
 namespace {
 
-SubModel fit_sub_model(const Eigen::MatrixXd& X, const PcaOptions& pca_options,
-                       const SemanticRegressionOptions& reg_options, const Eigen::MatrixXd& Y,
+// The leading components of `pca` (fitted with options at least as wide; `fitted` its summary)
+// that `options` keeps: fit_pca's variance threshold and cap, against the total variance of all
+// eigenvalues. For two models of the same samples.
+Pca leading_components(const Pca& pca, const PcaSummary& fitted, const PcaOptions& options, PcaSummary* summary) {
+  options.validate();
+  const int available = pca.component_count();
+  const double total = fitted.total_variance;
+  const int cap = options.max_components > 0 ? std::min(options.max_components, available) : available;
+  const double tiny = 1e-12 * std::max(total, 1e-300);
+  int K = 0;
+  double acc = 0;
+  while (K < cap && pca.eigenvalues(K) > tiny) {
+    acc += pca.eigenvalues(K);
+    ++K;
+    if (total > 0 && acc / total >= options.variance_threshold - 1e-12) break;
+  }
+  if (K == 0) K = std::min(1, available);
+  Pca p;
+  p.mean = pca.mean;
+  p.basis = pca.basis.leftCols(K);
+  p.eigenvalues = pca.eigenvalues.head(K);
+  p.coefficients = pca.coefficients.leftCols(K);
+  if (summary) {
+    *summary = fitted;
+    summary->components = K;
+    summary->explained = total > 0 ? p.eigenvalues.sum() / total : 1.0;
+  }
+  return p;
+}
+
+SubModel fit_sub_model(Pca pca, const SemanticRegressionOptions& reg_options, const Eigen::MatrixXd& Y,
                        const std::vector<LabelInfo>& labels, std::vector<std::string> ids,
-                       const std::vector<std::string>& basis_labels, PcaSummary* summary) {
+                       const std::vector<std::string>& basis_labels) {
   SubModel m;
-  m.pca = fit_pca(X, pca_options, summary);
+  m.pca = std::move(pca);
   m.labels = Y;
   m.sample_ids = std::move(ids);
   m.regression = fit_semantic_regression(m.pca.coefficients, Y, labels, reg_options);
@@ -99,10 +131,13 @@ BodyModel build_body_model(const ModelBuildInput& in, const ModelBuildOptions& o
   std::vector<int> standard;
   for (int i = 0; i < S; ++i)
     if (in.is_standard_pose[i]) standard.push_back(i);
-  if (standard.size() < 2)
+  const bool pose_only = standard.size() < 2 && o.allow_pose_only;
+  if (standard.size() < 2 && !pose_only)
     throw InputError(fmt::format("model build: {} standard-pose scans, need at least 2 subjects in the "
                                  "standard pose for the shape model",
                                  standard.size()));
+  if (pose_only && S < 2) throw InputError(fmt::format("model build: {} mesh(es), need at least 2", S));
+  if (standard.empty()) standard.push_back(0);
   auto t0 = std::chrono::steady_clock::now();
   // Template rest shape: mean of the standard-pose meshes, rigidly aligned to the first.
   Eigen::MatrixX3d rest = Eigen::MatrixX3d::Zero(nV, 3);
@@ -112,21 +147,30 @@ BodyModel build_body_model(const ModelBuildInput& in, const ModelBuildOptions& o
   BodyModel model;
   model.tmpl = std::make_shared<EncodingTemplate>(rest, in.F);
 
-  // Absolute encodings (parallel), the mean, then relative values into the data matrix.
+  // Absolute encodings (parallel), the mean, then relative values into the data matrix. The
+  // matrix is float32 (half the memory of doubles: 2 000 bodies of 26 756 triangles are 3.2 GB
+  // instead of 6.4); the mean and the PCA are accumulated in double (model/pca.h). float32
+  // keeps 7 significant digits of each encoding value, and the model file stores the bases as
+  // float32 anyway.
   const int D = model.tmpl->encoding_size();
-  Eigen::MatrixXd X(D, S);
+  Eigen::MatrixXf X(D, S);
   std::atomic<int> done{0};
   std::mutex mtx;
+  tbb::enumerable_thread_specific<Eigen::VectorXd> partial_sums([&] { return Eigen::VectorXd::Zero(D); });
   tbb::parallel_for(0, S, [&](int i) {
-    X.col(i) = encode_absolute(*model.tmpl, in.meshes[i]);
+    const Eigen::VectorXd a = encode_absolute(*model.tmpl, in.meshes[i]);
+    partial_sums.local() += a;
+    X.col(i) = a.cast<float>();
     int d = ++done;
     std::lock_guard<std::mutex> lock(mtx);
-    report_progress(progress, 0.8 * d / S, in.scan_ids[i]);
+    report_progress(progress, 0.6 * d / S, in.scan_ids[i]);
   });
-  model.mean = EncodingMean::from_values(X.rowwise().mean());
+  Eigen::VectorXd sum_abs = Eigen::VectorXd::Zero(D);
+  for (const auto& ps : partial_sums) sum_abs += ps;
+  model.mean = EncodingMean::from_values(sum_abs / S);
   tbb::parallel_for(0, S, [&](int i) {
-    Eigen::VectorXd a = X.col(i);
-    X.col(i) = relative_to(model.mean, a).values;
+    const Eigen::VectorXd a = X.col(i).cast<double>();
+    X.col(i) = relative_to(model.mean, a).values.cast<float>();
   });
   auto t1 = std::chrono::steady_clock::now();
 
@@ -148,27 +192,53 @@ BodyModel build_body_model(const ModelBuildInput& in, const ModelBuildOptions& o
     Yfull.col(Ls + j) = in.pose_label_values.col(pose_keep[j]);
   }
 
-  report_progress(progress, 0.85, "shape PCA");
-  Eigen::MatrixXd Xs(D, standard.size());
-  Eigen::MatrixXd Ys(standard.size(), Ls);
-  std::vector<std::string> subject_ids;
-  for (size_t k = 0; k < standard.size(); ++k) {
-    Xs.col(k) = X.col(standard[k]);
-    Ys.row(k) = in.subject_label_values.row(standard[k]);
-    subject_ids.push_back(in.subject_ids[standard[k]]);
-  }
   ModelBuildSummary sum;
-  model.shape = fit_sub_model(Xs, o.shape_pca, o.regression, Ys, in.subject_labels, subject_ids,
-                              o.semantic_basis_labels, &sum.shape_pca);
-  Xs.resize(0, 0);
-  report_progress(progress, 0.92, "full PCA");
-  model.full = fit_sub_model(X, o.full_pca, o.regression, Yfull, full_labels, in.scan_ids,
-                             o.semantic_basis_labels, &sum.full_pca);
+  std::vector<int> all_columns(S);
+  std::iota(all_columns.begin(), all_columns.end(), 0);
+  const std::vector<int>& shape_columns = pose_only ? all_columns : standard;
+  const PcaOptions& shape_options = pose_only ? o.full_pca : o.shape_pca;
+  // When the shape model's samples are all the meshes (one person in many poses; a population
+  // of one standard-pose mesh per person) the two PCAs share one eigen-decomposition: it is
+  // computed once, keeping what the wider of the two options keeps, and each model takes its
+  // leading components (the Gram matrix and the basis are the costly part at thousands of meshes).
+  Pca shape_pca, full_pca;
+  if (shape_columns == all_columns) {
+    PcaOptions wide = o.full_pca;
+    wide.variance_threshold = std::max(shape_options.variance_threshold, o.full_pca.variance_threshold);
+    wide.max_components = shape_options.max_components < 0 || o.full_pca.max_components < 0
+                              ? -1
+                              : std::max(shape_options.max_components, o.full_pca.max_components);
+    report_progress(progress, 0.7, "PCA");
+    PcaSummary wide_summary;
+    Pca both = fit_pca(X, all_columns, wide, &wide_summary);
+    X.resize(0, 0);
+    shape_pca = leading_components(both, wide_summary, shape_options, &sum.shape_pca);
+    full_pca = leading_components(both, wide_summary, o.full_pca, &sum.full_pca);
+  } else {
+    report_progress(progress, 0.7, "shape PCA");
+    shape_pca = fit_pca(X, shape_columns, shape_options, &sum.shape_pca);
+    report_progress(progress, 0.85, "full PCA");
+    full_pca = fit_pca(X, all_columns, o.full_pca, &sum.full_pca);
+    X.resize(0, 0);
+  }
+  report_progress(progress, 0.95, "regression");
+  model.full = fit_sub_model(std::move(full_pca), o.regression, Yfull, full_labels, in.scan_ids, o.semantic_basis_labels);
+  if (pose_only) {
+    model.shape = model.full;  // one person: no shape variation to model; the pose model serves as both
+  } else {
+    Eigen::MatrixXd Ys(standard.size(), Ls);
+    std::vector<std::string> subject_ids;
+    for (size_t k = 0; k < standard.size(); ++k) {
+      Ys.row(k) = in.subject_label_values.row(standard[k]);
+      subject_ids.push_back(in.subject_ids[standard[k]]);
+    }
+    model.shape = fit_sub_model(std::move(shape_pca), o.regression, Ys, in.subject_labels, subject_ids, o.semantic_basis_labels);
+  }
   auto t2 = std::chrono::steady_clock::now();
   report_progress(progress, 1.0, "done");
 
   sum.scans = S;
-  sum.subjects = static_cast<int>(standard.size());
+  sum.subjects = pose_only ? 1 : static_cast<int>(standard.size());
   sum.pose_labels_kept = Lp;
   sum.pose_labels_dropped = static_cast<int>(in.pose_labels.size()) - Lp;
   sum.encode_seconds = std::chrono::duration<double>(t1 - t0).count();
@@ -185,6 +255,9 @@ BodyModel build_body_model(const ModelBuildInput& in, const ModelBuildOptions& o
                     {"full_variance_threshold", o.full_pca.variance_threshold},
                     {"shape_explained", sum.shape_pca.explained},
                     {"full_explained", sum.full_pca.explained},
+                    {"shape_total_variance", sum.shape_pca.total_variance},
+                    {"full_total_variance", sum.full_pca.total_variance},
+                    {"shape_model", pose_only ? "full" : "standard-pose scans"},
                     {"units", "mm"}};
   if (summary) *summary = sum;
   return model;

@@ -79,6 +79,10 @@ struct ModelBuildOptions {
   // Labels whose directions come first in the semantic basis (those present are used).
   std::vector<std::string> semantic_basis_labels = {"height_cm", "weight_kg", "sex", "age_years",
                                                     "muscle", "body_fat_pct"};
+  // With fewer than two standard-pose scans (one person in many poses, e.g. SCAPE): build the
+  // full (pose) model and use it as the shape model too, instead of refusing. The metadata
+  // says so ("shape_model": "full").
+  bool allow_pose_only = false;
 };
 
 struct ModelBuildSummary {

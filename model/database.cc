@@ -1,6 +1,9 @@
 #include "model/database.h"
 
+#include <algorithm>
+#include <cmath>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <set>
 #include <sstream>
@@ -8,6 +11,7 @@
 #include "core/error.h"
 #include "core/io/file_names.h"
 #include "core/io/mesh_io.h"
+#include "core/measure.h"
 #include "core/skeleton.h"
 #include "model/format.h"
 
@@ -135,6 +139,224 @@ std::vector<ScanTableRow> read_scan_table(const fs::path& path) {
     out.push_back({rows[r][a], rows[r][b], rows[r][c]});
   }
   return out;
+}
+
+fs::path find_registered_mesh(const fs::path& dir, const std::string& stem) {
+  for (const char* ext : {".ply", ".obj", ".off"}) {
+    fs::path p = dir / (stem + ext);
+    std::error_code ec;
+    if (fs::is_regular_file(p, ec)) return p;
+  }
+  return {};
+}
+
+std::vector<MeshTableRow> read_mesh_table(const fs::path& path) {
+  auto rows = read_csv(path);
+  const int a = column(rows[0], "mesh", path), b = column(rows[0], "subject", path),
+            c = column(rows[0], "pose", path);
+  std::vector<MeshTableRow> out;
+  std::set<std::string> seen;
+  for (size_t r = 1; r < rows.size(); ++r) {
+    MeshTableRow row{rows[r][a], rows[r][b], rows[r][c]};
+    if (row.mesh.empty() || row.subject.empty())
+      throw InputError(fmt::format("'{}' line {}: empty mesh or subject", path.string(), r + 1));
+    if (row.mesh.find('/') != std::string::npos || row.mesh.find('\\') != std::string::npos)
+      throw InputError(fmt::format("'{}' line {}: mesh '{}' must be a file stem, not a path", path.string(), r + 1,
+                                   row.mesh));
+    if (!seen.insert(row.mesh).second)
+      throw InputError(fmt::format("'{}' line {}: mesh '{}' is listed twice", path.string(), r + 1, row.mesh));
+    out.push_back(std::move(row));
+  }
+  if (out.empty()) throw InputError(fmt::format("'{}' lists no meshes (only a header)", path.string()));
+  return out;
+}
+
+ModelBuildInput read_registered_folder(const fs::path& reg, const fs::path& csv, const RegisteredFolderOptions& o,
+                                       RegisteredFolderSummary* summary, const ProgressCallback& progress) {
+  if (!fs::is_directory(reg)) throw InputError(fmt::format("'{}' is not a folder of registered meshes", reg.string()));
+  if (!(o.mm_per_unit > 0) || !std::isfinite(o.mm_per_unit))
+    throw InputError(fmt::format("millimetres per unit must be positive, got {}", o.mm_per_unit));
+  if (o.up_axis < 0 || o.up_axis > 2) throw InputError(fmt::format("up axis must be 0, 1 or 2, got {}", o.up_axis));
+  const auto table = read_mesh_table(csv);
+  // Every listed mesh must exist: report them all at once.
+  std::vector<fs::path> paths;
+  std::vector<std::string> missing;
+  for (const auto& r : table) {
+    paths.push_back(find_registered_mesh(reg, r.mesh));
+    if (paths.back().empty()) missing.push_back(r.mesh);
+  }
+  if (!missing.empty()) {
+    std::string names;
+    for (size_t i = 0; i < std::min<size_t>(3, missing.size()); ++i) names += (i ? ", " : "") + missing[i];
+    throw InputError(fmt::format("'{}' names {} mesh(es) that '{}' does not have as .ply/.obj/.off ({}{})",
+                                 csv.string(), missing.size(), reg.string(), names, missing.size() > 3 ? ", ..." : ""));
+  }
+  // Label columns (everything but mesh, subject, pose).
+  auto rows = read_csv(csv);
+  const auto& h = rows[0];
+  std::vector<int> label_cols;
+  int sex_col = -1;
+  for (size_t c = 0; c < h.size(); ++c) {
+    if (h[c] == "mesh" || h[c] == "subject" || h[c] == "pose") continue;
+    if (h[c] == "sex") {
+      sex_col = static_cast<int>(c);
+      continue;
+    }
+    bool numeric = true;
+    double v;
+    for (size_t r = 1; r < rows.size() && numeric; ++r)
+      if (!rows[r][c].empty() && !parse_double(rows[r][c], v)) numeric = false;
+    if (numeric) label_cols.push_back(static_cast<int>(c));
+  }
+  ModelBuildInput in;
+  std::vector<std::string> given;
+  if (sex_col >= 0) {
+    in.subject_labels.push_back({"sex", ""});
+    given.push_back("sex");
+  }
+  for (int c : label_cols) {
+    in.subject_labels.push_back({h[c], unit_of(h[c])});
+    given.push_back(h[c]);
+  }
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::vector<std::string> subject_order;
+  std::map<std::string, Eigen::VectorXd> subject_values;  // given labels per subject
+  std::map<std::string, size_t> subject_line;
+  for (size_t r = 1; r < rows.size(); ++r) {
+    const std::string& subj = table[r - 1].subject;
+    Eigen::VectorXd v = Eigen::VectorXd::Constant(given.size(), nan);
+    int k = 0;
+    if (sex_col >= 0) {
+      const std::string& s = rows[r][sex_col];
+      if (s == "female" || s == "f" || s == "F")
+        v(k) = 0;
+      else if (s == "male" || s == "m" || s == "M")
+        v(k) = 1;
+      else if (!s.empty())
+        throw InputError(fmt::format("'{}' line {}: sex must be female or male, got '{}'", csv.string(), r + 1, s));
+      ++k;
+    }
+    for (int c : label_cols) {
+      if (!rows[r][c].empty()) parse_double(rows[r][c], v(k));
+      ++k;
+    }
+    auto it = subject_values.find(subj);
+    if (it == subject_values.end()) {
+      subject_values[subj] = v;
+      subject_line[subj] = r + 1;
+      subject_order.push_back(subj);
+    } else {
+      for (Eigen::Index j = 0; j < v.size(); ++j) {
+        const double a = it->second(j), b = v(j);
+        if (std::isnan(a) && !std::isnan(b)) it->second(j) = b;
+        else if (!std::isnan(a) && !std::isnan(b) && a != b)
+          throw InputError(fmt::format("'{}' line {}: subject '{}' has {} = {}, but {} on line {}", csv.string(), r + 1,
+                                       subj, given[j], b, a, subject_line[subj]));
+      }
+    }
+  }
+  // Meshes.
+  RegisteredFolderSummary sum;
+  const size_t n = table.size();
+  for (size_t i = 0; i < n; ++i) {
+    report_progress(progress, 0.9 * static_cast<double>(i) / static_cast<double>(n), table[i].mesh);
+    Mesh m = read_mesh(paths[i]);
+    if (in.meshes.empty()) {
+      in.F = m.F;
+    } else if (o.use_first_mesh_faces) {
+      if (m.V.rows() != in.meshes[0].rows())
+        throw InputError(fmt::format("'{}': {} vertices, '{}' has {}: registered meshes must have the same vertices",
+                                     paths[i].string(), m.V.rows(), paths[0].string(), in.meshes[0].rows()));
+      if (m.F.rows() != in.F.rows() || m.F != in.F) ++sum.meshes_with_other_faces;
+    } else if (m.V.rows() != in.meshes[0].rows() || m.F.rows() != in.F.rows() || m.F != in.F) {
+      throw InputError(fmt::format("'{}': {} vertices / {} triangles with different faces than '{}' "
+                                   "({} / {}): registered meshes must share one topology (or, if only the "
+                                   "triangulation differs, use the first mesh's faces)",
+                                   paths[i].string(), m.V.rows(), m.F.rows(), paths[0].string(),
+                                   in.meshes[0].rows(), in.F.rows()));
+    }
+    in.meshes.push_back(m.V * o.mm_per_unit);
+    in.scan_ids.push_back(table[i].mesh);
+    in.subject_ids.push_back(table[i].subject);
+  }
+  // Standard-pose mesh per subject.
+  std::map<std::string, int> standard;
+  for (size_t i = 0; i < n; ++i)
+    if (table[i].pose == o.standard_pose && !standard.count(table[i].subject)) standard[table[i].subject] = static_cast<int>(i);
+  for (const auto& subj : subject_order)
+    if (!standard.count(subj)) {
+      for (size_t i = 0; i < n; ++i)
+        if (table[i].subject == subj) {
+          standard[subj] = static_cast<int>(i);
+          break;
+        }
+      ++sum.subjects_without_standard_pose;
+    }
+  in.is_standard_pose.assign(n, 0);
+  for (const auto& [subj, i] : standard) in.is_standard_pose[i] = 1;
+  // Measured labels on the standard-pose meshes.
+  std::vector<std::string> measured;
+  if (o.measure_labels)
+    for (const char* name : {"height_cm", "weight_kg", "volume_l", "chest_cm", "waist_cm", "hips_cm", "neck_cm"})
+      if (std::find(given.begin(), given.end(), name) == given.end()) measured.push_back(name);
+  std::map<std::string, Eigen::VectorXd> measured_values;
+  for (const auto& subj : subject_order) {
+    Eigen::VectorXd v = Eigen::VectorXd::Constant(measured.size(), nan);
+    if (!measured.empty()) {
+      const int i = standard[subj];
+      report_progress(progress, 0.9 + 0.1 * static_cast<double>(measured_values.size()) / subject_order.size(),
+                      "measuring " + table[i].mesh);
+      MeasureOptions mo;
+      mo.up_axis = o.up_axis;
+      mo.density_kg_per_l = o.density_kg_per_l;
+      try {
+        const BodyMeasurements b = measure_body(in.meshes[i], in.F, Sex::unknown, mo);
+        const double all[] = {b.height_cm, b.weight_kg, b.volume_l, b.chest_cm, b.waist_cm, b.hips_cm, b.neck_cm};
+        const char* names[] = {"height_cm", "weight_kg", "volume_l", "chest_cm", "waist_cm", "hips_cm", "neck_cm"};
+        for (size_t j = 0; j < measured.size(); ++j)
+          for (int q = 0; q < 7; ++q)
+            if (measured[j] == names[q]) v(j) = all[q] > 0 ? all[q] : nan;
+      } catch (const InputError& e) {
+        if (sum.measurement_failures++ == 0) sum.first_measurement_failure = table[i].mesh + ": " + e.what();
+      }
+    }
+    measured_values[subj] = v;
+  }
+  for (const auto& name : measured) in.subject_labels.push_back({name, unit_of(name)});
+  in.subject_label_values.resize(n, in.subject_labels.size());
+  for (size_t i = 0; i < n; ++i) {
+    const auto& subj = table[i].subject;
+    Eigen::VectorXd row(in.subject_labels.size());
+    row << subject_values[subj], measured_values[subj];
+    in.subject_label_values.row(i) = row.transpose();
+  }
+  // Labels that do not vary between subjects (or are known for fewer than two) carry nothing
+  // a regression can use: dropped (one person in many poses has none).
+  {
+    std::vector<int> keep;
+    for (int j = 0; j < static_cast<int>(in.subject_labels.size()); ++j) {
+      std::set<double> distinct;
+      for (const auto& [subj, i] : standard)
+        if (std::isfinite(in.subject_label_values(i, j))) distinct.insert(in.subject_label_values(i, j));
+      if (distinct.size() >= 2) keep.push_back(j);
+      else sum.dropped_labels.push_back(in.subject_labels[j].name);
+    }
+    std::vector<LabelInfo> labels;
+    Eigen::MatrixXd values(n, keep.size());
+    for (size_t q = 0; q < keep.size(); ++q) {
+      labels.push_back(in.subject_labels[keep[q]]);
+      values.col(q) = in.subject_label_values.col(keep[q]);
+    }
+    in.subject_labels = std::move(labels);
+    in.subject_label_values = std::move(values);
+  }
+  in.pose_label_values.resize(n, 0);
+  sum.meshes = static_cast<int>(n);
+  sum.subjects = static_cast<int>(subject_order.size());
+  sum.measured_labels = measured;
+  report_progress(progress, 1.0, "read");
+  if (summary) *summary = sum;
+  return in;
 }
 
 ModelBuildInput read_registered_database(const fs::path& reg, const fs::path& db,

@@ -75,11 +75,11 @@ Eigen::SparseMatrix<double, Eigen::RowMajor> get_sparse(const Npz& z, const std:
   return M;
 }
 
-void put_sub_model(Npz& z, const std::string& p, const SubModel& m, bool shape) {
+void put_sub_model(Npz& z, const std::string& p, const SubModel& m, bool shape, bool store_basis = true) {
   z.put(p + "_mean", m.pca.mean);
   // The bases are most of the file (D by K): float32 (relative precision 6e-8, far below
   // what decoding resolves; see model_file.h).
-  z.put_float32(p + "_basis", m.pca.basis);
+  if (store_basis) z.put_float32(p + "_basis", m.pca.basis);
   z.put(p + "_eigenvalues", m.pca.eigenvalues);
   z.put(p + "_coefficients", m.pca.coefficients);
   std::vector<std::string> names, units, sem;
@@ -106,7 +106,11 @@ void put_sub_model(Npz& z, const std::string& p, const SubModel& m, bool shape) 
 SubModel get_sub_model(const Npz& z, const std::string& p, bool shape, int D, const std::string& what) {
   SubModel m;
   m.pca.mean = z.vector(p + "_mean");
-  m.pca.basis = z.matrix(p + "_basis");
+  // A full model that is the shape model (one person, or one standard-pose mesh per subject)
+  // shares its basis instead of storing it twice.
+  const bool shared = !shape && !z.has(p + "_basis") && z.has("full_basis_is_shape_basis") &&
+                      z.scalar("full_basis_is_shape_basis") == 1.0;
+  m.pca.basis = z.matrix(shared ? std::string("shape_basis") : p + "_basis");
   m.pca.eigenvalues = z.vector(p + "_eigenvalues");
   m.pca.coefficients = z.matrix(p + "_coefficients");
   const int K = static_cast<int>(m.pca.basis.cols());
@@ -190,7 +194,13 @@ Npz model_to_npz(const BodyModel& model) {
   z.put("template_faces", Eigen::MatrixXi(model.tmpl->faces()));
   z.put("encoding_mean", model.mean->values);
   put_sub_model(z, "shape", model.shape, true);
-  put_sub_model(z, "full", model.full, false);
+  // The basis is most of the file: when the full model's is the shape model's (one person in
+  // many poses, or a population of one standard-pose mesh per person) it is stored once.
+  const bool shared = model.full.pca.basis.rows() == model.shape.pca.basis.rows() &&
+                      model.full.pca.basis.cols() == model.shape.pca.basis.cols() &&
+                      model.full.pca.basis == model.shape.pca.basis;
+  put_sub_model(z, "full", model.full, false, !shared);
+  if (shared) z.put("full_basis_is_shape_basis", 1.0);
   if (!model.rig.empty()) {
     z.put_text("rig_bone_names", json_list(model.rig.bone_names));
     z.put("rig_parents", Eigen::VectorXi(Eigen::Map<const Eigen::VectorXi>(
@@ -275,7 +285,7 @@ BodyModel model_from_npz(const Npz& z, const std::string& what) {
 }
 
 void save_model(const std::filesystem::path& path, const BodyModel& model) {
-  model_to_npz(model).save(path);
+  model_to_npz(model).save(path);  // deflated (core/io/npz.h)
 }
 
 BodyModel load_model(const std::filesystem::path& path) {

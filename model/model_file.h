@@ -4,6 +4,7 @@
 // which are float32 (they are nearly the whole file; orthonormal columns with 7 significant
 // digits change a decoded body by far less than 0.01 mm). Version 1 files (the same keys, all
 // float64) are still read; other versions are refused with an error naming the version.
+// Members are deflated (numpy's savez_compressed layout; np.load reads either).
 // D = 15·#F encoding values,
 // K_s / K_f shape / full components, N_s subjects, N_f scans, L_s / L_f labels.
 //   metadata                 JSON text: {"format": "bodymodel-model", "format_version": 2, ...}
@@ -30,6 +31,8 @@
 //   full_label_gradients, full_semantic_basis, full_semantic_variances, full_semantic_labels
 //                            the same for the full model (all scans; labels include the joint
 //                            angles "pose:<bone>:rx|ry|rz", radians, rotation-vector components)
+//   full_basis_is_shape_basis scalar 1 in place of full_basis when the two are equal (one person
+//                            in many poses; one standard-pose mesh per person): stored once
 //   rig_bone_names (JSON text), rig_parents (#B int), rig_head_regressor, rig_tail_regressor,
 //   rig_weights             optional skeleton; sparse matrices as (row, col, value) triplets,
 //                            #nonzeros by 3, with rig_*_shape = [rows, cols]

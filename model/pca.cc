@@ -1,4 +1,5 @@
 #include "model/pca.h"
+#include "model/pca_float.h"
 
 #include <Spectra/MatOp/DenseSymMatProd.h>
 #include <Spectra/SymEigsSolver.h>
@@ -117,6 +118,92 @@ Pca fit_pca(const Eigen::MatrixXd& X, const PcaOptions& options, PcaSummary* sum
     if (Q.col(k).dot(p.basis.col(k)) < 0) Q.col(k) *= -1;
   p.basis = std::move(Q);
   p.coefficients = Xc.transpose() * p.basis;
+  if (summary) {
+    summary->samples = N;
+    summary->dimension = D;
+    summary->components = K;
+    summary->total_variance = total;
+    summary->explained = total > 0 ? p.eigenvalues.sum() / total : 1.0;
+  }
+  return p;
+}
+
+Pca fit_pca(const Eigen::MatrixXf& X, const std::vector<int>& columns_in, const PcaOptions& options,
+            PcaSummary* summary) {
+  options.validate();
+  const int D = static_cast<int>(X.rows());
+  std::vector<int> columns = columns_in;
+  if (columns.empty())
+    for (int i = 0; i < X.cols(); ++i) columns.push_back(i);
+  const int N = static_cast<int>(columns.size());
+  if (N < 2) throw InputError(fmt::format("PCA needs at least 2 samples, got {}", N));
+  for (int c : columns)
+    if (c < 0 || c >= X.cols()) throw InputError(fmt::format("PCA: sample column {} out of range", c));
+  constexpr int kBlock = 4096;  // rows per block: 4096 × N doubles (64 MB at N = 2 000)
+  auto block_of = [&](int r0, int rows, Eigen::MatrixXd& B) {
+    B.resize(rows, N);
+    for (int j = 0; j < N; ++j) B.col(j) = X.block(r0, columns[j], rows, 1).cast<double>();
+  };
+  Pca p;
+  p.mean = Eigen::VectorXd::Zero(D);
+  Eigen::MatrixXd B;
+  for (int r0 = 0; r0 < D; r0 += kBlock) {
+    const int rows = std::min(kBlock, D - r0);
+    block_of(r0, rows, B);
+    if (!B.allFinite()) throw InputError("PCA: the samples contain non-finite values");
+    p.mean.segment(r0, rows) = B.rowwise().mean();
+  }
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(N, N);
+  for (int r0 = 0; r0 < D; r0 += kBlock) {
+    const int rows = std::min(kBlock, D - r0);
+    block_of(r0, rows, B);
+    B.colwise() -= p.mean.segment(r0, rows);
+    G.selfadjointView<Eigen::Lower>().rankUpdate(B.transpose());
+  }
+  G = G.selfadjointView<Eigen::Lower>();
+  G /= (N - 1);
+  const int rank_limit = N - 1;
+  Eigen::VectorXd lambda;
+  Eigen::MatrixXd V;
+  double total = 0;
+  const int wanted = options.max_components > 0 ? std::min(options.max_components, rank_limit) : rank_limit;
+  if (use_partial_eigen_solver(options, N) && partial_eigenpairs(G, wanted, lambda, V)) {
+    total = G.trace();
+  } else {
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(G);
+    if (es.info() != Eigen::Success) throw NumericalError("PCA: eigen-decomposition of the Gram matrix failed");
+    lambda = es.eigenvalues().reverse().cwiseMax(0.0);
+    V = es.eigenvectors().rowwise().reverse();
+    total = lambda.sum();
+  }
+  const double tiny = 1e-12 * std::max(total, 1e-300);
+  int K = 0;
+  double acc = 0;
+  const int cap = std::min<int>(wanted, static_cast<int>(lambda.size()));
+  while (K < cap && lambda(K) > tiny) {
+    acc += lambda(K);
+    ++K;
+    if (total > 0 && acc / total >= options.variance_threshold - 1e-12) break;
+  }
+  if (K == 0) K = 1;
+  p.eigenvalues = lambda.head(K);
+  // Basis X_c v_k / ‖X_c v_k‖, with ‖X_c v_k‖ = √((N−1) λ_k); a zero-variance direction (all
+  // samples equal) keeps a zero column, as fit_pca's does.
+  Eigen::VectorXd scale(K);
+  for (int k = 0; k < K; ++k) {
+    const double n = std::sqrt((N - 1) * p.eigenvalues(k));
+    scale(k) = n > 0 ? 1.0 / n : 0.0;
+  }
+  const Eigen::MatrixXd W = V.leftCols(K) * scale.asDiagonal();
+  p.basis.resize(D, K);
+  for (int r0 = 0; r0 < D; r0 += kBlock) {
+    const int rows = std::min(kBlock, D - r0);
+    block_of(r0, rows, B);
+    B.colwise() -= p.mean.segment(r0, rows);
+    p.basis.middleRows(r0, rows).noalias() = B * W;
+  }
+  // Coefficients X_cᵀ b_k = (N−1) G v_k / √((N−1) λ_k) = v_k √((N−1) λ_k).
+  p.coefficients = V.leftCols(K) * (p.eigenvalues * (N - 1)).cwiseSqrt().asDiagonal();
   if (summary) {
     summary->samples = N;
     summary->dimension = D;

@@ -85,7 +85,10 @@ void write_line_plot_png(const std::filesystem::path& path, const std::vector<Li
       throw InputError("line plot '" + path.string() + "': panel '" + p.title + "' has " +
                        std::to_string(p.x.size()) + " x and " + std::to_string(p.y.size()) +
                        " y values (expected the same, at least one)");
-    if (!p.x.allFinite() || !p.y.allFinite())
+    if (p.x2.size() != p.y2.size())
+      throw InputError("line plot '" + path.string() + "': panel '" + p.title + "' has " +
+                       std::to_string(p.x2.size()) + " x2 and " + std::to_string(p.y2.size()) + " y2 values");
+    if (!p.x.allFinite() || !p.y.allFinite() || !p.x2.allFinite() || !p.y2.allFinite())
       throw InputError("line plot '" + path.string() + "': panel '" + p.title + "' has non-finite values");
   }
   const int W = options.width, PH = options.panel_height;
@@ -95,8 +98,13 @@ void write_line_plot_png(const std::filesystem::path& path, const std::vector<Li
   for (size_t k = 0; k < panels.size(); ++k) {
     const LinePanel& p = panels[k];
     const int y0 = static_cast<int>(k) * PH;
-    const double xmin = p.x.minCoeff(), xmax = std::max(p.x.maxCoeff(), xmin + 1);
+    double xmin = p.x.minCoeff(), xmax = p.x.maxCoeff();
     double ymin = p.y.minCoeff(), ymax = p.y.maxCoeff();
+    if (p.x2.size()) {
+      xmin = std::min(xmin, p.x2.minCoeff()), xmax = std::max(xmax, p.x2.maxCoeff());
+      ymin = std::min(ymin, p.y2.minCoeff()), ymax = std::max(ymax, p.y2.maxCoeff());
+    }
+    xmax = std::max(xmax, xmin + 1);
     if (ymax - ymin < 1e-12) ymax = ymin + 1;
     const double pad = 0.05 * (ymax - ymin);
     ymin = std::max(0.0, ymin - pad), ymax += pad;
@@ -118,8 +126,12 @@ void write_line_plot_png(const std::filesystem::path& path, const std::vector<Li
     c.line(left, Y(ymin), left, Y(ymax), black);
     for (Eigen::Index i = 1; i < p.x.size(); ++i)
       c.line(X(p.x(i - 1)), Y(p.y(i - 1)), X(p.x(i)), Y(p.y(i)), blue, 2);
+    const std::array<unsigned char, 3> orange{240, 140, 20};
+    for (Eigen::Index i = 1; i < p.x2.size(); ++i)
+      c.line(X(p.x2(i - 1)), Y(p.y2(i - 1)), X(p.x2(i)), Y(p.y2(i)), orange, 2);
     Eigen::Index best = 0;
     p.y.minCoeff(&best);
+    if (p.mark_minimum)
     for (int a = -3; a <= 3; ++a)
       for (int b = -3; b <= 3; ++b)
         if (a * a + b * b <= 9) c.set(static_cast<int>(X(p.x(best))) + a, static_cast<int>(Y(p.y(best))) + b, red);

@@ -14,6 +14,9 @@ struct LinePanel {
   std::string title;   // e.g. "height_cm rmse cm" (letters, digits, _ % . - : and spaces)
   Eigen::VectorXd x;   // #points
   Eigen::VectorXd y;   // #points (finite)
+  // Optional second curve (orange), its own points; empty = none.
+  Eigen::VectorXd x2, y2;
+  bool mark_minimum = true;  // red dot on the first curve's minimum
 };
 
 struct LinePlotOptions {

@@ -39,6 +39,7 @@ int main(int argc, char** argv) {
   PointCloud pc{V, N};
   write_point_cloud(tmp / "p.ply", pc);
   for (auto n : {"t.obj"}) put("fuzz_obj", n, std::string(std::istreambuf_iterator<char>(std::ifstream(tmp / n).rdbuf()), {}));
+  put("fuzz_off", "tri.off", "OFF\n# c\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n");
   put("fuzz_obj", "quads.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\ng body\nf 1/1/1 2/2/2 3/3/3 4/4/4\nf -1 -2 -3\n");
   for (auto n : {"t.ply", "a.ply", "p.ply"})
     put("fuzz_ply", n, std::string(std::istreambuf_iterator<char>(std::ifstream(tmp / n, std::ios::binary).rdbuf()), {}));

@@ -67,6 +67,11 @@ inline void check_names_sanitise(const std::vector<std::string>& names) {
 
 inline void read_obj(const std::string& in) { parse_mesh(in, "obj", "fuzz.obj"); }
 
+inline void read_off(const std::string& in) {
+  const Mesh m = parse_mesh(in, "off", "fuzz.off");
+  check(m.V.allFinite() && (m.F.size() == 0 || (m.F.minCoeff() >= 0 && m.F.maxCoeff() < m.V.rows())));
+}
+
 inline void read_ply(const std::string& in) {
   allowing_rejection([&] { parse_mesh(in, "ply", "fuzz.ply"); });
   parse_ply_point_cloud(in, "fuzz.ply");
@@ -195,7 +200,7 @@ inline void read_encoding_npz(const std::string& in) {
 // fuzz target name (without "fuzz_") → reader.
 inline const std::map<std::string, std::function<void(const std::string&)>>& readers() {
   static const std::map<std::string, std::function<void(const std::string&)>> table = {
-      {"obj", read_obj},           {"ply", read_ply},
+      {"obj", read_obj},           {"ply", read_ply},           {"off", read_off},
       {"npz", read_npz},           {"bvh", read_bvh},
       {"mh_target", read_mh_target}, {"mhskel", read_mhskel},
       {"mhw", read_mhw},           {"landmarks", read_landmarks_json},

@@ -6,6 +6,7 @@
 #include "core/error.h"
 
 #include "model/pca.h"
+#include "model/pca_float.h"
 #include "model/semantic.h"
 
 namespace bodymodel {
@@ -65,6 +66,41 @@ TEST(Pca, PartialEigenSolverAgreesWithTheFullOne) {
   Pca f = fit_pca(X, {1.0, 10, PcaEigenSolver::full});
   EXPECT_TRUE(a.basis == f.basis);
   EXPECT_THROW(fit_pca(X, {1.0, -1, PcaEigenSolver::partial}), InputError);
+}
+
+// The float32 overload (databases whose encodings do not fit in memory as doubles) computes
+// the same PCA as the double one on the same (float-rounded) samples: a block of rows at a
+// time (D here spans three blocks), on a subset of the columns, with the basis orthonormal to
+// rounding although there is no QR pass.
+TEST(Pca, Float32BlockedPcaMatchesTheDoubleOne) {
+  const Eigen::MatrixXf Xf = random_low_rank(9000, 40, 25, 3).cast<float>();
+  std::vector<int> columns;
+  for (int i = 0; i < 40; i += 2) columns.push_back(i);  // 20 samples
+  Eigen::MatrixXd Xd(Xf.rows(), columns.size());
+  for (size_t j = 0; j < columns.size(); ++j) Xd.col(j) = Xf.col(columns[j]).cast<double>();
+  for (double threshold : {1.0, 0.9}) {
+    SCOPED_TRACE(threshold);
+    PcaSummary sd, sf;
+    const Pca d = fit_pca(Xd, {threshold, -1, PcaEigenSolver::full}, &sd);
+    const Pca f = fit_pca(Xf, columns, {threshold, -1, PcaEigenSolver::full}, &sf);
+    ASSERT_EQ(f.component_count(), d.component_count());
+    EXPECT_EQ(sf.samples, 20);
+    EXPECT_NEAR(sf.explained, sd.explained, 1e-10);
+    EXPECT_LT((f.mean - d.mean).cwiseAbs().maxCoeff(), 1e-10);
+    const int K = d.component_count();
+    EXPECT_LT((f.basis.transpose() * f.basis - Eigen::MatrixXd::Identity(K, K)).cwiseAbs().maxCoeff(), 1e-10);
+    for (int k = 0; k < K; ++k) {
+      EXPECT_NEAR(f.eigenvalues(k), d.eigenvalues(k), 1e-9 * d.eigenvalues(0)) << k;
+      const double sign = f.basis.col(k).dot(d.basis.col(k)) < 0 ? -1 : 1;
+      EXPECT_LT((f.basis.col(k) - sign * d.basis.col(k)).cwiseAbs().maxCoeff(), 1e-7) << k;
+      EXPECT_LT((f.coefficients.col(k) - sign * d.coefficients.col(k)).cwiseAbs().maxCoeff(),
+                1e-7 * d.coefficients.cwiseAbs().maxCoeff()) << k;
+    }
+  }
+  // All columns when the list is empty; bad column indices and too few samples are refused.
+  EXPECT_EQ(fit_pca(Xf, {}, {1.0, -1}).coefficients.rows(), 40);
+  EXPECT_THROW(fit_pca(Xf, {0, 40}, {1.0, -1}), InputError);
+  EXPECT_THROW(fit_pca(Xf, {3}, {1.0, -1}), InputError);
 }
 
 TEST(ConstrainedChange, MeetsEveryConstraintWithMinimumNorm) {

@@ -1,0 +1,160 @@
+// bodymodel fit model.npz --in mesh.ply --out fitted.ply [--components K] [--pose]
+#include <fmt/format.h>
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "core/io/atomic_write.h"
+#include "core/io/mesh_io.h"
+#include "core/measure.h"
+#include "model/fit.h"
+#include "model/morph.h"
+#include "tools/verb.h"
+#include "tools/verbs/model_common.h"
+
+namespace bodymodel {
+namespace {
+
+struct FitArgs {
+  std::string model, in, out, json;
+  int components = -1;
+  bool pose = false;
+  double scale = 0;  // 0 = the model's
+  int iterations = 20;
+  double prior = 0;
+  std::string sex = "unknown";
+};
+
+double json_number(double v) { return std::isfinite(v) ? v : 0.0; }
+
+}  // namespace
+
+BODYMODEL_VERB(add_model_fit_verb) {
+  auto a = std::make_shared<FitArgs>();
+  auto* cmd = app.add_subcommand(
+      "fit",
+      "Fit the model to a mesh of its topology (a registered scan): the coefficients, and a rigid\n"
+      "placement, that minimise the VERTEX error of the decoded body against the mesh, by\n"
+      "Levenberg-Marquardt through the decoder with its exact Jacobian, starting from the\n"
+      "projection of the mesh's encoding (docs/model.md). Writes the fitted body (mm, placed on the\n"
+      "input) and a JSON with the coefficients, the fit error and every label: predicted by the\n"
+      "model's regression from the coefficients and, where a mesh can tell, measured on the input\n"
+      "and on the fitted body (measurements assume a standing pose). To morph your own scan: fit,\n"
+      "then `bodymodel morph model.npz --in fitted.ply ...`.\n"
+      "Example: bodymodel fit faust.npz --in tr_reg_000.off --out fitted.ply --pose");
+  cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`)")->required();
+  cmd->add_option("--in", a->in, "Mesh with the model's topology (OBJ, PLY or OFF)")->required();
+  cmd->add_option("--out", a->out, "Fitted body (OBJ or PLY, mm)")->required();
+  cmd->add_option("--json", a->json, "Coefficients and labels (default: --out with .json)");
+  cmd->add_option("--components", a->components, "Leading components to fit (-1: all)")->capture_default_str();
+  cmd->add_flag("--pose", a->pose,
+                "Fit the full model (pose and shape) instead of the shape-only model (standard-pose bodies)");
+  cmd->add_option("--scale", a->scale,
+                  "Millimetres per unit of --in (0: the unit the model was built from, e.g. 1000 for FAUST)")
+      ->capture_default_str();
+  cmd->add_option("--iterations", a->iterations, "Maximum Levenberg-Marquardt iterations")->capture_default_str();
+  cmd->add_option("--prior", a->prior,
+                  "Weight (mm²) of a Gaussian prior on the coefficients (0: the plain best fit)")
+      ->capture_default_str();
+  cmd->add_option("--sex", a->sex, "female|male: for the body-fat measurement")
+      ->check(CLI::IsMember({"unknown", "female", "male"}));
+  cmd->callback([a] {
+    namespace fs = std::filesystem;
+    if (a->components == 0 || a->components < -1)
+      throw InputError(fmt::format("--components must be ≥ 1 or -1, got {}", a->components));
+    if (a->scale < 0 || !std::isfinite(a->scale)) throw InputError("--scale must be positive (or 0: the model's)");
+    if (a->iterations < 0) throw InputError("--iterations must be ≥ 0");
+    auto model = std::make_shared<const BodyModel>(model_cli::load_model_for_cli(a->model));
+    const bool full = a->pose || model->metadata.value("shape_model", "") == "full";
+    const SubModel& sub = full ? model->full : model->shape;
+    if (a->components > sub.component_count())
+      throw InputError(fmt::format("--components {}: the {} model of '{}' has {} components", a->components,
+                                   full ? "full" : "shape", a->model, sub.component_count()));
+    double scale = a->scale;
+    if (scale == 0) {
+      scale = 1;
+      if (model->metadata.contains("source") && model->metadata["source"].contains("mm_per_unit"))
+        scale = model->metadata["source"]["mm_per_unit"].get<double>();
+    }
+    Mesh mesh = read_mesh(a->in);
+    // A model built with --first-mesh-faces takes meshes with its vertices and any triangles.
+    if (model->metadata.contains("source") && model->metadata["source"].value("first_mesh_faces", false) &&
+        mesh.V.rows() == model->tmpl->vertex_count())
+      mesh.F = model->tmpl->faces();
+    model->check_topology(mesh.V * scale, mesh.F, "'" + a->in + "'");
+    const Eigen::MatrixX3d Y = mesh.V * scale;
+    ModelFitter fitter(model->tmpl, model->mean, sub.pca);
+    ModelFitOptions o;
+    o.components = a->components;
+    o.max_iterations = a->iterations;
+    o.prior_weight = a->prior;
+    cli::ProgressBar bar("fit");
+    ModelFit fit = fitter.fit(Y, o, bar.callback());
+    bar.finish(fit.summary.report());
+    write_mesh(a->out, fit.V, mesh.F);
+
+    // Labels: predicted (regression on all components, the unfitted ones 0) and measured.
+    Eigen::VectorXd c = Eigen::VectorXd::Zero(sub.component_count());
+    c.head(fit.coefficients.size()) = fit.coefficients;
+    const Eigen::VectorXd predicted = sub.regression.predict(c);
+    MeasureOptions mo;
+    const std::string up = model->metadata.contains("source") ? model->metadata["source"].value("up_axis", "y") : "y";
+    mo.up_axis = up == "x" ? 0 : up == "z" ? 2 : 1;
+    const Sex sex = a->sex == "female" ? Sex::female : a->sex == "male" ? Sex::male : Sex::unknown;
+    auto measure = [&](const Eigen::MatrixX3d& V) -> std::optional<BodyMeasurements> {
+      try {
+        return measure_body(V, mesh.F, sex, mo);
+      } catch (const InputError&) {
+        return std::nullopt;
+      }
+    };
+    const auto m_in = measure(Y), m_fit = measure(fit.V);
+    nlohmann::json labels = nlohmann::json::object();
+    for (int i = 0; i < sub.regression.label_count(); ++i) {
+      const LabelInfo& L = sub.regression.labels[i];
+      nlohmann::json j = {{"unit", L.unit}, {"predicted", json_number(predicted(i))}};
+      if (m_in && measured_label(L.name, *m_in)) j["measured_input"] = *measured_label(L.name, *m_in);
+      if (m_fit && measured_label(L.name, *m_fit)) j["measured_fitted"] = *measured_label(L.name, *m_fit);
+      labels[L.name] = j;
+    }
+    for (const char* name : {"height_cm", "weight_kg", "volume_l", "chest_cm", "waist_cm", "hips_cm", "neck_cm"})
+      if (!labels.contains(name)) {
+        nlohmann::json j = {{"unit", name == std::string("volume_l") ? "L" : name == std::string("weight_kg") ? "kg" : "cm"}};
+        if (m_in && measured_label(name, *m_in)) j["measured_input"] = *measured_label(name, *m_in);
+        if (m_fit && measured_label(name, *m_fit)) j["measured_fitted"] = *measured_label(name, *m_fit);
+        if (j.size() > 1) labels[name] = j;
+      }
+    nlohmann::json out = {
+        {"model", a->model},
+        {"input", a->in},
+        {"sub_model", full ? "full" : "shape"},
+        {"components", fit.summary.components},
+        {"coefficients", std::vector<double>(fit.coefficients.data(), fit.coefficients.data() + fit.coefficients.size())},
+        {"input_mm_per_unit", scale},
+        {"vertex_error_mm",
+         {{"mean", fit.summary.mean_mm}, {"rms", fit.summary.rms_mm}, {"p95", fit.summary.p95_mm}, {"max", fit.summary.max_mm}}},
+        {"start_mean_vertex_error_mm", fit.summary.start_mean_mm},
+        {"iterations", fit.summary.iterations},
+        {"jacobians", fit.summary.jacobians},
+        {"decodes", fit.summary.evaluations},
+        {"converged", fit.summary.converged},
+        {"history_mean_vertex_error_mm", fit.summary.history_mean_mm},
+        {"seconds", fit.summary.seconds},
+        {"labels", labels},
+        {"note", "measured_* values assume a closed mesh in a standing pose (core/measure.h); predicted values "
+                 "come from the model's regression (docs/method.md §4.2)"}};
+    fs::path json_path = a->json.empty() ? fs::path(a->out).replace_extension(".json") : fs::path(a->json);
+    write_text_file(json_path, out.dump(2) + "\n");
+    fmt::print("{}\n", fit.summary.report());
+    for (auto& [name, j] : labels.items()) {
+      std::string line = fmt::format("  {:<14}", name);
+      if (j.contains("predicted")) line += fmt::format(" predicted {:>9.3f}", j["predicted"].get<double>());
+      if (j.contains("measured_input")) line += fmt::format("  measured input {:>9.3f}", j["measured_input"].get<double>());
+      if (j.contains("measured_fitted")) line += fmt::format("  fitted {:>9.3f}", j["measured_fitted"].get<double>());
+      fmt::print("{} {}\n", line, j["unit"].get<std::string>());
+    }
+    cli::info(fmt::format("wrote {} and {}", a->out, json_path.string()));
+  });
+}
+
+}  // namespace bodymodel
