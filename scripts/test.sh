@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The test command: installs what is missing, builds (Release, ./build), runs the whole suite.
 # Options: --sanitize   build in ./build-asan with AddressSanitizer + UndefinedBehaviorSanitizer
-#                       (clang++, -O2, line tables: so CI builds the project with both compilers)
+#                       (g++, or clang++ with BODYMODEL_SANITIZE_CXX=clang++; -O2, line tables)
 #                       and run the reader and fast unit tests there (CTest labels "reader" and
 #                       "fast"); any sanitizer report fails its test. .ci/run runs both.
 set -euo pipefail
@@ -15,12 +15,14 @@ config=(-DCMAKE_BUILD_TYPE=Release)
 ctest_args=()   # the sanitizer phase selects labels
 if [ "${1:-}" = "--sanitize" ]; then
   build="$here/build-asan"
-  # clang: the Release phase is gcc, so CI compiles and tests the project with both. A build
-  # folder configured with another compiler is configured afresh.
-  if [ -f "$build/CMakeCache.txt" ] && ! grep -q "^CMAKE_CXX_COMPILER:[A-Z]*=.*clang++" "$build/CMakeCache.txt"; then
+  # The compiler: g++ by default (the sanitizer build CI has run on the whole tree);
+  # BODYMODEL_SANITIZE_CXX=clang++ builds it with clang (as scripts/fuzz.sh does). A build folder
+  # configured with another compiler is configured afresh.
+  cxx="${BODYMODEL_SANITIZE_CXX:-g++}"
+  if [ -f "$build/CMakeCache.txt" ] && ! grep -q "^CMAKE_CXX_COMPILER:[A-Z]*=.*${cxx}\$" "$build/CMakeCache.txt"; then
     rm -rf "$build"
   fi
-  config=(-DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo
+  config=(-DCMAKE_CXX_COMPILER="$cxx" -DCMAKE_BUILD_TYPE=RelWithDebInfo
           "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG" -DBODYMODEL_SANITIZE=ON -DBODYMODEL_BENCH=OFF
           -DBODYMODEL_PYTHON=OFF)
   # halt_on_error: the first report fails the test (UBSan too: -fno-sanitize-recover).
