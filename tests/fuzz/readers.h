@@ -62,6 +62,13 @@ inline void read_ply(const std::string& in) {
   parse_ply_point_cloud(in, "fuzz.ply");
 }
 
+// OFF as a mesh (polygons triangulated) and as a point cloud's vertices; what is read must be
+// finite with every index in range.
+inline void read_off(const std::string& in) {
+  const Mesh m = parse_mesh(in, "off", "fuzz.off");
+  check(m.V.allFinite() && m.F.rows() > 0 && m.F.minCoeff() >= 0 && m.F.maxCoeff() < m.V.rows());
+}
+
 inline void read_npz(const std::string& in) {
   Npz z = Npz::parse(in, "fuzz.npz");
   for (auto& k : z.keys()) {
@@ -168,7 +175,7 @@ inline void read_rig_npz(const std::string& in) {
 // fuzz target name (without "fuzz_") → reader.
 inline const std::map<std::string, std::function<void(const std::string&)>>& readers() {
   static const std::map<std::string, std::function<void(const std::string&)>> table = {
-      {"obj", read_obj},           {"ply", read_ply},
+      {"obj", read_obj},           {"ply", read_ply},           {"off", read_off},
       {"npz", read_npz},           {"bvh", read_bvh},
       {"mh_target", read_mh_target}, {"mhskel", read_mhskel},
       {"mhw", read_mhw},           {"landmarks", read_landmarks_json},
