@@ -19,6 +19,8 @@
 #include "core/makehuman.h"
 #include <nlohmann/json.hpp>
 #include "core/io/pose_csv.h"
+#include "registration/fit_check.h"
+#include "registration/local_fold_repair.h"
 #include "registration/register_scan.h"
 #include "tools/console.h"
 #include "tools/pipeline/batch_jobs.h"
@@ -38,7 +40,7 @@ struct RegisterArgs {
   double scan_unit_mm = 1.0;
   std::string start_from_truth;  // evaluation only: "", "mesh" or "pose"
   bool force = false, pose_only = false, no_proportions = false, no_shape_fit = false;
-  bool proportions_with_shape = false;
+  bool proportions_with_shape = false, repair_local_folds = false;
   std::string hand_stage = "on";  // finger curls and thumbs fitted after the body (hand stage)
 };
 
@@ -151,6 +153,12 @@ BODYMODEL_VERB(add_register_verb) {
                   "non-rigid fit from DB/truth/<id>.ply ('mesh': measures the non-rigid stage's "
                   "own drift) or from the template posed with DB/truth/<id>.pose.csv ('pose')")
       ->check(CLI::IsMember({"mesh", "pose"}));
+  cmd->add_flag("--repair-local-folds", a->repair_local_folds,
+                "After the fold repair against the posed template, also re-solve local folds "
+                "(a triangle facing against its 2-ring, unlike at rest: the posed template's own "
+                "skinning creases) from the rest template's shape (registration/"
+                "local_fold_repair.h; on for real bodies, off by default so the synthetic "
+                "database's figures stay as measured)");
   cmd->add_flag("--force", a->force, "Register again scans that are already done");
   cmd->callback([a] {
     const fs::path db = a->db, out = a->out;
@@ -249,6 +257,12 @@ BODYMODEL_VERB(add_register_verb) {
       }
       RegistrationResult r =
           register_scan(tpl, scan, landmarks, scan_options, scan_path.string(), &s, report);
+      if (a->repair_local_folds && !a->pose_only) repair_local_folds(r.V, r.rest.V, tpl.mesh.F);
+      // Not a body (a sphere), or landmarks not its own: failed, nothing written.
+      if (!a->pose_only) {
+        const FitCheck fc = check_registration_fit(r.V, r.pose.V, r.rest.V, tpl.mesh.F, scan);
+        if (!fc.plausible) throw InputError(scan_path.string() + ": registration failed: " + fc.reason);
+      }
       PoseRecord rec;
       rec.scale = r.pose.scale;
       rec.pose = r.pose.pose;
