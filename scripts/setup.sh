@@ -13,6 +13,7 @@ packages=(
   libceres-dev libnanoflann-dev libsuitesparse-dev libtbb-dev
   libcli11-dev nlohmann-json3-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev libtinygltf-dev libstb-dev libsvm-dev zlib1g-dev
+  snakemake  # workflow/Snakefile: registration at scale (register --shard jobs as rules)
 )
 
 missing=()
