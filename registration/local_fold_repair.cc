@@ -9,37 +9,6 @@ namespace bodymodel {
 
 namespace {
 
-// Area-weighted normal of the triangles within `rings` vertex rings of each triangle.
-Eigen::MatrixX3d ring_normals(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, int rings) {
-  std::vector<std::vector<int>> vertex_faces(V.rows());
-  for (Eigen::Index f = 0; f < F.rows(); ++f)
-    for (int c = 0; c < 3; ++c) vertex_faces[F(f, c)].push_back(int(f));
-  Eigen::MatrixX3d N(F.rows(), 3);
-  for (Eigen::Index f = 0; f < F.rows(); ++f)
-    N.row(f) = (V.row(F(f, 1)) - V.row(F(f, 0))).cross(V.row(F(f, 2)) - V.row(F(f, 0)));
-  Eigen::MatrixX3d S(F.rows(), 3);
-  std::vector<int> stamp(F.rows(), -1), front, next;
-  for (Eigen::Index f = 0; f < F.rows(); ++f) {
-    Eigen::RowVector3d sum = N.row(f);
-    front.assign(1, int(f));
-    stamp[f] = int(f);
-    for (int r = 0; r < rings; ++r) {
-      next.clear();
-      for (int g : front)
-        for (int c = 0; c < 3; ++c)
-          for (int h : vertex_faces[F(g, c)])
-            if (stamp[h] != f) {
-              stamp[h] = int(f);
-              next.push_back(h);
-              sum += N.row(h);
-            }
-      front.swap(next);
-    }
-    S.row(f) = sum;
-  }
-  return S;
-}
-
 int count(const std::vector<char>& v) {
   int n = 0;
   for (char c : v) n += c != 0;
