@@ -14,7 +14,6 @@
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
 #include "core/landmarks.h"
-#include "core/makehuman.h"
 #include "core/up_axis.h"
 #include <nlohmann/json.hpp>
 #include "registration/detail_transfer.h"
@@ -25,6 +24,7 @@
 #include "registration/register_scan.h"
 #include "tools/console.h"
 #include "tools/pipeline/batch_jobs.h"
+#include "tools/pipeline/registration_setup.h"
 #include "tools/verb.h"
 
 namespace bodymodel {
@@ -162,17 +162,10 @@ BODYMODEL_VERB(add_register_mesh_verb) {
       return;
     }
 
-    MakeHuman mh = MakeHuman::load();
-    MakeHuman::Body body = mh.body(MacroSettings{});
-    RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, {}, {}};
-    if (!a->no_shape_fit) tpl.shape_space = mh;
-    RegistrationOptions options;
-    options.nonrigid.schedule =
-        a->schedule == "paper" ? NonrigidSchedule::paper : NonrigidSchedule::fast;
-    options.nonrigid.fast_steps = a->fast_steps;
-    options.nonrigid.fast_k_end = a->fast_k_end;
-    options.skip_nonrigid = a->pose_only;
-    options.fit_proportions = !a->no_proportions;
+    RegistrationSetup setup = makehuman_registration_setup(
+        {a->schedule, a->fast_steps, a->fast_k_end, a->pose_only, a->no_proportions, a->no_shape_fit});
+    const RegistrationTemplate& tpl = setup.tpl;
+    RegistrationOptions& options = setup.options;
     options.pose.max_icp_iterations = a->pose_iterations;
     // options.pose.parameters left empty: default_pose_parameters(), as `register`.
 

@@ -24,6 +24,7 @@
 #include "registration/register_scan.h"
 #include "tools/console.h"
 #include "tools/pipeline/batch_jobs.h"
+#include "tools/pipeline/registration_setup.h"
 #include "tools/verb.h"
 
 namespace bodymodel {
@@ -198,19 +199,11 @@ BODYMODEL_VERB(add_register_verb) {
       return;
     }
 
-    MakeHuman mh = MakeHuman::load();
-    MakeHuman::Body body = mh.body(MacroSettings{});
-    RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, {}, {}};
-    if (!a->no_shape_fit) tpl.shape_space = mh;
-    RegistrationOptions options;
-    options.nonrigid.schedule =
-        a->schedule == "paper" ? NonrigidSchedule::paper : NonrigidSchedule::fast;
-    options.nonrigid.fast_steps = a->fast_steps;
-    options.nonrigid.fast_k_end = a->fast_k_end;
+    RegistrationSetup setup = makehuman_registration_setup(
+        {a->schedule, a->fast_steps, a->fast_k_end, a->pose_only, a->no_proportions, a->no_shape_fit});
+    const RegistrationTemplate& tpl = setup.tpl;
+    RegistrationOptions& options = setup.options;
     options.nonrigid.normalization_length = a->transform_length;
-    options.skip_nonrigid = a->pose_only;
-    options.fit_proportions = !a->no_proportions;
-    options.fit_shape = !a->no_shape_fit;
     options.proportions_with_shape = a->proportions_with_shape;
     if (a->pose_joints == "bone") options.pose.parameters = bone_pose_parameters();
     if (a->pose_joints == "segment") options.pose.parameters = segment_pose_parameters();
