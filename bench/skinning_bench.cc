@@ -9,6 +9,12 @@
 //    300 000 vertices × 50 poses: points spread over the MakeHuman body's triangles (a
 //    subdivided body, each point a fixed barycentric combination of its triangle's corners),
 //    posed by the 163-bone default skeleton through 50 frames of CMU clip 02_02.
+//  * Every method (issue 26): posing rigs fitted to the horse gallop (8 431 vertices, 24 recovered
+//    bones, 8 influences, 10 training poses, settings as fitted without cross-validation) with the
+//    double-precision reference evaluators (evaluate_rig: ssd, dqs, as, mwe; evaluate_pose_space:
+//    psd, eigenskin, quadratic), one thread, CPU time. BM_EveryMethodRatios times all seven in turn
+//    in the same process (median of 7 rounds) and reports each as a ratio to SSD's reference time;
+//    the float32 SIMD runtime of ssd/as/mwe (above) is a separate, faster path.
 //   ./build/skinning_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 
@@ -26,19 +32,18 @@
 #include "skinning/fit_mwe.h"
 #include "skinning/runtime_skinning.h"
 #include "skinning/sequence_evaluation.h"
+#include "skinning/skinning_model.h"
+
+#include <tbb/global_control.h>
 
 namespace bodymodel {
 namespace {
 
 constexpr int kBones = 24, kInfluences = 4;
 
-// CPU seconds of the whole process (all threads): on a machine shared with other jobs the wall time
-// of a multithreaded fit mostly measures the others; CPU seconds / cores is the idle-machine wall.
-double process_cpu_seconds() {
-  rusage u;
-  getrusage(RUSAGE_SELF, &u);
-  return u.ru_utime.tv_sec + u.ru_stime.tv_sec + 1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
+// process_cpu_seconds() (skinning/sequence_evaluation.h): CPU seconds of the whole process (all
+// threads): on a machine shared with other jobs the wall time of a multithreaded fit mostly
+// measures the others; CPU seconds / cores is the idle-machine wall.
 
 SkinningRig random_rig(SkinningMethod method, int vertices) {
   std::mt19937 rng(1);
@@ -102,22 +107,34 @@ BENCHMARK(BM_RuntimePose)
     ->MeasureProcessCPUTime()
     ->Unit(benchmark::kMicrosecond);
 
-void BM_MweFitHorse(benchmark::State& state) {
-  const auto dir = data_file("animations/horse-gallop");
-  std::vector<std::filesystem::path> files;
-  for (const auto& e : std::filesystem::directory_iterator(dir))
-    if (e.path().extension() == ".obj") files.push_back(e.path());
-  std::sort(files.begin(), files.end());
+struct HorseData {
   std::vector<Eigen::MatrixX3d> frames;
   Eigen::MatrixX3i F;
-  for (const auto& f : files) {
-    Mesh m = read_mesh(f);
-    F = m.F;
-    frames.push_back(m.V);
-  }
+};
+const HorseData& horse() {
+  static const HorseData h = [] {
+    HorseData d;
+    const auto dir = data_file("animations/horse-gallop");
+    std::vector<std::filesystem::path> files;
+    for (const auto& e : std::filesystem::directory_iterator(dir))
+      if (e.path().extension() == ".obj") files.push_back(e.path());
+    std::sort(files.begin(), files.end());
+    for (const auto& f : files) {
+      Mesh m = read_mesh(f);
+      d.F = m.F;
+      d.frames.push_back(m.V);
+    }
+    return d;
+  }();
+  return h;
+}
+
+void BM_MweFitHorse(benchmark::State& state) {
+  const HorseData& h = horse();
   SequenceEvaluationOptions opt;
+  opt.max_influences = 4;
   const PreparedSequence prep =
-      prepare_skinning_sequence(frames, F, evenly_spaced_frames(static_cast<int>(frames.size()), 10), opt);
+      prepare_skinning_sequence(h.frames, h.F, evenly_spaced_frames(static_cast<int>(h.frames.size()), 10), opt);
   double cpu = 0;
   for (auto _ : state) {
     const double c0 = process_cpu_seconds();
@@ -130,6 +147,73 @@ void BM_MweFitHorse(benchmark::State& state) {
                  std::to_string(state.range(0)) + " thread(s) (TBB default)");
 }
 BENCHMARK(BM_MweFitHorse)->Arg(2)->UseRealTime()->Unit(benchmark::kMillisecond)->Iterations(3);
+
+// Every method fitted once to the horse (see the header), and the pose of an unseen frame.
+struct EveryMethod {
+  std::vector<FittedModel> models;   // all_skinning_models() order
+  BoneTransforms pose;
+};
+const EveryMethod& every_method() {
+  static const EveryMethod e = [] {
+    const HorseData& h = horse();
+    SequenceEvaluationOptions opt;
+    const PreparedSequence prep =
+        prepare_skinning_sequence(h.frames, h.F, evenly_spaced_frames(static_cast<int>(h.frames.size()), 10), opt);
+    EveryMethod out;
+    for (SkinningModel m : all_skinning_models()) out.models.push_back(fit_model(m, prep.examples, prep.lbs, opt.fit));
+    out.pose = prep.transforms[1];   // frame 02: not a training frame
+    return out;
+  }();
+  return e;
+}
+
+void BM_EveryMethodPose(benchmark::State& state) {
+  const EveryMethod& e = every_method();
+  const FittedModel& m = e.models[static_cast<size_t>(state.range(0))];
+  tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+  for (auto _ : state) {
+    Eigen::MatrixX3d X = m.pose(e.pose);
+    benchmark::DoNotOptimize(X.data());
+  }
+  const double n = double(m.is_pose_space() ? m.pose_space.vertex_count() : m.rig.vertex_count());
+  state.counters["Mvertices_per_s"] = benchmark::Counter(n * state.iterations() / 1e6, benchmark::Counter::kIsRate);
+  state.SetLabel(skinning_model_name(m.model) + ", reference (double) evaluator, horse 8431 vertices, 24 bones, 8 "
+                 "influences, 10 training poses, 1 thread, CPU time");
+}
+BENCHMARK(BM_EveryMethodPose)->DenseRange(0, 6)->Unit(benchmark::kMicrosecond);
+
+// All seven timed in turn, 7 rounds, median CPU time per pose; ratio of SSD's time to each (so
+// 0.5 = half SSD's throughput).
+void BM_EveryMethodRatios(benchmark::State& state) {
+  const EveryMethod& e = every_method();
+  tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+  const size_t M = e.models.size();
+  std::vector<std::vector<double>> t(M);
+  for (auto _ : state) {
+    for (int round = 0; round < 7; ++round)
+      for (size_t m = 0; m < M; ++m) {
+        const int reps = 20;
+        const double c0 = process_cpu_seconds();
+        for (int r = 0; r < reps; ++r) {
+          Eigen::MatrixX3d X = e.models[m].pose(e.pose);
+          benchmark::DoNotOptimize(X.data());
+        }
+        t[m].push_back((process_cpu_seconds() - c0) / reps);
+      }
+  }
+  std::vector<double> med(M);
+  for (size_t m = 0; m < M; ++m) {
+    std::sort(t[m].begin(), t[m].end());
+    med[m] = t[m][t[m].size() / 2];
+  }
+  for (size_t m = 0; m < M; ++m) {
+    const std::string name = skinning_model_name(e.models[m].model);
+    state.counters[name + "_Mvert_per_cpu_s"] = 8431e-6 / med[m];
+    state.counters[name + "_throughput_vs_ssd"] = med[0] / med[m];
+  }
+  state.SetLabel("reference evaluators, horse rigs, 1 thread, median of 7 rounds of 20 poses (CPU time)");
+}
+BENCHMARK(BM_EveryMethodRatios)->Iterations(1)->Unit(benchmark::kSecond);
 
 struct LargeFitData {
   SkinningExamples ex;

@@ -34,7 +34,74 @@ bool is_limb_chain(const std::vector<std::string>& targets) {
   return !targets.empty();
 }
 
+std::string clip_name(const BvhMotion& clip) {
+  return clip.source.empty() ? std::string("BVH clip") : "BVH '" + clip.source + "'";
+}
+
+std::string joined(const std::vector<std::string>& names, size_t at_most = 8) {
+  std::string s;
+  for (size_t i = 0; i < names.size() && i < at_most; ++i) s += (i ? ", " : "") + names[i];
+  if (names.size() > at_most) s += ", ... (" + std::to_string(names.size()) + " in all)";
+  return s;
+}
+
+void check_unique_joint_names(const BvhMotion& clip) {
+  std::set<std::string> seen, twice;
+  for (const auto& j : clip.joints)
+    if (!seen.insert(j.name).second) twice.insert(j.name);
+  if (!twice.empty())
+    throw InputError(clip_name(clip) + ": two joints are named '" + *twice.begin() +
+                     "' (a joint name must be unique; which one would drive the bone?)");
+}
+
+// Largest rotation of joint j over the clip's frames, degrees.
+double largest_rotation_deg(const BvhMotion& clip, int j) {
+  bool rotates = false;
+  for (BvhChannel c : clip.joints[j].channels) rotates |= bvh_is_rotation(c);
+  if (!rotates) return 0;
+  double worst = 0;
+  for (int f = 0; f < clip.frame_count(); ++f) {
+    const double c = std::clamp((bvh_joint_rotation(clip, f, j).trace() - 1) / 2, -1.0, 1.0);
+    worst = std::max(worst, std::acos(c) * 180 / 3.14159265358979323846);
+  }
+  return worst;
+}
+
+// Bones the retarget chains of fingers, toes and eyes drive (a clip may lack their joints).
+bool is_extremity(const std::string& bone) {
+  return starts_with(bone, "finger") || starts_with(bone, "toe") || starts_with(bone, "metacarpal") ||
+         starts_with(bone, "eye");
+}
+
 }  // namespace
+
+void check_clip_by_bone_name(const BvhMotion& clip, const Skeleton& skeleton) {
+  check_unique_joint_names(clip);
+  std::vector<std::string> dropped;
+  for (int j = 0; j < static_cast<int>(clip.joints.size()); ++j) {
+    const std::string& name = clip.joints[j].name;
+    const int b = skeleton.find(name);
+    if (b < 0) {
+      if (largest_rotation_deg(clip, j) > 0.01) dropped.push_back(name);
+      continue;
+    }
+    // The nearest joint above it that names a bone must name one of the bone's ancestors.
+    int a = clip.joints[j].parent;
+    while (a >= 0 && skeleton.find(clip.joints[a].name) < 0) a = clip.joints[a].parent;
+    if (a < 0) continue;
+    const int ab = skeleton.find(clip.joints[a].name);
+    int p = skeleton.parents[b];
+    while (p >= 0 && p != ab) p = skeleton.parents[p];
+    if (p != ab)
+      throw InputError(clip_name(clip) + ": joint '" + name + "' hangs below '" + clip.joints[a].name +
+                       "' in the clip, but in the skeleton bone '" + name + "' is not below '" +
+                       clip.joints[a].name + "' (a renamed joint?); its rotation would turn the wrong part");
+  }
+  if (!dropped.empty())
+    throw InputError(clip_name(clip) + ": " + std::to_string(dropped.size()) + " rotating joint" +
+                     (dropped.size() == 1 ? " names" : "s name") + " no bone of the skeleton: " + joined(dropped) +
+                     " (renamed?); their motion would be lost");
+}
 
 RetargetOptions RetargetOptions::for_animation() {
   RetargetOptions o;
@@ -126,6 +193,33 @@ Retargeter::Retargeter(const BvhMotion& clip, const Skeleton& target, const Reta
     : clip_(clip), target_(target), options_(options) {
   clip_.validate();
   target_.validate();
+  // A renamed joint leaves its map entry without a source, and the bones it drives at rest.
+  check_unique_joint_names(clip_);
+  {
+    std::vector<std::string> missing, drives;
+    for (const auto& e : map.entries) {
+      if (clip_.find(e.source) >= 0) continue;
+      for (const auto& t : e.targets)
+        if (!is_extremity(t) && target_.find(t) >= 0) {
+          missing.push_back(e.source);
+          if (drives.empty()) drives = e.targets;
+          break;
+        }
+    }
+    if (!missing.empty()) {
+      std::vector<std::string> unknown;
+      std::set<std::string> sources;
+      for (const auto& e : map.entries) sources.insert(e.source);
+      for (const auto& j : clip_.joints)
+        if (!sources.count(j.name)) unknown.push_back(j.name);
+      throw InputError(clip_name(clip_) + ": the retarget map needs " +
+                       (missing.size() == 1 ? "joint '" + missing[0] + "' (it drives " + joined(drives) + ")"
+                                            : "joints " + joined(missing) + " (the first drives " + joined(drives) + ")") +
+                       ", which the clip lacks" +
+                       (unknown.empty() ? std::string() : "; joints the map does not know: " + joined(unknown)) +
+                       " (renamed joints?)");
+    }
+  }
   C_ = bvh_axis_conversion(options.up_axis ? *options.up_axis : guess_bvh_up_axis(clip_));
   const int nj = static_cast<int>(clip_.joints.size());
   const int nb = target_.bone_count();
@@ -329,6 +423,7 @@ std::vector<Pose> poses_from_bvh(const BvhMotion& clip, const Skeleton& skeleton
   for (const auto& j : clip.joints) named += skeleton.find(j.name) >= 0;
   std::vector<Pose> out;
   if (named * 2 >= skeleton.bone_count()) {
+    check_clip_by_bone_name(clip, skeleton);
     BvhPoseOptions o;
     o.apply_root_translation = with_translation;
     for (int f = 0; f < clip.frame_count(); ++f) out.push_back(bvh_frame_to_pose(clip, f, skeleton, o));

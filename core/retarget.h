@@ -100,7 +100,10 @@ struct RetargetOptions {
   static RetargetOptions for_animation();
 };
 
-// Drives `target` (the MakeHuman default skeleton, any body shape) with `clip`.
+// Drives `target` (the MakeHuman default skeleton, any body shape) with `clip`. The constructor
+// refuses (InputError naming clip.source) a clip with two joints of one name, or without a
+// joint the map needs to drive a body or limb bone (a renamed joint: its chain would stay at
+// rest); joints for fingers, toes and eyes may be missing.
 class Retargeter {
  public:
   Retargeter(const BvhMotion& clip, const Skeleton& target, const RetargetMap& map,
@@ -135,9 +138,18 @@ class Retargeter {
   std::vector<std::string> unmatched_;
 };
 
+// Throws InputError (naming clip.source) when `clip`, applied to `skeleton` by bone name as
+// bvh_frame_to_pose does, would lose or misplace motion: two joints share a name; a joint that
+// names no bone rotates (more than 0.01 degrees in some frame: renamed or foreign joints, whose
+// rotation would be dropped); or a joint hangs below a bone in the clip that is not its ancestor
+// in the skeleton (a joint given the root's or another bone's name). Joints that name no bone
+// and never rotate (tpose.bvh's metatarsals) and skeleton bones the clip lacks (identity) pass.
+void check_clip_by_bone_name(const BvhMotion& clip, const Skeleton& skeleton);
+
 // Poses for `skeleton` from any BVH: files whose joints carry the skeleton's bone names
 // (motion/poses/*.bvh) are applied directly (bvh_frame_to_pose, rotations only unless
-// `with_translation`); other skeletons (the CMU clips) are retargeted with RetargetMap::for_clip.
+// `with_translation`; checked with check_clip_by_bone_name); other skeletons (the CMU clips) are
+// retargeted with RetargetMap::for_clip.
 std::vector<Pose> poses_from_bvh(const BvhMotion& clip, const Skeleton& skeleton,
                                  const std::filesystem::path& makehuman_dir,
                                  bool with_translation = false);

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/io/file_names.h"
 #include "core/io/mesh_io.h"
 #include "core/skeleton.h"
 #include "model/format.h"
@@ -122,7 +123,11 @@ std::vector<ScanTableRow> read_scan_table(const fs::path& path) {
   int a = column(rows[0], "scan_id", path), b = column(rows[0], "subject_id", path),
       c = column(rows[0], "pose", path);
   std::vector<ScanTableRow> out;
-  for (size_t r = 1; r < rows.size(); ++r) out.push_back({rows[r][a], rows[r][b], rows[r][c]});
+  for (size_t r = 1; r < rows.size(); ++r) {
+    // A scan id names files (REG/<id>.ply, DB/truth/<id>.pose.csv): it must stay in its folder.
+    check_file_name(rows[r][a], fmt::format("'{}' line {}", path.string(), r + 1), "scan id");
+    out.push_back({rows[r][a], rows[r][b], rows[r][c]});
+  }
   return out;
 }
 

@@ -3,6 +3,7 @@
 #include "model/format.h"
 
 #include "core/error.h"
+#include "core/io/file_names.h"
 
 #include <cmath>
 
@@ -115,6 +116,12 @@ SubModel get_sub_model(const Npz& z, const std::string& p, bool shape, int D, co
   check_finite(m.pca.mean, p + "_mean", what);
   check_finite(m.pca.basis, p + "_basis", what);
   check_finite(m.pca.eigenvalues, p + "_eigenvalues", what);
+  // Eigenvalues are variances: a negative one made `generate` draw NaN coefficients and write
+  // identical bodies.
+  for (Eigen::Index k = 0; k < m.pca.eigenvalues.size(); ++k)
+    if (m.pca.eigenvalues(k) < 0)
+      throw InputError(fmt::format("{}: '{}_eigenvalues' element {} is {}, expected a variance ≥ 0", what, p, k,
+                                   m.pca.eigenvalues(k)));
   check_finite(m.pca.coefficients, p + "_coefficients", what);
   const std::string lp = shape ? "" : p + "_";
   m.labels = z.matrix(lp + "labels");
@@ -152,10 +159,30 @@ SubModel get_sub_model(const Npz& z, const std::string& p, bool shape, int D, co
 
 }  // namespace
 
+namespace {
+// Paths recorded in the metadata (metadata["source"]: the folders a model was built from) keep
+// only their last component, and so does any other absolute path: a model file must not carry
+// the folders of the machine that built it.
+void make_portable(nlohmann::json& j, bool in_source) {
+  if (j.is_string()) {
+    const std::string s = j.get<std::string>();
+    if (in_source || (s.size() > 1 && s[0] == '/')) j = path_label(s);
+  } else if (j.is_object()) {
+    for (auto& [key, value] : j.items()) make_portable(value, in_source || key == "source");
+  } else if (j.is_array()) {
+    for (auto& value : j) make_portable(value, in_source);
+  }
+}
+nlohmann::json portable_metadata(nlohmann::json meta) {
+  make_portable(meta, false);
+  return meta;
+}
+}  // namespace
+
 Npz model_to_npz(const BodyModel& model) {
   Npz z;
-  z.put_text("metadata", model.metadata.dump());
-  z.put("format_version", static_cast<double>(kModelFormatVersion));
+  z.put_text("metadata", portable_metadata(model.metadata).dump());
+  z.put_int("format_version", kModelFormatVersion);
   z.put("template_vertices", Eigen::MatrixXd(model.tmpl->rest_vertices()));
   z.put("template_faces", Eigen::MatrixXi(model.tmpl->faces()));
   z.put("encoding_mean", model.mean->values);

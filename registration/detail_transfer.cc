@@ -173,8 +173,8 @@ void write_detail(const std::filesystem::path& path, const SurfaceDetail& detail
   Npz z;
   z.put("offsets", Eigen::MatrixXd(detail.offsets));
   z.put("faces", Eigen::MatrixXi(F));
-  z.put("edges_found", double(detail.edges_found));
-  z.put("edges_missing", double(detail.edges_missing));
+  z.put_int("edges_found", detail.edges_found);
+  z.put_int("edges_missing", detail.edges_missing);
   z.put("line_radius", detail.line_radius);
   z.save(path);
 }

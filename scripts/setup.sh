@@ -7,8 +7,10 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # ccache: paths relative to the checkout, so a fresh clone elsewhere still hits the cache.
 export CCACHE_BASEDIR="$here" CCACHE_NOHASHDIR=1
 
+# clang and its sanitizer runtime (compiler-rt): the sanitizer phase of scripts/test.sh and the
+# fuzz targets (scripts/fuzz.sh) are built with clang.
 packages=(
-  g++ cmake ninja-build ccache pkg-config python3
+  g++ clang libclang-rt-14-dev cmake ninja-build ccache pkg-config python3
   libeigen3-dev libspectra-dev libcgal-dev libgmp-dev libmpfr-dev
   libceres-dev libnanoflann-dev libsuitesparse-dev libtbb-dev
   libcli11-dev nlohmann-json3-dev libfmt-dev

@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # The test command: installs what is missing, builds (Release, ./build), runs the whole suite.
 # Options: --sanitize   build in ./build-asan with AddressSanitizer + UndefinedBehaviorSanitizer
-#                       (gcc, -O2, line tables) and run the reader and fast unit tests there
-#                       (CTest labels "reader" and "fast"); any sanitizer report fails its test.
-#                       .ci/run runs both.
+#                       (clang++, -O2, line tables: so CI builds the project with both compilers)
+#                       and run the reader and fast unit tests there (CTest labels "reader" and
+#                       "fast"); any sanitizer report fails its test. .ci/run runs both.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # ccache: paths relative to the checkout, so a fresh clone elsewhere still hits the cache.
@@ -14,8 +14,13 @@ config=(-DCMAKE_BUILD_TYPE=Release)
 ctest_args=()   # the sanitizer phase selects labels
 if [ "${1:-}" = "--sanitize" ]; then
   build="$here/build-asan"
-  config=(-DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG"
-          -DBODYMODEL_SANITIZE=ON -DBODYMODEL_BENCH=OFF)
+  # clang: the Release phase is gcc, so CI compiles and tests the project with both. A build
+  # folder configured with another compiler is configured afresh.
+  if [ -f "$build/CMakeCache.txt" ] && ! grep -q "^CMAKE_CXX_COMPILER:[A-Z]*=.*clang++" "$build/CMakeCache.txt"; then
+    rm -rf "$build"
+  fi
+  config=(-DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo
+          "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG" -DBODYMODEL_SANITIZE=ON -DBODYMODEL_BENCH=OFF)
   # halt_on_error: the first report fails the test (UBSan too: -fno-sanitize-recover).
   # Leak checking is off by default (LeakSanitizer cannot run under ptrace, as in some CI
   # containers); BODYMODEL_DETECT_LEAKS=1 turns it on.

@@ -252,27 +252,37 @@ BoneTransforms fit_transforms_with_fixed_weights(const SkinningRig& rig, const E
       if (rig.influences(i, k) >= 0 && rig.coefficients(i, k) > 1e-8)
         members[static_cast<size_t>(rig.influences(i, k))].push_back({static_cast<int>(i), rig.coefficients(i, k)});
   BoneTransforms T = initial;
-  Eigen::MatrixX3d current = evaluate_rig(rig, T);   // Σ_k w_k M_k v
+  // Rows of `current` (#V by 3, Σ_k w_k M_k v) and of Q as contiguous 3-vectors.
+  Eigen::Matrix3Xd current = evaluate_rig(rig, T).transpose();
+  const Eigen::Matrix3Xd Qt = Q.transpose(), Vt = rig.rest.transpose();
   for (int it = 0; it < iterations; ++it) {
     for (int b = 0; b < B; ++b) {
       const auto& mem = members[static_cast<size_t>(b)];
       if (mem.size() < 3) continue;
-      std::vector<Eigen::Vector3d> a, t;
-      std::vector<double> w;
-      a.reserve(mem.size()), t.reserve(mem.size()), w.reserve(mem.size());
+      // Weighted Procrustes on the residual of the other bones, in one pass over the members:
+      // ‖wi (R v + t) − (q − others)‖² = wi² ‖R v + t − (q − others)/wi‖², so with weights wi²
+      // and targets (q − others)/wi: Σ wi², Σ wi² v, Σ wi (q − others), Σ wi (q − others) vᵀ.
+      const Eigen::Affine3d& Tb = T[static_cast<size_t>(b)];
+      double sw = 0;
+      Eigen::Vector3d sa = Eigen::Vector3d::Zero(), sb = Eigen::Vector3d::Zero();
+      Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
       for (const auto& [i, wi] : mem) {
-        const Eigen::Vector3d v = rig.rest.row(i).transpose();
-        const Eigen::Vector3d others = current.row(i).transpose() - wi * (T[static_cast<size_t>(b)] * v);
-        // ‖wi (R v + t) − (q − others)‖² = wi² ‖R v + t − (q − others)/wi‖²
-        a.push_back(v);
-        t.push_back((Q.row(i).transpose() - others) / wi);
-        w.push_back(wi * wi);
+        const Eigen::Vector3d v = Vt.col(i);
+        const Eigen::Vector3d r = Qt.col(i) - current.col(i) + wi * (Tb * v);   // wi · target
+        sw += wi * wi;
+        sa += wi * wi * v;
+        sb += wi * r;
+        S.noalias() += wi * r * v.transpose();
       }
-      const Eigen::Affine3d Tn = weighted_kabsch(a, t, w);
-      for (const auto& [i, wi] : mem) {
-        const Eigen::Vector3d v = rig.rest.row(i).transpose();
-        current.row(i) += (wi * (Tn * v - T[static_cast<size_t>(b)] * v)).transpose();
-      }
+      if (sw <= 0) continue;
+      const Eigen::Vector3d ca = sa / sw, cb = sb / sw;
+      S -= sw * cb * ca.transpose();
+      Eigen::Affine3d Tn = Eigen::Affine3d::Identity();
+      Tn.linear() = nearest_rotation(S);
+      Tn.translation() = cb - Tn.linear() * ca;
+      const Eigen::Matrix3d dR = Tn.linear() - Tb.linear();
+      const Eigen::Vector3d dt = Tn.translation() - Tb.translation();
+      for (const auto& [i, wi] : mem) current.col(i) += wi * (dR * Vt.col(i) + dt);
       T[static_cast<size_t>(b)] = Tn;
     }
   }

@@ -14,4 +14,9 @@ namespace bodymodel {
 Eigen::MatrixX3d dual_quaternion_skinning(const Eigen::MatrixX3d& V, const Eigen::MatrixXd& W,
                                           const BoneTransforms& M);
 
+// The same with sparse weights: influences #V by K (bone per slot, −1 unused), weights #V by K.
+// Multithreaded.                                                              returns #V by 3
+Eigen::MatrixX3d dual_quaternion_skinning(const Eigen::MatrixX3d& V, const Eigen::MatrixXi& influences,
+                                          const Eigen::MatrixXd& weights, const BoneTransforms& M);
+
 }  // namespace bodymodel

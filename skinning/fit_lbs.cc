@@ -20,43 +20,60 @@ std::string LbsFitSummary::brief() const {
   return s.str();
 }
 
-Eigen::VectorXd nonnegative_least_squares(const Eigen::MatrixXd& H, const Eigen::VectorXd& g) {
+namespace {
+
+// Lawson–Hanson active set on the normal equations, for Mat/Vec either dynamic or with a fixed
+// maximum size (no heap allocation: the per-vertex SSD solve runs millions of times).
+template <typename Mat, typename Vec>
+Vec nnls_impl(const Mat& H, const Vec& g) {
   const Eigen::Index n = g.size();
-  Eigen::VectorXd x = Eigen::VectorXd::Zero(n);
-  std::vector<bool> passive(static_cast<size_t>(n), false);
+  Vec x = Vec::Zero(n);
+  bool passive[Mat::MaxRowsAtCompileTime > 0 ? Mat::MaxRowsAtCompileTime : 1] = {};
+  std::vector<bool> passive_dyn;
+  auto is_p = [&](Eigen::Index i) -> bool {
+    return Mat::MaxRowsAtCompileTime > 0 ? passive[i] : static_cast<bool>(passive_dyn[static_cast<size_t>(i)]);
+  };
+  auto set_p = [&](Eigen::Index i, bool v) {
+    if (Mat::MaxRowsAtCompileTime > 0) passive[i] = v;
+    else passive_dyn[static_cast<size_t>(i)] = v;
+  };
+  if (Mat::MaxRowsAtCompileTime <= 0) passive_dyn.assign(static_cast<size_t>(n), false);
   const double scale = std::max(H.diagonal().cwiseAbs().maxCoeff(), 1e-300);
   const double tol = 1e-12 * scale * std::max(1.0, g.cwiseAbs().maxCoeff() / scale);
-  auto solve_passive = [&](Eigen::VectorXd* s) {
-    std::vector<Eigen::Index> P;
+  Eigen::Index idx[Mat::MaxRowsAtCompileTime > 0 ? Mat::MaxRowsAtCompileTime : 1];
+  std::vector<Eigen::Index> idx_dyn(Mat::MaxRowsAtCompileTime > 0 ? 0 : static_cast<size_t>(n));
+  Eigen::Index* P = Mat::MaxRowsAtCompileTime > 0 ? idx : idx_dyn.data();
+  Mat Hp;
+  Vec gp, s;
+  auto solve_passive = [&]() {
+    Eigen::Index m = 0;
     for (Eigen::Index i = 0; i < n; ++i)
-      if (passive[static_cast<size_t>(i)]) P.push_back(i);
-    const auto m = static_cast<Eigen::Index>(P.size());
-    Eigen::MatrixXd Hp(m, m);
-    Eigen::VectorXd gp(m);
+      if (is_p(i)) P[m++] = i;
+    Hp.resize(m, m);
+    gp.resize(m);
     for (Eigen::Index a = 0; a < m; ++a) {
-      gp(a) = g(P[static_cast<size_t>(a)]);
-      for (Eigen::Index b = 0; b < m; ++b) Hp(a, b) = H(P[static_cast<size_t>(a)], P[static_cast<size_t>(b)]);
+      gp(a) = g(P[a]);
+      for (Eigen::Index b = 0; b < m; ++b) Hp(a, b) = H(P[a], P[b]);
       Hp(a, a) += 1e-14 * scale;
     }
-    const Eigen::VectorXd sp = Hp.ldlt().solve(gp);
-    s->setZero(n);
-    for (Eigen::Index a = 0; a < m; ++a) (*s)(P[static_cast<size_t>(a)]) = sp(a);
+    const Vec sp = Hp.ldlt().solve(gp);
+    s.setZero(n);
+    for (Eigen::Index a = 0; a < m; ++a) s(P[a]) = sp(a);
   };
   for (int outer = 0; outer < 3 * n + 10; ++outer) {
-    const Eigen::VectorXd w = g - H * x;   // negative gradient
+    const Vec w = g - H * x;   // negative gradient
     Eigen::Index j = -1;
     double best = tol;
     for (Eigen::Index i = 0; i < n; ++i)
-      if (!passive[static_cast<size_t>(i)] && w(i) > best) best = w(i), j = i;
+      if (!is_p(i) && w(i) > best) best = w(i), j = i;
     if (j < 0) break;
-    passive[static_cast<size_t>(j)] = true;
-    Eigen::VectorXd s;
+    set_p(j, true);
     for (int inner = 0; inner < 3 * n + 10; ++inner) {
-      solve_passive(&s);
+      solve_passive();
       double alpha = 1.0;
       bool feasible = true;
       for (Eigen::Index i = 0; i < n; ++i)
-        if (passive[static_cast<size_t>(i)] && s(i) <= 0) {
+        if (is_p(i) && s(i) <= 0) {
           feasible = false;
           const double d = x(i) - s(i);
           if (d > 0) alpha = std::min(alpha, x(i) / d);
@@ -64,14 +81,25 @@ Eigen::VectorXd nonnegative_least_squares(const Eigen::MatrixXd& H, const Eigen:
       if (feasible) break;
       x += alpha * (s - x);
       for (Eigen::Index i = 0; i < n; ++i)
-        if (passive[static_cast<size_t>(i)] && x(i) <= 1e-15) {
-          passive[static_cast<size_t>(i)] = false;
+        if (is_p(i) && x(i) <= 1e-15) {
+          set_p(i, false);
           x(i) = 0;
         }
     }
     x = s.cwiseMax(0.0);
   }
   return x;
+}
+
+constexpr int kSmall = 32;
+using SmallMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kSmall, kSmall>;
+using SmallVec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kSmall, 1>;
+
+}  // namespace
+
+Eigen::VectorXd nonnegative_least_squares(const Eigen::MatrixXd& H, const Eigen::VectorXd& g) {
+  if (g.size() <= kSmall) return nnls_impl<SmallMat, SmallVec>(SmallMat(H), SmallVec(g));
+  return nnls_impl<Eigen::MatrixXd, Eigen::VectorXd>(H, g);
 }
 
 void rig_residuals(const SkinningRig& rig, const SkinningExamples& ex, double* rms, double* max) {
@@ -147,21 +175,25 @@ SkinningRig fit_lbs(const SkinningExamples& ex, const Eigen::MatrixXi& influence
         const auto m = static_cast<Eigen::Index>(bones.size());
         if (m == 0) throw InputError("fit_lbs: vertex " + std::to_string(i) + " has no influence");
         const Eigen::Vector3d v = ex.rest.row(i).transpose();
-        Eigen::MatrixXd A(3 * P, m);
-        Eigen::VectorXd b(3 * P);
-        for (int p = 0; p < P; ++p) {
-          const double w = ex.pose_weight(p);
-          for (Eigen::Index k = 0; k < m; ++k)
-            A.block(3 * p, k, 3, 1) = w * (ex.transforms[static_cast<size_t>(p)][static_cast<size_t>(bones[static_cast<size_t>(k)])] * v);
-          b.segment<3>(3 * p) = w * ex.poses[static_cast<size_t>(p)].row(i).transpose();
-        }
-        Eigen::MatrixXd H = A.transpose() * A;
-        Eigen::VectorXd g = A.transpose() * b;
-        const double omega2 = options.sum_to_one_weight * options.sum_to_one_weight *
-                              std::max(H.trace() / m, 1e-300);
-        H.array() += omega2;
-        g.array() += omega2;
-        Eigen::VectorXd w = nonnegative_least_squares(H, g);
+        // Normal equations directly: y_pk = ω_p M_k(p) v, H = Σ_p Y_pᵀY_p, g = Σ_p Y_pᵀ ω_p q_p.
+        auto solve = [&](auto H, auto g, auto Y) -> Eigen::VectorXd {
+          H.setZero(m, m);
+          g.setZero(m);
+          Y.resize(3, m);
+          for (int p = 0; p < P; ++p) {
+            const double w = ex.pose_weight(p);
+            const auto& T = ex.transforms[static_cast<size_t>(p)];
+            for (Eigen::Index k = 0; k < m; ++k) Y.col(k) = w * (T[static_cast<size_t>(bones[static_cast<size_t>(k)])] * v);
+            H.noalias() += Y.transpose() * Y;
+            g.noalias() += Y.transpose() * (w * ex.poses[static_cast<size_t>(p)].row(i).transpose());
+          }
+          const double omega2 = options.sum_to_one_weight * options.sum_to_one_weight * std::max(H.trace() / m, 1e-300);
+          H.array() += omega2;
+          g.array() += omega2;
+          return nnls_impl<decltype(H), decltype(g)>(H, g);
+        };
+        Eigen::VectorXd w = m <= kSmall ? solve(SmallMat(), SmallVec(), Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kSmall>())
+                                        : solve(Eigen::MatrixXd(), Eigen::VectorXd(), Eigen::Matrix3Xd());
         const double s = w.sum();
         if (!(s > 0) || !w.allFinite()) {
           w.setZero();

@@ -6,11 +6,11 @@
 #include <sstream>
 
 #include <Eigen/Eigenvalues>
-#include <Eigen/SVD>
 #include <tbb/parallel_for.h>
 
 #include "core/error.h"
 #include "core/geometry.h"
+#include "skinning/fit_animation_space.h"
 #include "skinning/fit_lbs.h"
 
 namespace bodymodel {
@@ -24,22 +24,46 @@ std::string MweFitSummary::brief() const {
   return s.str();
 }
 
-SkinningRig fit_mwe(const SkinningExamples& ex, const SkinningRig* base_lbs,
-                    const MweFitOptions& options, MweFitSummary* summary,
-                    const ProgressCallback& progress) {
+SkinningRig animation_space_as_mwe(const SkinningRig& as, const SkinningRig& lbs) {
+  if (as.method != SkinningMethod::animation_space || lbs.method != SkinningMethod::lbs ||
+      as.vertex_count() != lbs.vertex_count() || as.influences != lbs.influences)
+    throw InputError("animation_space_as_mwe: expected an as rig and the ssd rig it was fitted over (same influences)");
+  SkinningRig m = lbs_as_mwe(lbs);
+  for (Eigen::Index i = 0; i < as.rest.rows(); ++i) {
+    const Eigen::Vector4d v(as.rest(i, 0), as.rest(i, 1), as.rest(i, 2), 1.0);
+    for (Eigen::Index k = 0; k < as.influences.cols(); ++k) {
+      if (as.influences(i, k) < 0) continue;
+      for (int c = 0; c < 4; ++c) {
+        if (v(c) == 0) continue;   // keeps the SSD weight (see the header)
+        const double w = as.coefficients(i, 4 * k + c) / v(c);
+        for (int j = 0; j < 3; ++j) m.coefficients(i, 12 * k + 4 * j + c) = w;
+      }
+    }
+  }
+  return m;
+}
+
+SkinningRig fit_mwe(const SkinningExamples& ex, const SkinningRig* base_lbs, const MweFitOptions& options,
+                    MweFitSummary* summary, const ProgressCallback& progress) {
+  return fit_mwe_path(ex, base_lbs, options, {options.ridge_scale}, summary, progress).front();
+}
+
+std::vector<SkinningRig> fit_mwe_path(const SkinningExamples& ex, const SkinningRig* base_lbs,
+                                      const MweFitOptions& options, const std::vector<double>& scales,
+                                      MweFitSummary* summary, const ProgressCallback& progress) {
   auto t0 = std::chrono::steady_clock::now();
   validate_examples(ex, false);
-  if (!(options.ridge_scale >= 0)) throw InputError("mwe: ridge scale s must be ≥ 0");
+  if (scales.empty()) throw InputError("mwe: no ridge scale given");
+  for (double s : scales)
+    if (!(s >= 0)) throw InputError("mwe: ridge scale s must be ≥ 0, found " + std::to_string(s));
   if (options.components < 0) throw InputError("mwe: components must be ≥ 0");
+  if (options.delta_influences < 0) throw InputError("mwe: delta influences must be ≥ 0");
   const SkinningRig lbs = base_lbs_rig(ex, base_lbs, options.max_influences, "mwe");
-  const double base_seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  t0 = std::chrono::steady_clock::now();
-
   const Eigen::Index n = ex.rest.rows(), K = lbs.influences.cols();
   const int P = ex.pose_count(), B = ex.bone_count();
   const double diag = std::max(bounding_box_diagonal(ex.rest), 1e-300);
-  const double s_used = options.ridge_scale * (options.ridge_scale_relative ? std::pow(diag, 4) : 1.0);
+  const double unit = options.ridge_scale_relative ? std::pow(diag, 4) : 1.0;
+  const size_t S = scales.size();
 
   // Base rig as MWE coefficients (folded in at the end) and its positions in every pose.
   SkinningRig base = lbs_as_mwe(lbs);
@@ -52,6 +76,13 @@ SkinningRig fit_mwe(const SkinningExamples& ex, const SkinningRig* base_lbs,
       base.coefficients.row(i).segment<12>(12 * best).setOnes();
     }
   }
+  if (options.base == MweBase::animation_space) {
+    AnimationSpaceFitOptions ao;
+    ao.ridge = options.base_as_ridge;
+    base = animation_space_as_mwe(fit_animation_space(ex, &lbs, ao), lbs);
+  }
+  const double base_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  t0 = std::chrono::steady_clock::now();
   std::vector<Eigen::MatrixX3d> base_pos(static_cast<size_t>(P));
   for (int p = 0; p < P; ++p)
     base_pos[static_cast<size_t>(p)] = evaluate_rig(base, ex.transforms[static_cast<size_t>(p)]);
@@ -67,8 +98,8 @@ SkinningRig fit_mwe(const SkinningExamples& ex, const SkinningRig* base_lbs,
         D[static_cast<size_t>(b)](p, q) = D[static_cast<size_t>(b)](q, p) = d.cwiseAbs().maxCoeff();
       }
 
-  SkinningRig rig = base;
-  rig.method = SkinningMethod::mwe;
+  std::vector<SkinningRig> rigs(S, base);
+  for (auto& r : rigs) r.method = SkinningMethod::mwe;
   std::atomic<long long> components_total{0};
   std::atomic<int> unique_min{P};
   const Eigen::Index chunk = std::max<Eigen::Index>(1024, n / 20);
@@ -78,9 +109,16 @@ SkinningRig fit_mwe(const SkinningExamples& ex, const SkinningRig* base_lbs,
     tbb::parallel_for(tbb::blocked_range<Eigen::Index>(start, stop, 32), [&](const auto& r) {
       long long comp_local = 0;
       for (Eigen::Index i = r.begin(); i < r.end(); ++i) {
+        // The refined slots: every used slot, or the delta_influences largest SSD weights.
         std::vector<Eigen::Index> slots;
         for (Eigen::Index k = 0; k < K; ++k)
           if (lbs.influences(i, k) >= 0) slots.push_back(k);
+        if (options.delta_influences > 0 && static_cast<int>(slots.size()) > options.delta_influences) {
+          std::stable_sort(slots.begin(), slots.end(), [&](Eigen::Index a, Eigen::Index b) {
+            return lbs.coefficients(i, a) > lbs.coefficients(i, b);
+          });
+          slots.resize(static_cast<size_t>(options.delta_influences));
+        }
         const auto nb = static_cast<Eigen::Index>(slots.size());
         const Eigen::Vector4d v(ex.rest(i, 0), ex.rest(i, 1), ex.rest(i, 2), 1.0);
         // 1. group duplicate poses for this vertex's bones.
@@ -132,59 +170,59 @@ SkinningRig fit_mwe(const SkinningExamples& ex, const SkinningRig* base_lbs,
           }
           // 3. PCA on the columns of A.
           const Eigen::Index cols = 4 * nb;
-          Eigen::VectorXd wfull = Eigen::VectorXd::Zero(cols);
-          if (m >= 2) {
-            const Eigen::RowVectorXd mean = A.colwise().mean();
-            const Eigen::MatrixXd Ac = A.rowwise() - mean;
-            const Eigen::MatrixXd cov = Ac.transpose() * Ac / double(m - 1);
-            Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(cov);
-            const Eigen::VectorXd ev = eig.eigenvalues().reverse();          // decreasing
-            const Eigen::MatrixXd evec = eig.eigenvectors().rowwise().reverse();
-            const double total = std::max(ev.cwiseMax(0.0).sum(), 0.0);
-            const double zero = 1e-12 * std::max(ev(0), 0.0);
-            Eigen::Index p = 0;
-            if (total > 0) {
-              if (options.components > 0) {
-                p = std::min<Eigen::Index>(options.components, cols);
-              } else {
-                double acc = 0;
-                while (p < cols && acc < options.variance_kept * total) acc += std::max(ev(p++), 0.0);
-              }
-              while (p > 0 && ev(p - 1) <= zero) --p;   // zero variance → λ = ∞ → dropped
+          if (m < 2) continue;
+          const Eigen::RowVectorXd mean = A.colwise().mean();
+          const Eigen::MatrixXd Ac = A.rowwise() - mean;
+          const Eigen::MatrixXd cov = Ac.transpose() * Ac / double(m - 1);
+          Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(cov);
+          const Eigen::VectorXd ev = eig.eigenvalues().reverse();          // decreasing
+          const Eigen::MatrixXd evec = eig.eigenvectors().rowwise().reverse();
+          const double total = std::max(ev.cwiseMax(0.0).sum(), 0.0);
+          const double zero = 1e-12 * std::max(ev(0), 0.0);
+          Eigen::Index p = 0;
+          if (total > 0) {
+            if (options.components > 0) {
+              p = std::min<Eigen::Index>(options.components, cols);
+            } else {
+              double acc = 0;
+              while (p < cols && acc < options.variance_kept * total) acc += std::max(ev(p++), 0.0);
             }
-            if (p > 0) {
-              const Eigen::MatrixXd E = evec.leftCols(p);
-              const Eigen::MatrixXd C = A * E;
-              // 4. local ridge regression, λ_h = s / σ²(c_h).
-              Eigen::MatrixXd H = C.transpose() * C;
-              const Eigen::RowVectorXd cmean = C.colwise().mean();
-              for (Eigen::Index h = 0; h < p; ++h) {
-                const double var = (C.col(h).array() - cmean(h)).square().sum() / double(m - 1);
-                H(h, h) += s_used / std::max(var, 1e-300);
-              }
-              // 5. SVD solve with small singular values dropped.
-              Eigen::JacobiSVD<Eigen::MatrixXd> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
-              const Eigen::VectorXd sv = svd.singularValues();
-              const Eigen::VectorXd rhs = svd.matrixU().transpose() * (C.transpose() * b);
-              Eigen::VectorXd y = Eigen::VectorXd::Zero(p);
-              for (Eigen::Index h = 0; h < p; ++h)
-                if (sv(h) > options.singular_value_tolerance * sv(0)) y(h) = rhs(h) / sv(h);
-              wfull = E * (svd.matrixV() * y);
-              comp_local += p;
-            }
+            while (p > 0 && ev(p - 1) <= zero) --p;   // zero variance → λ = ∞ → dropped
           }
-          for (Eigen::Index s = 0; s < nb; ++s)
-            for (int c = 0; c < 4; ++c)
-              rig.coefficients(i, 12 * slots[static_cast<size_t>(s)] + 4 * j + c) +=
-                  mu(s) * wfull(4 * s + c);
+          if (p == 0) continue;
+          const Eigen::MatrixXd E = evec.leftCols(p);
+          const Eigen::MatrixXd C = A * E;
+          // 4. local ridge regression, λ_h = s / σ²(c_h): scaled by σ_h = √σ²(c_h), the system
+          //    (CᵀC + sΛ) w_c = Cᵀb becomes (S + sI) y = σ ⊙ Cᵀb with w_c = σ ⊙ y.
+          const Eigen::RowVectorXd cmean = C.colwise().mean();
+          Eigen::VectorXd sd(p);
+          for (Eigen::Index h = 0; h < p; ++h)
+            sd(h) = std::sqrt(std::max((C.col(h).array() - cmean(h)).square().sum() / double(m - 1), 1e-300));
+          const Eigen::MatrixXd Sm = sd.asDiagonal() * (C.transpose() * C) * sd.asDiagonal();
+          Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(Sm);
+          const Eigen::VectorXd mu_s = es.eigenvalues().cwiseMax(0.0);
+          const Eigen::VectorXd rhs = es.eigenvectors().transpose() * (sd.asDiagonal() * (C.transpose() * b));
+          for (size_t k = 0; k < S; ++k) {
+            const double s_used = scales[k] * unit;
+            const double top = mu_s.maxCoeff() + s_used;
+            Eigen::VectorXd y = Eigen::VectorXd::Zero(p);
+            for (Eigen::Index h = 0; h < p; ++h)
+              if (mu_s(h) + s_used > options.singular_value_tolerance * top) y(h) = rhs(h) / (mu_s(h) + s_used);
+            const Eigen::VectorXd wc = sd.asDiagonal() * (es.eigenvectors() * y);
+            const Eigen::VectorXd wfull = E * wc;
+            for (Eigen::Index s = 0; s < nb; ++s)
+              for (int c = 0; c < 4; ++c)
+                rigs[k].coefficients(i, 12 * slots[static_cast<size_t>(s)] + 4 * j + c) += mu(s) * wfull(4 * s + c);
+          }
+          comp_local += p;
         }
       }
       components_total += comp_local;
     });
   }
   report_progress(progress, 1.0, "MWE weights");
-  if (!rig.coefficients.allFinite())
-    throw NumericalError("mwe: the ridge solve produced non-finite weights");
+  for (const auto& r : rigs)
+    if (!r.coefficients.allFinite()) throw NumericalError("mwe: the ridge solve produced non-finite weights");
   if (summary) {
     summary->vertices = static_cast<int>(n);
     summary->poses = P;
@@ -193,9 +231,9 @@ SkinningRig fit_mwe(const SkinningExamples& ex, const SkinningRig* base_lbs,
     summary->mean_components = double(components_total.load()) / (3.0 * double(n));
     summary->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     summary->base_seconds = base_seconds;
-    rig_residuals(rig, ex, &summary->rms_residual, &summary->max_residual);
+    rig_residuals(rigs.back(), ex, &summary->rms_residual, &summary->max_residual);
   }
-  return rig;
+  return rigs;
 }
 
 }  // namespace bodymodel

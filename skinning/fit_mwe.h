@@ -10,10 +10,20 @@
 //     of column h of C, and w_c,h = 0 when σ²(c_h) = 0 (eq. 8–9);
 //  5. solve by SVD, dropping singular values below a relative tolerance (§4.4); w = E w_c.
 // The base (SSD or the vertex's best rigid bone) is folded into the stored 12 weights per slot.
+// Extension (issue 26): the underlying system may also be an Animation Space rig fitted to the
+// same examples — §4.5 allows any underlying rig; AS is folded in as W_k[j][i] = p_k,i / ṽ_i
+// (where a rest coordinate ṽ_i is exactly 0 the SSD weight is folded instead, and the delta fit
+// sees the folded base's positions, so the stored rig reproduces what was fitted).
+// Several ridge scales s can be solved at once (fit_mwe_path): per vertex and dimension the
+// ridge system is diagonalised once, S = Λ^{-1/2} CᵀC Λ^{-1/2} = Q diag(μ) Qᵀ with Λ the
+// diagonal of 1/σ²(c_h), so (CᵀC + sΛ)⁻¹ = Λ^{-1/2} Q diag(1/(μ + s)) Qᵀ Λ^{-1/2} for every s;
+// eigenvalues μ + s below the tolerance of the largest are dropped (the pseudo-inverse of §4.4,
+// taken in the scaled basis — identical to the SVD solve whenever nothing is dropped).
 #pragma once
 
 #include <Eigen/Core>
 #include <string>
+#include <vector>
 
 #include "core/progress.h"
 #include "skinning/skinning_examples.h"
@@ -21,7 +31,7 @@
 
 namespace bodymodel {
 
-enum class MweBase { none, rigid, lbs };
+enum class MweBase { none, rigid, lbs, animation_space };
 
 struct MweFitOptions {
   // Principal components kept per vertex and dimension (p of §4.3); 0 = keep as many as needed
@@ -48,6 +58,11 @@ struct MweFitOptions {
   double influence_map_floor = 0.0;
   // Influences when no base rig is given: SSD fitted with this many slots.
   int max_influences = 4;
+  // Influences whose 12 weights are refined (the largest SSD weights first); 0 = all slots.
+  // Fewer columns per vertex is the "weight count" regulariser of the paper's §4.3 discussion.
+  int delta_influences = 0;
+  // Ridge λ of the Animation Space base (MweBase::animation_space; see fit_animation_space.h).
+  double base_as_ridge = 1e-4;
 };
 
 struct MweFitSummary {
@@ -64,5 +79,16 @@ struct MweFitSummary {
 SkinningRig fit_mwe(const SkinningExamples& ex, const SkinningRig* base_lbs = nullptr,
                     const MweFitOptions& options = {}, MweFitSummary* summary = nullptr,
                     const ProgressCallback& progress = {});
+
+// One rig per ridge scale in `ridge_scales` (each used as options.ridge_scale), sharing the base,
+// the duplicate grouping, the PCA and the diagonalisation: the cost of about one fit. The
+// summary describes the last scale.
+std::vector<SkinningRig> fit_mwe_path(const SkinningExamples& ex, const SkinningRig* base_lbs,
+                                      const MweFitOptions& options, const std::vector<double>& ridge_scales,
+                                      MweFitSummary* summary = nullptr, const ProgressCallback& progress = {});
+
+// An Animation Space rig written as an MWE rig (W_k[j][i] = p_k,i / ṽ_i; `lbs` supplies the weight
+// folded where ṽ_i = 0). Same influences as `as_rig`.
+SkinningRig animation_space_as_mwe(const SkinningRig& as_rig, const SkinningRig& lbs);
 
 }  // namespace bodymodel

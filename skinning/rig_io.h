@@ -1,7 +1,7 @@
 // Skinning rigs as NumPy .npz (np.load opens them). Keys:
 //   format            text  "bodymodel-skinning-rig-1"
 //   method            text  "ssd" | "as" | "mwe"
-//   bone_count        scalar #B
+//   bone_count        int32 scalar #B
 //   rest              #V by 3 float64 rest positions (data units)
 //   faces             #F by 3 int32 triangles, 0-based (0 rows when unknown)
 //   influences        #V by K int32 bone per slot, −1 = unused slot
@@ -15,12 +15,23 @@
 //                     float64 rest joint positions (data units). The same keys as the character
 //                     rigs of `bodymodel character` (tools/pipeline/character_file.h).
 // Posing: ssd v' = Σ_k w_k M_k ṽ; as v' = Σ_k M_k p_k; mwe v'_j = Σ_k Σ_i W_k[j][i] (M_k)_ji ṽ_i,
-// with ṽ = [v; 1] and k over the vertex's slots.
+// with ṽ = [v; 1] and k over the vertex's slots; dqs: the ssd weights, dual-quaternion blend.
+//
+// Pose-space rigs (psd, eigenskin, quadratic; skinning/pose_space.h) are a different format:
+//   format "bodymodel-pose-space-rig-1", method, bone_count, rest, faces, influences and
+//   coefficients (the SSD base, as above), optional pose_transforms, and the arrays of
+//   PoseSpaceRig under their own names (pairs, pair_features, primary, vertex_pairs, vertex_omega,
+//   vertex_sigma, vertex_mean, vertex_coef, poses), the ragged group arrays flattened:
+//   group_offsets (#G+1), group_pair_list / group_omega_list (pairs and ω of group g at
+//   group_offsets[g]..[g+1]), group_sigma (#G), group_columns (#G), group_coef (P by Σ columns),
+//   group_mean (#G by 27, quadratic), vertex_group, vertex_modes (#V by 3·max columns, padded),
+//   part_centroid (#B by 3), part_axes (#B by 9, row-major), part_scale, member, vertex_quadratic.
 #pragma once
 
 #include <filesystem>
 #include <vector>
 
+#include "skinning/pose_space.h"
 #include "skinning/skinning_rig.h"
 
 namespace bodymodel {
@@ -31,7 +42,15 @@ void save_rig(const std::filesystem::path& path, const SkinningRig& rig, const E
 
 // Throws InputError naming the file and key when a key is missing or inconsistent.
 // skeleton (optional): the stored skeleton, or an empty Skeleton (0 bones) when the file has none.
+// A pose-space rig file gets its own one-line error naming the method.
 SkinningRig load_rig(const std::filesystem::path& path, Eigen::MatrixX3i* faces = nullptr,
                      std::vector<BoneTransforms>* pose_transforms = nullptr, Skeleton* skeleton = nullptr);
+
+void save_pose_space_rig(const std::filesystem::path& path, const PoseSpaceRig& rig,
+                         const Eigen::MatrixX3i& faces = {}, const std::vector<BoneTransforms>& pose_transforms = {});
+// Throws InputError naming the file and the key or element that is missing or inconsistent.
+PoseSpaceRig load_pose_space_rig(const std::filesystem::path& path, Eigen::MatrixX3i* faces = nullptr);
+// True if the file is a pose-space rig (its 'format' key); false for anything else.
+bool is_pose_space_rig_file(const std::filesystem::path& path);
 
 }  // namespace bodymodel

@@ -16,7 +16,9 @@ namespace {
 
 constexpr int kBlock = 256;
 
-#if defined(__GNUC__) && defined(__x86_64__)
+// GCC only: clang rejects target_clones on the function templates below, so a clang build
+// compiles the kernels once, for the target it is given (e.g. -march=native for its speed).
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
 #define BODYMODEL_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=haswell", "default")))
 #else
 #define BODYMODEL_CLONES
@@ -218,6 +220,9 @@ void run_blocks(int n, int threads, F&& f) {
 
 RuntimeSkinner::RuntimeSkinner(const SkinningRig& rig, const Eigen::MatrixX3d& normals) {
   rig.validate("runtime skinner");
+  if (rig.method == SkinningMethod::dqs)
+    throw InputError("runtime skinner: dqs rigs are not supported (linear kernels only); pose them with "
+                     "evaluate_rig (the reference dual-quaternion blend)");
   if (rig.max_influences() > kMaxInfluences)
     throw InputError("runtime skinner: the rig has " + std::to_string(rig.max_influences()) +
                      " influence slots, at most " + std::to_string(kMaxInfluences) + " are supported");

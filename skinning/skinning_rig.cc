@@ -7,6 +7,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/error.h"
+#include "skinning/dual_quaternion_skinning.h"
 
 namespace bodymodel {
 
@@ -14,7 +15,8 @@ SkinningMethod parse_skinning_method(const std::string& name) {
   if (name == "ssd" || name == "lbs") return SkinningMethod::lbs;
   if (name == "as" || name == "animation_space") return SkinningMethod::animation_space;
   if (name == "mwe") return SkinningMethod::mwe;
-  throw InputError("unknown skinning method '" + name + "' (expected ssd, as or mwe)");
+  if (name == "dqs") return SkinningMethod::dqs;
+  throw InputError("unknown skinning method '" + name + "' (expected ssd, dqs, as or mwe)");
 }
 
 std::string skinning_method_name(SkinningMethod m) {
@@ -22,6 +24,7 @@ std::string skinning_method_name(SkinningMethod m) {
     case SkinningMethod::lbs: return "ssd";
     case SkinningMethod::animation_space: return "as";
     case SkinningMethod::mwe: return "mwe";
+    case SkinningMethod::dqs: return "dqs";
   }
   return "?";
 }
@@ -31,6 +34,7 @@ int coefficients_per_influence(SkinningMethod m) {
     case SkinningMethod::lbs: return 1;
     case SkinningMethod::animation_space: return 4;
     case SkinningMethod::mwe: return 12;
+    case SkinningMethod::dqs: return 1;
   }
   return 1;
 }
@@ -67,6 +71,8 @@ Eigen::MatrixX3d evaluate_rig(const SkinningRig& rig, const BoneTransforms& M) {
   if (static_cast<int>(M.size()) != rig.bone_count)
     throw InputError("evaluate_rig: rig has " + std::to_string(rig.bone_count) +
                      " bones, the pose has " + std::to_string(M.size()) + " transforms");
+  if (rig.method == SkinningMethod::dqs)
+    return dual_quaternion_skinning(rig.rest, rig.influences, rig.coefficients, M);
   const Eigen::Index n = rig.rest.rows(), K = rig.influences.cols();
   Eigen::MatrixX3d out(n, 3);
   tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, n, 1024), [&](const auto& r) {
@@ -87,6 +93,7 @@ Eigen::MatrixX3d evaluate_rig(const SkinningRig& rig, const BoneTransforms& M) {
               for (int c = 0; c < 4; ++c)
                 p(j) += rig.coefficients(i, 12 * k + 4 * j + c) * A(j, c) * v(c);
             break;
+          case SkinningMethod::dqs: break;   // handled above
         }
       }
       out.row(i) = p.transpose();
@@ -96,9 +103,9 @@ Eigen::MatrixX3d evaluate_rig(const SkinningRig& rig, const BoneTransforms& M) {
 }
 
 Eigen::MatrixXd dense_weights(const SkinningRig& rig) {
-  if (rig.method != SkinningMethod::lbs)
+  if (rig.method != SkinningMethod::lbs && rig.method != SkinningMethod::dqs)
     throw InputError("dense_weights: the rig is " + skinning_method_name(rig.method) +
-                     ", expected an ssd (LBS) rig");
+                     ", expected an ssd (LBS) or dqs rig");
   Eigen::MatrixXd W = Eigen::MatrixXd::Zero(rig.rest.rows(), rig.bone_count);
   for (Eigen::Index i = 0; i < rig.rest.rows(); ++i)
     for (Eigen::Index k = 0; k < rig.influences.cols(); ++k)

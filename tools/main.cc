@@ -1,6 +1,8 @@
 // bodymodel: one command line, one verb per job. Verbs register themselves (tools/verb.h).
 #include <cstdio>
 #include <exception>
+#include <filesystem>
+#include <string>
 
 #include "core/error.h"
 #include "core/io/interrupt_cleanup.h"
@@ -26,9 +28,18 @@ int main(int argc, char** argv) {
   for (auto& add : bodymodel::cli::verb_adders()) add(app);
   try {
     app.parse(argc, argv);
+  } catch (const CLI::Success& e) {  // --help, --version: exit 0
+    return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    // --help / --version exit 0; a malformed command line is bad input like any other (2).
-    return app.exit(e) == 0 ? 0 : 2;
+    // A malformed command line is bad input like any other: one line, exit 2.
+    std::fprintf(stderr, "bodymodel: error: %s (see --help)\n", e.what());
+    return 2;
+  } catch (const std::filesystem::filesystem_error& e) {
+    // A path the file system refuses (a symlink loop, a name too long, permissions): bad input.
+    std::string where = e.path1().string();
+    std::fprintf(stderr, "bodymodel: error: %s%s\n", where.empty() ? "" : ("'" + where + "': ").c_str(),
+                 e.code().message().c_str());
+    return 2;
   } catch (const bodymodel::InputError& e) {
     std::fprintf(stderr, "bodymodel: error: %s\n", e.what());
     return 2;

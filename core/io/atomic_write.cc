@@ -3,6 +3,8 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 
@@ -14,8 +16,11 @@ namespace fs = std::filesystem;
 
 void write_atomically(const fs::path& path, const std::function<void(std::ostream&)>& write) {
   static std::atomic<int> counter{0};
-  fs::path dir = path.parent_path().empty() ? fs::path(".") : path.parent_path();
   std::error_code ec;
+  // "out/" or an existing folder: a file name is expected (rename would say "Not a directory").
+  if (path.filename().empty() || fs::is_directory(path, ec))
+    throw InputError("cannot write '" + path.string() + "': it is a folder; expected a file name");
+  fs::path dir = path.parent_path().empty() ? fs::path(".") : path.parent_path();
   if (!fs::is_directory(dir, ec))
     throw InputError("cannot write '" + path.string() + "': folder '" + dir.string() +
                      "' does not exist");
@@ -23,11 +28,18 @@ void write_atomically(const fs::path& path, const std::function<void(std::ostrea
                         std::to_string(counter++));
   try {
     {
+      errno = 0;
       std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-      if (!out) throw InputError("cannot write '" + path.string() + "': folder not writable");
+      // errno says why (read-only file system, permission denied, no space, ...).
+      if (!out)
+        throw InputError("cannot write '" + path.string() + "': " +
+                         (errno ? std::string(std::strerror(errno)) : std::string("folder not writable")));
       write(out);
+      errno = 0;
       out.flush();
-      if (!out) throw InputError("cannot write '" + path.string() + "': write failed (disk full?)");
+      if (!out)
+        throw InputError("cannot write '" + path.string() + "': write failed (" +
+                         (errno ? std::string(std::strerror(errno)) : std::string("disk full?")) + ")");
     }
     fs::rename(tmp, path, ec);
     if (ec) throw InputError("cannot write '" + path.string() + "': " + ec.message());
@@ -54,13 +66,17 @@ std::string read_text_file(const fs::path& path) {
 }
 
 void ensure_directory(const fs::path& dir) {
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (!fs::is_directory(dir, ec))
-    throw InputError("cannot create folder '" + dir.string() + "'" +
-                     (ec ? ": " + ec.message() : std::string()));
+  std::error_code made, ec;
+  fs::create_directories(dir, made);
+  // The reason is create_directories' (read-only file system, permission denied, a file in the
+  // way), not that of the check after it ("No such file or directory").
+  if (!fs::is_directory(dir, ec)) {
+    std::string why = made ? made.message() : std::string();
+    if (fs::exists(dir, ec)) why = "a file of that name is in the way";
+    throw InputError("cannot create folder '" + dir.string() + "'" + (why.empty() ? std::string() : ": " + why));
+  }
   if (access(dir.c_str(), W_OK) != 0)
-    throw InputError("folder '" + dir.string() + "' is not writable");
+    throw InputError("folder '" + dir.string() + "' is not writable: " + std::strerror(errno));
 }
 
 }  // namespace bodymodel

@@ -97,8 +97,17 @@ bool parse_channel(std::string_view s, BvhChannel* c) {
   return false;
 }
 
-void parse_joint(Lexer& lex, BvhMotion& m, int parent, int& channel_count) {
+// Joints nested deeper than this are refused: the parser (and the writer) recurse once per level,
+// and a hostile file nesting 20 000 joints overflowed the stack (SIGSEGV). Real skeletons nest a
+// few tens of levels (MakeHuman's default skeleton: 17, fingers included).
+constexpr int kMaxJointDepth = 256;
+
+void parse_joint(Lexer& lex, BvhMotion& m, int parent, int& channel_count, int depth = 0) {
   Token name = lex.next();
+  if (depth >= kMaxJointDepth)
+    lex.fail(name.line, "joints are nested more than " + std::to_string(kMaxJointDepth) +
+                            " levels deep (at '" + std::string(name.text.substr(0, 40)) +
+                            "'); not a skeleton");
   if (name.text.empty() || name.text == "{") lex.fail(name.line, "expected a joint name, found " +
                                                                      Lexer::describe(name));
   BvhJoint j;
@@ -136,7 +145,7 @@ void parse_joint(Lexer& lex, BvhMotion& m, int parent, int& channel_count) {
     Token k = lex.next();
     if (k.text == "}") return;
     if (k.text == "JOINT") {
-      parse_joint(lex, m, self, channel_count);
+      parse_joint(lex, m, self, channel_count, depth + 1);
     } else if (k.text == "End") {
       lex.expect("Site", "after 'End'");
       lex.expect("{", "after 'End Site'");
@@ -204,6 +213,7 @@ void BvhMotion::validate() const {
 BvhMotion parse_bvh(std::string_view text, const std::string& source) {
   Lexer lex(text, source);
   BvhMotion m;
+  m.source = source;
   lex.expect("HIERARCHY", "at the start of the file");
   int channel_count = 0;
   Token t = lex.next();

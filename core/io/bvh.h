@@ -47,6 +47,7 @@ struct BvhMotion {
   std::vector<BvhJoint> joints;  // file (depth-first) order: parents before children
   double frame_time = 1.0 / 30;  // seconds per frame
   Eigen::MatrixXd frames;        // #frames by #channels; positions in file units, angles in degrees
+  std::string source;            // the file it was read from (parse_bvh's `source`), for messages
 
   int frame_count() const { return static_cast<int>(frames.rows()); }
   int channel_count() const;

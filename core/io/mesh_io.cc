@@ -351,7 +351,8 @@ class PlyBody {
     if (format_ == 0) return read_ascii();
     size_t n = type_size(t);
     if (pos_ + n > d_.size())
-      throw InputError("'" + path_ + "': binary PLY body ends early (file truncated?)");
+      throw InputError("'" + path_ + "': binary PLY body ends early: " + counts_ +
+                       " (file truncated, or header counts that disagree with the data?)");
     unsigned char b[8];
     std::memcpy(b, d_.data() + pos_, n);
     pos_ += n;
@@ -375,7 +376,8 @@ class PlyBody {
     size_t s = pos_;
     while (pos_ < d_.size() && !std::isspace(static_cast<unsigned char>(d_[pos_]))) ++pos_;
     if (s == pos_)
-      throw InputError("'" + path_ + "': ASCII PLY body ends early (file truncated?)");
+      throw InputError("'" + path_ + "': ASCII PLY body ends early: " + counts_ +
+                       " (file truncated, or header counts that disagree with the data?)");
     double v;
     std::string_view tok(d_.data() + s, pos_ - s);
     if (!parse_double(tok, v))
@@ -383,6 +385,17 @@ class PlyBody {
     return v;
   }
 
+ public:
+  // "the header announces vertex 8, face 12": quoted by the errors that a wrong count causes.
+  std::string counts_;
+  // Bytes of the body not read (ASCII: whitespace does not count).
+  size_t unread() const {
+    size_t p = pos_;
+    while (p < d_.size() && std::isspace(static_cast<unsigned char>(d_[p]))) ++p;
+    return p < d_.size() ? d_.size() - pos_ : 0;
+  }
+
+ private:
   const std::string& d_;
   size_t pos_;
   int format_;  // 0 ascii, 1 binary LE, 2 binary BE
@@ -456,6 +469,9 @@ PlyContents parse_ply(const std::string& data, const std::string& path) {
       throw InputError("'" + path + "': element '" + e.name + "' count exceeds file size");
   }
   PlyBody reader(data, body, format, path);
+  reader.counts_ = "the header announces";
+  for (size_t i = 0; i < elements.size(); ++i)
+    reader.counts_ += (i ? ", " : " ") + elements[i].name + " " + std::to_string(elements[i].count);
   PlyContents out;
   for (auto& e : elements) {
     if (e.name == "vertex") {
@@ -498,7 +514,8 @@ PlyContents parse_ply(const std::string& data, const std::string& path) {
             double nd = reader.read(p.count_type);
             if (!(nd >= 0 && nd <= 1000))  // also NaN (a float count type)
               throw InputError("'" + path + "': " + e.name + " " + std::to_string(i) +
-                               " has an implausible list length " + std::to_string(nd));
+                               " has an implausible list length " + std::to_string(nd) + " (" + reader.counts_ +
+                               ")");
             size_t n = static_cast<size_t>(nd);
             std::vector<int> poly(n);
             for (size_t j = 0; j < n; ++j) {
@@ -506,14 +523,14 @@ PlyContents parse_ply(const std::string& data, const std::string& path) {
               if (is_face && !(v >= 0 && v < static_cast<double>(out.V.rows())))
                 throw InputError("'" + path + "': face " + std::to_string(i) +
                                  " refers to vertex " + std::to_string(static_cast<long long>(v)) +
-                                 " but the file has " + std::to_string(out.V.rows()) +
-                                 " vertices");
+                                 " but " + reader.counts_ +
+                                 " (a header count that disagrees with the data, or a corrupt face)");
               poly[j] = is_face ? static_cast<int>(v) : 0;  // checked above; other lists unused
             }
             if (is_face && (p.name == "vertex_indices" || p.name == "vertex_index")) {
               if (n < 3)
-                throw InputError("'" + path + "': face " + std::to_string(i) +
-                                 " has fewer than 3 vertices");
+                throw InputError("'" + path + "': face " + std::to_string(i) + " has fewer than 3 vertices (" +
+                                 reader.counts_ + ")");
               out.faces.push_back(std::move(poly));
             }
           } else {
@@ -523,6 +540,11 @@ PlyContents parse_ply(const std::string& data, const std::string& path) {
       }
     }
   }
+  // Data beyond the announced elements: a header count smaller than the data (its last faces
+  // would be dropped without a word).
+  if (const size_t extra = reader.unread(); extra > 0)
+    throw InputError("'" + path + "': " + std::to_string(extra) + " bytes of data follow the last element, but " +
+                     reader.counts_ + ": the header's counts disagree with the data");
   return out;
 }
 

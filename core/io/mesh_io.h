@@ -1,4 +1,5 @@
-// Mesh and point-cloud files: OBJ and PLY (ASCII and binary little-endian).
+// Mesh and point-cloud files: OBJ, PLY (ASCII and binary little-endian) and OFF (ASCII,
+// core/io/off.h).
 //
 // Readers are strict: a malformed file throws InputError naming the file, the line (or
 // element) and what was wrong. Writers go through write_atomically, so a failed write never
@@ -31,9 +32,10 @@ ObjContents parse_obj(std::string_view text, const std::string& source);
 // Triangulates polygons as fans (a quad a b c d gives a b c and a c d).
 Eigen::MatrixX3i triangulate(const std::vector<std::vector<int>>& polygons);
 
-// Reads OBJ or PLY (by extension) as a triangle mesh; quads and polygons are triangulated.
+// Reads OBJ, PLY or OFF (by extension) as a triangle mesh; quads and polygons are triangulated
+// (OFF: core/io/off.h).
 Mesh read_mesh(const std::filesystem::path& path);
-// Writes OBJ or PLY (by extension). PLY is binary little-endian unless `ascii`.
+// Writes OBJ, PLY or OFF (by extension). PLY is binary little-endian unless `ascii`.
 // colors: #V by 3 in [0,1] (PLY only; ignored for OBJ), or empty.
 void write_mesh(const std::filesystem::path& path, const Eigen::MatrixX3d& V,
                 const Eigen::MatrixX3i& F, const Eigen::MatrixX3d& colors = {},
@@ -45,7 +47,7 @@ inline void write_mesh(const std::filesystem::path& path, const Mesh& m) {
 // PLY point cloud with optional normals (nx ny nz). Faces in the file are ignored.
 PointCloud read_point_cloud(const std::filesystem::path& path);
 
-// From memory (tests, fuzzing): `format` is "obj" or "ply"; `source` names it in errors.
+// From memory (tests, fuzzing): `format` is "obj", "ply" or "off"; `source` names it in errors.
 Mesh parse_mesh(const std::string& bytes, const std::string& format, const std::string& source);
 PointCloud parse_ply_point_cloud(const std::string& bytes, const std::string& source);
 void write_point_cloud(const std::filesystem::path& path, const PointCloud& cloud,

@@ -58,6 +58,12 @@ void Npz::put(const std::string& name, double scalar) {
   a.f64 = {scalar};
   arrays_[name] = std::move(a);
 }
+void Npz::put_int(const std::string& name, int scalar) {
+  NpyArray a;
+  a.is_float = false;
+  a.i64 = {scalar};
+  arrays_[name] = std::move(a);
+}
 void Npz::put_text(const std::string& name, const std::string& text) {
   NpyArray a;
   a.is_float = false;
@@ -196,9 +202,19 @@ std::string npy_bytes(const NpyArray& a) {
   } else if (a.is_float) {
     descr = "<f8";
     payload.assign(reinterpret_cast<const char*>(a.f64.data()), a.f64.size() * 8);
-  } else {
+  } else if (a.store_int64) {
     descr = "<i8";
     payload.assign(reinterpret_cast<const char*>(a.i64.data()), a.i64.size() * 8);
+  } else {
+    // int32, as documented for every integer array (faces, influences, parents, counts).
+    descr = "<i4";
+    payload.resize(a.i64.size() * 4);
+    for (size_t i = 0; i < a.i64.size(); ++i) {
+      if (a.i64[i] < INT32_MIN || a.i64[i] > INT32_MAX)
+        throw InputError("npz: integer " + std::to_string(a.i64[i]) + " does not fit int32");
+      const int32_t v = static_cast<int32_t>(a.i64[i]);
+      std::memcpy(payload.data() + 4 * i, &v, 4);
+    }
   }
   if (a.text.empty())
     for (size_t i = 0; i < a.shape.size(); ++i)
@@ -256,6 +272,7 @@ NpyArray parse_npy(const std::string& b, const std::string& what) {
   const char* data = b.data() + hstart + hlen;
   size_t avail = b.size() - hstart - hlen;
   if (descr.size() < 3) throw bad("unsupported dtype '" + descr + "'");
+  a.dtype = descr;
   char order = descr[0];
   char kind = descr[1];
   size_t width = static_cast<size_t>(std::atoi(descr.c_str() + 2));
@@ -288,11 +305,14 @@ NpyArray parse_npy(const std::string& b, const std::string& what) {
       const char* p = data + width * i;
       int64_t v = 0;
       if (width == 1) v = kind == 'i' ? int64_t(int8_t(*p)) : int64_t(uint8_t(*p));
-      else if (width == 2) { int16_t x; uint16_t y; std::memcpy(&x, p, 2); std::memcpy(&y, p, 2); v = kind == 'i' ? x : y; }
-      else if (width == 4) { int32_t x; uint32_t y; std::memcpy(&x, p, 4); std::memcpy(&y, p, 4); v = kind == 'i' ? x : y; }
+      else if (width == 2) { int16_t x; uint16_t y; std::memcpy(&x, p, 2); std::memcpy(&y, p, 2); v = kind == 'i' ? int64_t(x) : int64_t(y); }
+      // Each branch widened on its own: `kind == 'i' ? x : y` would convert x to uint32_t, and an
+      // int32 -1 (a root's parent) came back as 4294967295.
+      else if (width == 4) { int32_t x; uint32_t y; std::memcpy(&x, p, 4); std::memcpy(&y, p, 4); v = kind == 'i' ? int64_t(x) : int64_t(y); }
       else if (width == 8) std::memcpy(&v, p, 8);
       else throw bad("unsupported integer width in '" + descr + "'");
       a.i64[i] = v;
+      if (v < INT32_MIN || v > INT32_MAX) a.store_int64 = true;  // saved again as it came
     }
   } else {
     throw bad("unsupported dtype '" + descr + "'");
@@ -304,6 +324,30 @@ NpyArray parse_npy(const std::string& b, const std::string& what) {
 
 // ---- zip container -----------------------------------------------------------------------------
 
+namespace {
+
+// Raw deflate (zip method 8), level 1. Float arrays get Huffman coding only: on the demo model's
+// bases it keeps 7.4 % of the 8.3 % that string matching saves, at 40 % of the time (2 s instead
+// of 5.5 s for 107 MB); faces, indices and text keep string matching, which shrinks them most.
+std::string deflated(const std::string& data, bool floats) {
+  z_stream s{};
+  if (deflateInit2(&s, 1, Z_DEFLATED, -MAX_WBITS, 8, floats ? Z_HUFFMAN_ONLY : Z_DEFAULT_STRATEGY) != Z_OK)
+    throw std::runtime_error("npz: zlib deflateInit2 failed");
+  std::string out(deflateBound(&s, static_cast<uLong>(data.size())), '\0');
+  s.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(data.data()));
+  s.avail_in = static_cast<uInt>(data.size());
+  s.next_out = reinterpret_cast<Bytef*>(out.data());
+  s.avail_out = static_cast<uInt>(out.size());
+  const int r = deflate(&s, Z_FINISH);
+  const uLong n = s.total_out;
+  deflateEnd(&s);
+  if (r != Z_STREAM_END) throw std::runtime_error("npz: zlib deflate failed");
+  out.resize(n);
+  return out;
+}
+
+}  // namespace
+
 std::string Npz::serialize() const {
   std::string out, central;
   uint16_t count = 0;
@@ -314,22 +358,26 @@ std::string Npz::serialize() const {
     uint32_t offset = static_cast<uint32_t>(out.size());
     if (out.size() + data.size() > 0xFFFFFFF0ull)
       throw InputError("npz: archive larger than 4 GiB is not supported");
+    // Deflated as np.savez_compressed does; a member deflate would not shrink is stored.
+    std::string packed = deflated(data, a.is_float && a.text.empty());
+    const uint16_t method = packed.size() < data.size() ? 8 : 0;
+    const std::string& body = method == 8 ? packed : data;
     // local file header
     append_u32(out, 0x04034b50);
-    append_u16(out, 20); append_u16(out, 0); append_u16(out, 0);  // version, flags, stored
-    append_u16(out, 0); append_u16(out, 0x21);                     // time, date (1980-01-01)
+    append_u16(out, 20); append_u16(out, 0); append_u16(out, method);  // version, flags, method
+    append_u16(out, 0); append_u16(out, 0x21);                          // time, date (1980-01-01)
     append_u32(out, crc);
-    append_u32(out, static_cast<uint32_t>(data.size()));
+    append_u32(out, static_cast<uint32_t>(body.size()));
     append_u32(out, static_cast<uint32_t>(data.size()));
     append_u16(out, static_cast<uint16_t>(fname.size())); append_u16(out, 0);
     out += fname;
-    out += data;
+    out += body;
     // central directory entry
     append_u32(central, 0x02014b50);
-    append_u16(central, 20); append_u16(central, 20); append_u16(central, 0); append_u16(central, 0);
+    append_u16(central, 20); append_u16(central, 20); append_u16(central, 0); append_u16(central, method);
     append_u16(central, 0); append_u16(central, 0x21);
     append_u32(central, crc);
-    append_u32(central, static_cast<uint32_t>(data.size()));
+    append_u32(central, static_cast<uint32_t>(body.size()));
     append_u32(central, static_cast<uint32_t>(data.size()));
     append_u16(central, static_cast<uint16_t>(fname.size()));
     append_u16(central, 0); append_u16(central, 0); append_u16(central, 0); append_u16(central, 0);

@@ -1,6 +1,9 @@
 // NumPy .npz archives (a zip of .npy arrays) that `np.load` opens: the format for models and
-// rigs. Arrays are stored uncompressed, little-endian, C order. Reading accepts stored and
-// deflated members, float64/float32/int32/int64/uint8 arrays and unicode/bytes strings.
+// rigs. Members are deflated (as np.savez_compressed writes them; stored when that would not
+// shrink them); arrays little-endian, C order: float64 (or float32 where asked), integer arrays
+// and scalars int32 ('<i4'), text as numpy unicode scalars. Reading accepts stored and deflated
+// members, float64/float32 and (u)int8..64 arrays (files written before integers were int32 hold
+// int64) and unicode/bytes strings.
 #pragma once
 
 #include <Eigen/Core>
@@ -18,8 +21,11 @@ struct NpyArray {
   std::vector<double> f64;     // used when is_float
   std::vector<int64_t> i64;    // used when !is_float (int32/int64/uint8 are widened)
   bool is_float = true;
+  bool store_int64 = false;    // integer data written as '<i8' (read from an int64 array whose
+                               // values do not all fit int32); otherwise '<i4'
   std::string text;            // for string arrays (dtype '<U' or '|S'): the one string
   bool store_float32 = false;  // float data written as '<f4' (≈ 7 significant digits, half the size)
+  std::string dtype;           // the numpy dtype it was read with ('<i4', '<f8', ...); "" when made here
 
   int64_t size() const;
 };
@@ -32,6 +38,7 @@ class Npz {
   void put(const std::string& name, const Eigen::MatrixXi& m);
   void put(const std::string& name, const Eigen::VectorXi& v);
   void put(const std::string& name, double scalar);
+  void put_int(const std::string& name, int scalar);                 // int32 scalar
   // The same stored as float32 ('<f4'): for large arrays whose precision needs ≈ 7 digits.
   void put_float32(const std::string& name, const Eigen::MatrixXd& m);
   void put_text(const std::string& name, const std::string& text);   // numpy '<U' scalar

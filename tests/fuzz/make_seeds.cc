@@ -8,6 +8,7 @@
 #include "core/io/libigl_formats.h"
 #include "core/io/mesh_io.h"
 #include "core/io/npz.h"
+#include "encoding/encoding_file.h"
 #include "model/model_file.h"
 #include "skinning/rig_io.h"
 #include "tiny_files.h"
@@ -100,6 +101,16 @@ int main(int argc, char** argv) {
   put("fuzz_rig_npz", "ssd_skeleton.npz", file_bytes(tmp / "rig.npz"));
   // A model file in the real format with tiny arrays.
   put("fuzz_model_npz", "tetra.npz", tiny::model_npz().serialize());
+  // An encoding file (`bodymodel encode`): the tetrahedron, two rows, names with a path in one.
+  {
+    EncodingFile e;
+    e.template_vertices = tiny::tetra_vertices();
+    e.template_faces = tiny::tetra_faces();
+    e.encodings = Eigen::MatrixXd::Zero(2, 60);
+    e.mean = Eigen::VectorXd::Zero(60);
+    e.names = {"rest", "../up/walk"};
+    put("fuzz_encoding_npz", "two.npz", encoding_to_npz(e, "layout").serialize());
+  }
   fs::remove_all(tmp);
   std::cout << "seeds written to " << dir << "\n";
   return 0;

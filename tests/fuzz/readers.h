@@ -17,12 +17,15 @@
 
 #include "core/error.h"
 #include "core/io/bvh.h"
+#include "core/io/file_names.h"
 #include "core/io/libigl_formats.h"
 #include "core/io/mesh_io.h"
 #include "core/io/npz.h"
 #include "core/io/pose_csv.h"
 #include "core/landmarks.h"
 #include "core/makehuman.h"
+#include "encoding/encoding_file.h"
+#include "encoding/relative_rotation_encoding.h"
 #include "model/database.h"
 #include "model/model_file.h"
 #include "registration/landmarks.h"
@@ -53,6 +56,13 @@ void allowing_rejection(F&& f) {
 
 inline void check(bool ok) {
   if (!ok) std::abort();  // a post-condition of a successful read failed
+}
+
+// Names read from a file that may become file names: each sanitised name must be a plain file
+// name (one component that stays in its folder), whatever the file held.
+inline void check_names_sanitise(const std::vector<std::string>& names) {
+  for (const auto& n : names) check(file_name_problem(sanitized_file_name(n, "x")).empty());
+  for (const auto& n : unique_file_names(names, "x")) check(file_name_problem(n).empty());
 }
 
 inline void read_obj(const std::string& in) { parse_mesh(in, "obj", "fuzz.obj"); }
@@ -145,6 +155,9 @@ inline void read_dmat_file(const std::string& in) {
 // A model that loads must also place its skeleton in its template and pose it (small models).
 inline void read_model_npz(const std::string& in) {
   const BodyModel model = model_from_npz(Npz::parse(in, "fuzz.npz"), "fuzz.npz");
+  check_names_sanitise(model.rig.bone_names);
+  check_names_sanitise(model.shape.sample_ids);
+  for (const auto& l : model.shape.regression.labels) check_names_sanitise({l.name, l.unit});
   if (!model.rig.empty() && model.rig.bone_count() <= 64 && model.tmpl->rest_vertices().rows() <= 4096) {
     const Eigen::MatrixX3d& V = model.tmpl->rest_vertices();
     Skeleton s;  // what ModelRig::skeleton_for makes (model_rig.cc is not in the fuzz build)
@@ -164,12 +177,26 @@ inline void read_rig_npz(const std::string& in) {
   std::vector<BoneTransforms> poses;
   Skeleton skeleton;
   const SkinningRig rig = load_rig(input_file(in, ".npz"), &faces, &poses, &skeleton);
+  check_names_sanitise(skeleton.names);
   if (rig.bone_count <= 64 && rig.vertex_count() <= 4096) {
     const BoneTransforms M(static_cast<size_t>(rig.bone_count), Eigen::Affine3d::Identity());
     check(evaluate_rig(rig, M).allFinite());
     for (const auto& P : poses) evaluate_rig(rig, P);
     if (skeleton.bone_count() > 0) forward_kinematics(skeleton, Pose::rest(skeleton.bone_count()));
   }
+}
+
+// An encoding file as `decode` reads it: every array checked, the names made into plain,
+// distinct file names (they name the decoded meshes), and a small template built.
+inline void read_encoding_npz(const std::string& in) {
+  const EncodingFile e = parse_encoding_npz(Npz::parse(in, "fuzz.npz"), "fuzz.npz");
+  check(e.file_names.size() == static_cast<size_t>(e.encodings.rows()));
+  for (size_t i = 0; i < e.file_names.size(); ++i) {
+    check(file_name_problem(e.file_names[i]).empty());
+    for (size_t k = 0; k < i; ++k) check(e.file_names[i] != e.file_names[k]);
+  }
+  if (e.template_faces.rows() <= 4096)
+    allowing_rejection([&] { EncodingTemplate t(e.template_vertices, e.template_faces); });
 }
 
 // fuzz target name (without "fuzz_") → reader.
@@ -181,7 +208,8 @@ inline const std::map<std::string, std::function<void(const std::string&)>>& rea
       {"mhw", read_mhw},           {"landmarks", read_landmarks_json},
       {"labels_csv", read_labels_csv}, {"pose_csv", read_pose_labels},
       {"tgf", read_tgf_file},      {"dmat", read_dmat_file},
-      {"model_npz", read_model_npz}, {"rig_npz", read_rig_npz}};
+      {"model_npz", read_model_npz}, {"rig_npz", read_rig_npz},
+      {"encoding_npz", read_encoding_npz}};
   return table;
 }
 

@@ -16,6 +16,7 @@
 #include <thread>
 #include <vector>
 
+#include "core/error.h"
 #include "core/io/atomic_write.h"
 
 namespace bodymodel::reliability {
@@ -80,8 +81,10 @@ inline bool wait_until(const std::function<bool()>& pred, double seconds) {
 inline std::vector<fs::path> files_under(const fs::path& dir) {
   std::vector<fs::path> out;
   std::error_code ec;
-  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::end(it); it.increment(ec))
-    if (it->is_regular_file()) out.push_back(it->path());
+  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::end(it); it.increment(ec)) {
+    std::error_code entry;  // a symlink loop is no regular file (and must not throw here)
+    if (it->is_regular_file(entry)) out.push_back(it->path());
+  }
   return out;
 }
 
@@ -112,6 +115,19 @@ inline std::string folder_difference(const fs::path& a, const fs::path& b) {
   }
   for (const auto& [name, bytes] : fb)
     if (!fa.count(name)) return name + " only in " + b.string();
+  return "";
+}
+
+// The message of the InputError `f` throws; "" when it throws nothing; another exception type
+// yields "wrong exception type: ..." (so the expectation on the text fails, naming it).
+inline std::string message_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  } catch (const std::exception& e) {
+    return std::string("wrong exception type: ") + e.what();
+  }
   return "";
 }
 

@@ -148,7 +148,7 @@ TEST(ResumableSynthDb, DamagedDatabaseIsCompletedIdenticalToACleanRun) {
   other[6] = "12";  // --seed
   EXPECT_EQ(run_bodymodel(other, log, &out), 2) << out;
   ASSERT_EQ(error_lines(out).size(), 1u) << out;
-  EXPECT_NE(error_lines(out)[0].find("seed 11, not 12"), std::string::npos) << out;
+  EXPECT_NE(error_lines(out)[0].find("seed was 11, now 12"), std::string::npos) << out;
   EXPECT_EQ(folder_difference(clean, db), "");
   other.push_back("--force");
   ASSERT_EQ(run_bodymodel(other, log, &out), 0) << out;

@@ -43,17 +43,6 @@ std::function<void(Npz&)> set_element(const std::string& key, int r, int c, doub
   };
 }
 
-std::string message_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  } catch (const std::exception& e) {
-    return std::string("wrong exception type: ") + e.what();
-  }
-  return "";
-}
-
 TEST(ModelFileValidation, EveryInconsistentArrayIsNamed) {
   fixtures::TempDir dir;
   const fs::path file = dir / "tiny.npz";

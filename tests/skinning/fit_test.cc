@@ -15,35 +15,8 @@ namespace {
 using testing::make_tube;
 using testing::random_chain_pose;
 
-SkinningExamples lbs_examples(const testing::SyntheticTube& t, int poses, unsigned seed,
-                              bool fixed_root = false) {
-  std::mt19937 rng(seed);
-  const SkinningRig truth = lbs_rig_from_weights(t.V, t.W, 3, 0.0);
-  SkinningExamples ex;
-  ex.rest = t.V;
-  for (int p = 0; p < poses; ++p) {
-    ex.transforms.push_back(random_chain_pose(rng, 1.0, fixed_root));
-    ex.poses.push_back(evaluate_rig(truth, ex.transforms.back()));
-  }
-  return ex;
-}
-
-// A non-linear "bulge" on top of LBS that no SSD weights reproduce: the skin swells along the
-// radial direction with the sine of the elbow's rotation angle. The root stays at rest.
-SkinningExamples bulging_examples(const testing::SyntheticTube& t, int poses, unsigned seed) {
-  SkinningExamples ex = lbs_examples(t, poses, seed, true);
-  for (int p = 0; p < poses; ++p) {
-    const Eigen::Matrix3d rel = ex.transforms[p][0].linear().transpose() * ex.transforms[p][1].linear();
-    const double angle = Eigen::AngleAxisd(rel).angle();
-    for (Eigen::Index i = 0; i < t.V.rows(); ++i) {
-      const double x = t.V(i, 0);
-      const double bump = 0.08 * std::sin(angle) * std::exp(-4 * (x - 1) * (x - 1));
-      Eigen::Vector3d radial(0, t.V(i, 1), t.V(i, 2));
-      ex.poses[p].row(i) += (ex.transforms[p][1].linear() * radial * bump / 0.3).transpose();
-    }
-  }
-  return ex;
-}
+using testing::bulging_examples;
+using testing::lbs_examples;
 
 TEST(FitLbs, RecoversKnownWeightsWithTrueInfluences) {
   const auto t = make_tube();
@@ -84,17 +57,7 @@ TEST(FitAnimationSpace, ReproducesTrainingPosesOfAnAnimationSpaceRig) {
   std::mt19937 rng(11);
   // A true AS rig: SSD weights times ṽ plus a random perturbation of each p_k.
   SkinningRig truth = lbs_rig_from_weights(t.V, t.W, 3, 0.0);
-  SkinningRig as = truth;
-  as.method = SkinningMethod::animation_space;
-  as.coefficients.resize(t.V.rows(), 12);
-  std::normal_distribution<double> g(0, 0.02);
-  for (Eigen::Index i = 0; i < t.V.rows(); ++i)
-    for (int k = 0; k < 3; ++k) {
-      const Eigen::Vector4d v(t.V(i, 0), t.V(i, 1), t.V(i, 2), 1);
-      Eigen::Vector4d p = truth.coefficients(i, k) * v;
-      if (truth.coefficients(i, k) > 0) p += Eigen::Vector4d(g(rng), g(rng), g(rng), 0.3 * g(rng));
-      as.coefficients.row(i).segment<4>(4 * k) = p.transpose();
-    }
+  const SkinningRig as = testing::animation_space_truth(t, rng, 0.02);
   SkinningExamples ex;
   ex.rest = t.V;
   for (int p = 0; p < 10; ++p) {

@@ -10,6 +10,8 @@
 #include <vector>
 
 #include "core/skeleton.h"
+#include "skinning/skinning_examples.h"
+#include "skinning/skinning_rig.h"
 
 namespace bodymodel::testing {
 
@@ -81,6 +83,54 @@ inline BoneTransforms random_chain_pose(std::mt19937& rng, double max_angle = 1.
     M[static_cast<size_t>(b)] = M[static_cast<size_t>(b - 1)] * local;
   }
   return M;
+}
+
+// A true Animation Space rig on the tube: SSD weights times ṽ plus a random perturbation of each
+// used p_k (normal, `sigma` for x y z, 0.3 sigma for w).
+inline SkinningRig animation_space_truth(const SyntheticTube& t, std::mt19937& rng, double sigma) {
+  const SkinningRig truth = lbs_rig_from_weights(t.V, t.W, 3, 0.0);
+  SkinningRig as = truth;
+  as.method = SkinningMethod::animation_space;
+  as.coefficients.resize(t.V.rows(), 12);
+  std::normal_distribution<double> g(0, sigma);
+  for (Eigen::Index i = 0; i < t.V.rows(); ++i)
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector4d v(t.V(i, 0), t.V(i, 1), t.V(i, 2), 1);
+      Eigen::Vector4d p = truth.coefficients(i, k) * v;
+      if (truth.coefficients(i, k) > 0) p += Eigen::Vector4d(g(rng), g(rng), g(rng), 0.3 * g(rng));
+      as.coefficients.row(i).segment<4>(4 * k) = p.transpose();
+    }
+  return as;
+}
+
+// Examples posed by the tube's true LBS rig.
+inline SkinningExamples lbs_examples(const SyntheticTube& t, int poses, unsigned seed, bool fixed_root = false) {
+  std::mt19937 rng(seed);
+  const SkinningRig truth = lbs_rig_from_weights(t.V, t.W, 3, 0.0);
+  SkinningExamples ex;
+  ex.rest = t.V;
+  for (int p = 0; p < poses; ++p) {
+    ex.transforms.push_back(random_chain_pose(rng, 1.0, fixed_root));
+    ex.poses.push_back(evaluate_rig(truth, ex.transforms.back()));
+  }
+  return ex;
+}
+
+// A non-linear "bulge" on top of LBS that no SSD weights reproduce: the skin swells along the
+// radial direction with the sine of the elbow's rotation angle. The root stays at rest.
+inline SkinningExamples bulging_examples(const SyntheticTube& t, int poses, unsigned seed) {
+  SkinningExamples ex = lbs_examples(t, poses, seed, true);
+  for (int p = 0; p < poses; ++p) {
+    const Eigen::Matrix3d rel = ex.transforms[p][0].linear().transpose() * ex.transforms[p][1].linear();
+    const double angle = Eigen::AngleAxisd(rel).angle();
+    for (Eigen::Index i = 0; i < t.V.rows(); ++i) {
+      const double x = t.V(i, 0);
+      const double bump = 0.08 * std::sin(angle) * std::exp(-4 * (x - 1) * (x - 1));
+      Eigen::Vector3d radial(0, t.V(i, 1), t.V(i, 2));
+      ex.poses[p].row(i) += (ex.transforms[p][1].linear() * radial * bump / 0.3).transpose();
+    }
+  }
+  return ex;
 }
 
 }  // namespace bodymodel::testing

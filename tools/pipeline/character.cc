@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <mutex>
 #include <random>
 
@@ -469,6 +470,25 @@ std::string rig_errors_csv(const std::vector<RigErrorRow>& rows) {
     s += fmt::format("{},{},{},{:.3f},{:.3f},{:.3f},{:.3f}\n", r.method, r.split, r.poses, r.mean_mm, r.max_mm,
                      r.rms_mm, r.p95_mm);
   return s;
+}
+
+void validate_character_options(const CharacterOptions& o) {
+  auto fail = [](const std::string& what) { throw InputError("character: " + what); };
+  if (!(std::isfinite(o.mwe.ridge_scale) && o.mwe.ridge_scale >= 0))
+    fail(fmt::format("the MWE ridge scale (--mwe-s) must be a finite number ≥ 0, got {}", o.mwe.ridge_scale));
+  if (o.mwe.components < 0) fail(fmt::format("--mwe-components must be ≥ 0, got {}", o.mwe.components));
+  if (o.mwe_smoothing_steps < 0)
+    fail(fmt::format("--mwe-smoothing-steps must be ≥ 0, got {}", o.mwe_smoothing_steps));
+  if (o.weight_smoothing_steps < 0)
+    fail(fmt::format("weight smoothing steps must be ≥ 0, got {}", o.weight_smoothing_steps));
+  if (!(std::isfinite(o.fold_repair.max_displacement) && o.fold_repair.max_displacement > 0))
+    fail(fmt::format("--fold-max-move-mm must be a positive number of millimetres, got {}",
+                     o.fold_repair.max_displacement));
+  if (o.threads < 0) fail(fmt::format("--threads must be ≥ 0, got {}", o.threads));
+  if (o.max_influences < 1) fail(fmt::format("at least one influence per vertex, got {}", o.max_influences));
+  const RangeOfMotionOptions& r = o.range_of_motion;
+  if (r.training_frames_per_clip < 0 || r.held_out_frames_per_clip < 0 || r.training_blends < 0 || r.held_out_blends < 0)
+    fail("the range of motion's frame and blend counts must be ≥ 0");
 }
 
 }  // namespace bodymodel

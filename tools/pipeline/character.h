@@ -158,6 +158,11 @@ struct CharacterOptions {
   int threads = 0;                  // pose morphs in parallel (one decoder each); 0 = all cores
 };
 
+// Throws InputError naming the option (`--mwe-s`, …) when a setting is out of range (negative or
+// NaN ridge, components, smoothing steps or threads; non-positive fold-repair distance). Called
+// before any work: `character --mwe-s -1` was refused only by the MWE fit, after 5 s of morphs.
+void validate_character_options(const CharacterOptions& options);
+
 // The example meshes of a character.
 struct CharacterExamples {
   Eigen::MatrixX3d rest;                  // #V by 3, mm (the body, standard pose)

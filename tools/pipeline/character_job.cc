@@ -61,6 +61,7 @@ void write_error_picture(const CharacterExamples& ex, const CharacterRigs& rigs,
 CharacterJobResult write_character(const BodyModel& model, const Eigen::MatrixX3d& V, const fs::path& dir,
                                    const nlohmann::json& description, const CharacterJobOptions& o,
                                    const ProgressCallback& progress) {
+  validate_character_options(o.character);
   CharacterJobResult res;
   auto t0 = std::chrono::steady_clock::now();
   auto sub = [&](double a, double b) -> ProgressCallback {

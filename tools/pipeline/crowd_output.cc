@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
+#include "tools/pipeline/folder_settings.h"
 
 namespace bodymodel {
 
@@ -97,51 +98,28 @@ GenerateCrowdSummary write_crowd(std::shared_ptr<const BodyModel> model,
   if (o.format != "obj" && o.format != "ply")
     throw InputError(fmt::format("generate: mesh format '{}' (expected obj or ply)", o.format));
   if (o.crowd.threads < 0) throw InputError(fmt::format("generate: {} threads", o.crowd.threads));
-  ensure_directory(out);
-  const fs::path settings_path = out / "generate.json";
+  if (!(std::isfinite(o.crowd.generate.spread) && o.crowd.generate.spread >= 0))
+    throw InputError(fmt::format("generate: --spread must be a finite number ≥ 0, got {}", o.crowd.generate.spread));
+  if (o.crowd.generate.max_attempts < 1)
+    throw InputError(fmt::format("generate: {} attempts per body, expected at least 1", o.crowd.generate.max_attempts));
   const fs::path csv_path = out / "labels.csv";
-  const nlohmann::json settings = settings_json(model_fingerprint(*model), conditions, o);
-
-  // Same settings as the crowd already in the folder?
-  bool resume = false;
-  std::error_code ec;
-  if (fs::exists(settings_path, ec)) {
-    nlohmann::json previous;
-    try {
-      previous = nlohmann::json::parse(read_text_file(settings_path));
-    } catch (const nlohmann::json::exception&) {
-      previous = nullptr;
-    }
-    if (previous == settings) {
-      resume = o.resume;
-    } else if (!o.force) {
-      std::string what = "its generate.json cannot be read";
-      if (previous.is_object()) {
-        for (auto& [key, value] : settings.items())
-          if (!previous.contains(key) || previous[key] != value) {
-            what = fmt::format("{} was {}, now {}", key, previous.contains(key) ? previous[key].dump() : "missing",
-                               value.dump());
-            break;
-          }
-      }
-      throw InputError(fmt::format("'{}' holds a crowd generated with other settings ({}); use another "
-                                   "folder, or --force to replace it",
-                                   out.string(), what));
-    }
-  }
+  // The settings record of tools/pipeline/folder_settings.h: the same settings resume, others are
+  // refused unless force (every body is then made again). Checked before anything is written.
+  ResumableFolder folder(out, "generate.json", settings_json(model_fingerprint(*model), conditions, o), o.force,
+                         [](const std::string& n) {
+                           return n == "labels.csv" ||
+                                  (n.rfind("body_", 0) == 0 && n.size() > 4 &&
+                                   (n.substr(n.size() - 4) == ".obj" || n.substr(n.size() - 4) == ".ply"));
+                         });
+  const bool resume = folder.open(o.resume);
   std::vector<std::optional<std::string>> rows(count);
-  if (resume) {
-    rows = read_previous_rows(csv_path, count);
-  } else {
-    // A new crowd: an earlier labels.csv must not lend its rows to it.
-    fs::remove(csv_path, ec);
-    write_text_file(settings_path, settings.dump(2) + "\n");
-  }
+  if (resume) rows = read_previous_rows(csv_path, count);
 
   GenerateCrowdSummary summary;
   summary.count = count;
   for (int i = 0; i < count; ++i) summary.files.push_back(fmt::format("body_{:03d}.{}", i, o.format));
   std::vector<int> todo;
+  std::error_code ec;
   for (int i = 0; i < count; ++i) {
     if (rows[i] && split_row(*rows[i])[1] == summary.files[i] && fs::is_regular_file(out / summary.files[i], ec))
       continue;

@@ -14,6 +14,8 @@ class StagedFolder {
   // Refuses (InputError, one line naming the folder and the option) when `final_dir` exists and
   // `force` is false; creates the parent and the staging folder (InputError naming the folder
   // when that fails or it is not writable). `force_option` is the flag named in the message.
+  // Staging folders of `final_dir` left by runs that have ended (killed or interrupted) are
+  // removed; those of a running process are kept.
   StagedFolder(std::filesystem::path final_dir, bool force, const std::string& force_option = "--force");
   // Removes the staging folder unless committed.
   ~StagedFolder();
@@ -34,8 +36,9 @@ class StagedFolder {
   bool committed_ = false;
 };
 
-// Throws InputError when `dir` exists and `force` is false (the check StagedFolder makes, for
-// verbs that fill a folder incrementally and resume).
+// Throws InputError when `dir` exists and `force` is false (the check StagedFolder makes). Verbs
+// that fill a folder incrementally and resume record their settings instead
+// (tools/pipeline/folder_settings.h).
 void refuse_existing_output(const std::filesystem::path& dir, bool force, const std::string& force_option = "--force");
 
 }  // namespace bodymodel

@@ -23,6 +23,7 @@
 #include "core/error.h"
 #include "core/geometry.h"
 #include "core/io/atomic_write.h"
+#include "tools/pipeline/folder_settings.h"
 #include "core/io/bvh.h"
 #include "core/io/interrupt_cleanup.h"
 #include "core/io/mesh_io.h"
@@ -308,27 +309,10 @@ std::string description_json(const SyntheticDatabaseOptions& o, const std::vecto
   return meta.dump(2) + "\n";
 }
 
-// Compares an existing database.json with the expected description; "" when they agree.
+// Compares an existing database.json with the expected description; "" when they agree (the
+// comparison of every resumable folder's settings record, tools/pipeline/folder_settings.h).
 std::string description_difference(const fs::path& file, const std::string& expected) {
-  std::error_code ec;
-  if (!fs::is_regular_file(file, ec)) return "no " + file.filename().string();
-  nlohmann::json old, now = nlohmann::json::parse(expected);
-  try {
-    old = nlohmann::json::parse(read_text_file(file));
-  } catch (const std::exception&) {
-    return file.filename().string() + " does not parse";
-  }
-  if (!old.is_object()) return file.filename().string() + " is not a JSON object";
-  for (auto& [key, value] : now.items()) {
-    if (!old.contains(key)) return key + " not recorded";
-    if (old[key] != value) {
-      if (value.is_array() || value.is_object()) return "other " + key;
-      return key + " " + old[key].dump() + ", not " + value.dump();
-    }
-  }
-  for (auto& [key, value] : old.items())
-    if (!now.contains(key)) return "unknown entry " + key;
-  return "";
+  return settings_difference(file, nlohmann::json::parse(expected));
 }
 
 // The process id in a write_atomically temporary name ".<name>.tmp<pid>_<n>", or -1.

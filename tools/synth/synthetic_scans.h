@@ -84,8 +84,8 @@ std::string synthetic_database_description(const MakeHuman& makehuman,
                                            const SyntheticDatabaseOptions& options);
 
 // Whether `out_dir`/database.json describes exactly the database `options` make. When it does not
-// and `difference` is given, it receives a short phrase naming the first difference ("seed 11,
-// not 5", "no database.json", ...).
+// and `difference` is given, it receives a short phrase naming the first difference ("seed was
+// 11, now 5", "no database.json", ...).
 bool is_same_synthetic_database(const MakeHuman& makehuman, const std::string& out_dir,
                                 const SyntheticDatabaseOptions& options,
                                 std::string* difference = nullptr);

@@ -4,6 +4,7 @@
 #include <memory>
 
 #include "core/error.h"
+#include "core/io/file_names.h"
 #include "core/io/mesh_io.h"
 #include "model/model_file.h"
 #include "model/morph.h"
@@ -51,7 +52,9 @@ BODYMODEL_VERB(add_character_verb) {
       "OUT/poses.csv, OUT/skinning_error.png and OUT/character.glb (SSD rig, glTF 2.0).");
   cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`, with its skeleton)")->required();
   cmd->add_option("--where", a->where, "LABEL=VALUE or LABEL=LO..HI for the generated body, repeatable");
-  cmd->add_option("--seed", a->seed, "Random seed of the generated body")->capture_default_str();
+  cmd->add_option("--seed", a->seed, "Random seed of the generated body")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--in", a->in, "Use this body (model topology, standard pose, mm) instead of generating one");
   cmd->add_option("--out", a->out, "Output folder (must not exist unless --force)")->required();
   cmd->add_flag("--force", a->force, "Replace an existing output folder");
@@ -81,30 +84,6 @@ BODYMODEL_VERB(add_character_verb) {
   cmd->add_option("--threads", a->threads, "Threads for the pose morphs (0 = all cores)")->capture_default_str();
   cmd->callback([a] {
     if (!a->in.empty() && !a->where.empty()) throw InputError("character: give --where or --in, not both");
-    StagedFolder out(a->out, a->force);
-    auto model = std::make_shared<const BodyModel>(load_model(a->model));
-    if (model->rig.empty())
-      throw InputError("'" + a->model + "' has no skeleton: rebuild it without --no-rig (a character needs one)");
-    Eigen::MatrixX3d V;
-    nlohmann::json desc = {{"model", a->model}};
-    if (!a->in.empty()) {
-      Mesh body = read_mesh(a->in);
-      model->check_topology(body.V, body.F, "'" + a->in + "'");
-      V = body.V;
-      desc["input"] = a->in;
-    } else {
-      std::vector<LabelCondition> cond = parse_conditions(model->shape.regression, a->where);
-      ShapeMorpher morpher(model);
-      GenerateOptions go;
-      go.morph.sex = sex_of(cond);
-      GeneratedBody g = generate_body(morpher, cond, a->seed, go);
-      if (!g.satisfied) cli::warn("the generated body does not meet every --where condition:\n" + g.summary.report());
-      V = g.V;
-      desc["seed"] = a->seed;
-      desc["where"] = a->where;
-      cli::info(fmt::format("generated body: {:.1f} cm, {:.1f} kg (measured)", g.measured.height_cm,
-                            g.measured.weight_kg));
-    }
     CharacterJobOptions o;
     o.character.threads = a->threads;
     o.character.mwe.ridge_scale = a->mwe_s;
@@ -119,6 +98,32 @@ BODYMODEL_VERB(add_character_verb) {
     o.character.mwe_smoothing_steps = a->mwe_smoothing_steps;
     o.character.mwe_mask_steps = a->mwe_mask_steps;
     o.character.mwe_mask_bones = a->mwe_mask_bones;
+    validate_character_options(o.character);  // before any work
+    StagedFolder out(a->out, a->force);
+    auto model = std::make_shared<const BodyModel>(load_model(a->model));
+    if (model->rig.empty())
+      throw InputError("'" + a->model + "' has no skeleton: rebuild it without --no-rig (a character needs one)");
+    Eigen::MatrixX3d V;
+    // The description goes into rig.npz: file names only, not the folders of this machine.
+    nlohmann::json desc = {{"model", path_label(a->model)}};
+    if (!a->in.empty()) {
+      Mesh body = read_mesh(a->in);
+      model->check_topology(body.V, body.F, "'" + a->in + "'");
+      V = body.V;
+      desc["input"] = path_label(a->in);
+    } else {
+      std::vector<LabelCondition> cond = parse_conditions(model->shape.regression, a->where);
+      ShapeMorpher morpher(model);
+      GenerateOptions go;
+      go.morph.sex = sex_of(cond);
+      GeneratedBody g = generate_body(morpher, cond, a->seed, go);
+      if (!g.satisfied) cli::warn("the generated body does not meet every --where condition:\n" + g.summary.report());
+      V = g.V;
+      desc["seed"] = a->seed;
+      desc["where"] = a->where;
+      cli::info(fmt::format("generated body: {:.1f} cm, {:.1f} kg (measured)", g.measured.height_cm,
+                            g.measured.weight_kg));
+    }
     cli::ProgressBar bar("character");
     CharacterJobResult r = write_character(*model, V, out.path(), desc, o, bar.callback());
     bar.finish(fmt::format("{} training + {} held-out poses; examples {:.0f} s, fits {:.0f} s", r.training_poses,

@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "core/io/bvh.h"
+#include "core/io/file_names.h"
 #include "core/io/mesh_io.h"
 #include "model/model_file.h"
 #include "model/morph.h"
@@ -18,6 +19,7 @@
 #include "tools/pipeline/animate_job.h"
 #include "tools/pipeline/character_job.h"
 #include "tools/pipeline/conditions.h"
+#include "tools/pipeline/folder_settings.h"
 #include "tools/pipeline/output_folder.h"
 #include "tools/render/render.h"
 #include "tools/verb.h"
@@ -61,7 +63,9 @@ BODYMODEL_VERB(add_crowd_verb) {
   cmd->add_option("--count", a->count, "Characters")->capture_default_str()->check(CLI::Range(1, 10000));
   cmd->add_option("--bvh", a->bvh, "Motion clip (BVH) every character performs")->required();
   cmd->add_option("--where", a->where, "LABEL=VALUE or LABEL=LO..HI, repeatable");
-  cmd->add_option("--seed", a->seed, "Random seed (character i uses seed·1000003 + i)")->capture_default_str();
+  cmd->add_option("--seed", a->seed, "Random seed (character i uses seed·1000003 + i)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--out", a->out, "Output folder")->required();
   cmd->add_flag("--quick", a->quick, "Smaller range of motion (about half the pose morphs)");
   cmd->add_option("--fps", a->fps, "Animation frame rate")->capture_default_str();
@@ -73,37 +77,32 @@ BODYMODEL_VERB(add_crowd_verb) {
   cmd->add_flag("--force", a->force, "Replace an existing output folder made with other settings");
   cmd->callback([a] {
     const fs::path out = a->out;
-    nlohmann::json settings = {{"model", fs::absolute(a->model).lexically_normal().string()},
-                               {"bvh", fs::absolute(a->bvh).lexically_normal().string()},
-                               {"where", a->where}, {"seed", a->seed}, {"quick", a->quick},
-                               {"fps", a->fps}, {"max_frames", a->max_frames}, {"frames_format", a->frames_format},
-                               {"repair", !a->no_repair}};
-    std::error_code ec;
-    if (fs::exists(out, ec)) {
-      nlohmann::json old;
-      try {
-        old = nlohmann::json::parse(read_text_file(out / "crowd.json"));
-      } catch (const std::exception&) {
-      }
-      if (old.value("settings", nlohmann::json()) != settings) {
-        if (!a->force)
-          throw InputError("output folder '" + out.string() + "' exists and was not made by this crowd command "
-                           "(other settings or not a crowd; use --force to replace it)");
-        fs::remove_all(out, ec);
-        if (ec) throw InputError("cannot remove '" + out.string() + "': " + ec.message());
-      } else {
-        cli::info("resuming the crowd in " + out.string() + " (finished characters are skipped)");
-      }
-    }
-    ensure_directory(out);
-    write_text_file(out / "crowd.json", nlohmann::json({{"settings", settings}, {"count", a->count}}).dump(2));
+    // Every setting that changes a character, the model and clip by content (no paths): a rerun with
+    // other settings is refused instead of resumed (tools/pipeline/folder_settings.h). --count may
+    // grow: the characters already finished are kept.
+    const nlohmann::json settings = {{"verb", "crowd"},
+                                     {"model", file_fingerprint(a->model)},
+                                     {"bvh", file_fingerprint(a->bvh)},
+                                     {"where", a->where},
+                                     {"seed", a->seed},
+                                     {"quick", a->quick},
+                                     {"fps", a->fps},
+                                     {"max_frames", a->max_frames},
+                                     {"frames_format", a->frames_format},
+                                     {"repair", !a->no_repair}};
+    ResumableFolder folder(out, "crowd.json", settings, a->force, [](const std::string& n) {
+      return n == "crowd.csv" || n == "crowd.png" || n.rfind("char_", 0) == 0;
+    });
     auto model = std::make_shared<const BodyModel>(load_model(a->model));
     if (model->rig.empty())
       throw InputError("'" + a->model + "' has no skeleton: rebuild it without --no-rig (a crowd needs one)");
     const std::vector<LabelCondition> cond = parse_conditions(model->shape.regression, a->where);
     const BvhMotion clip = read_bvh(a->bvh);
+    if (folder.open()) cli::info("resuming the crowd in " + out.string() + " (finished characters are skipped)");
+    std::error_code ec;
     CharacterJobOptions co;
     if (a->quick) make_quick(co.character);
+    validate_character_options(co.character);
     AnimateOptions ao;
     ao.fps = a->fps;
     ao.max_frames = a->max_frames;
@@ -130,7 +129,7 @@ BODYMODEL_VERB(add_crowd_verb) {
       StagedFolder dir(final_dir, true);
       const uint64_t seed = a->seed * 1000003ull + static_cast<uint64_t>(i);
       GeneratedBody g = generate_body(morpher, cond, seed, go);
-      nlohmann::json desc = {{"model", a->model}, {"seed", seed}, {"where", a->where}, {"crowd_index", i}};
+      nlohmann::json desc = {{"model", path_label(a->model)}, {"seed", seed}, {"where", a->where}, {"crowd_index", i}};
       write_character(*model, g.V, dir.path(), desc, co, sub(0, 0.9));
       CharacterRigFile ch = load_character_rig(dir / "rig.npz");
       ClipPoses poses = retarget_clip(clip, ch.skeleton, data_file("makehuman"), true, a->bvh);

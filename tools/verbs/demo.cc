@@ -201,12 +201,12 @@ BODYMODEL_VERB(add_demo_verb) {
     for (int h : heights)
       stages.push_back({fmt::format("height sweep {} cm", h),
                         {"morph", p("model.npz"), "--in", p("db/truth/s000_p0.ply"), "--set", fmt::format("height_cm={}", h),
-                         "--keep", "weight_kg", "--sex", "female", "--out", p(fmt::format("sweeps/height_{}.obj", h))},
+                         "--keep", "weight_kg", "--sex", "female", "--closest", "--out", p(fmt::format("sweeps/height_{}.obj", h))},
                         {"build model"}});
     for (int w : weights)
       stages.push_back({fmt::format("weight sweep {} kg", w),
                         {"morph", p("model.npz"), "--in", p("db/truth/s000_p0.ply"), "--set", fmt::format("weight_kg={}", w),
-                         "--keep", "height_cm", "--sex", "female", "--out", p(fmt::format("sweeps/weight_{}.obj", w))},
+                         "--keep", "height_cm", "--sex", "female", "--closest", "--out", p(fmt::format("sweeps/weight_{}.obj", w))},
                         {"build model"}});
     stages.push_back({fmt::format("crowd of {} characters", a->crowd),
                       {"crowd", p("model.npz"), "--count", std::to_string(a->crowd), "--quick", "--bvh",

@@ -3,28 +3,26 @@
 // bodymodel interpolate a.ply b.ply [--template T] [--steps 5] [--vertex] --out DIR/
 //
 // The relative rotation encoding (encoding/relative_rotation_encoding.h) on the command line.
-// An encoding file is a NumPy .npz with these keys:
-//   encodings          N by 15·#F float64, one row per input mesh, relative to `mean`
-//                      (layout: encoding/relative_rotation_encoding.h)
-//   mean               15·#F float64, the inputs' component-wise mean (absolute values)
-//   template_vertices  #V by 3 float64, the template's rest vertices (input units, e.g. mm)
-//   template_faces     #F by 3 int32, the template's triangles (0-based)
-//   names              text: the input file stems, one per line (decoded meshes are named so)
-//   layout             text: a one-paragraph description of the layout
+// An encoding file is a NumPy .npz, keys in encoding/encoding_file.h. `decode` names its meshes
+// after the stored names only through unique_file_names (core/io/file_names.h) and writes them
+// through a staging folder (tools/pipeline/output_folder.h): all or nothing, and an existing
+// folder only with --force.
 #include <fmt/format.h>
 
 #include <cmath>
 #include <filesystem>
-#include <sstream>
 
 #include "core/error.h"
 #include "core/geometry.h"
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
 #include "core/io/npz.h"
+#include "core/io/file_names.h"
+#include "encoding/encoding_file.h"
 #include "encoding/relative_rotation_decoder.h"
 #include "encoding/relative_rotation_encoding.h"
 #include "tools/console.h"
+#include "tools/pipeline/output_folder.h"
 #include "tools/verb.h"
 
 namespace bodymodel {
@@ -54,10 +52,6 @@ std::shared_ptr<const EncodingTemplate> make_template(const Mesh& m, const std::
   }
 }
 
-std::string output_name(const fs::path& dir, const std::string& stem, const std::string& ext) {
-  return (dir / (stem + ext)).string();
-}
-
 // ---- encode ---------------------------------------------------------------------------------
 
 struct EncodeArgs {
@@ -69,9 +63,13 @@ void run_encode(const EncodeArgs& a) {
   const fs::path tpath = a.templ.empty() ? fs::path(a.meshes.front()) : fs::path(a.templ);
   const Mesh t = read_checked(tpath);
   auto tmpl = make_template(t, tpath.string());
+  // Checked before any work: `--out o/` is a folder, not a file name.
+  std::error_code ec;
+  if (fs::path(a.out).filename().empty() || fs::is_directory(a.out, ec))
+    throw InputError("--out '" + a.out + "': it is a folder; expected the name of the .npz file to write");
   cli::ProgressBar bar("encode");
   std::vector<Eigen::VectorXd> absolute;
-  std::string names;
+  std::vector<std::string> stems;
   for (size_t i = 0; i < a.meshes.size(); ++i) {
     const Mesh m = read_checked(a.meshes[i]);
     tmpl->check_vertices(m.V, a.meshes[i]);
@@ -81,21 +79,21 @@ void run_encode(const EncodeArgs& a) {
     } catch (const InputError& e) {
       throw InputError(a.meshes[i] + ": " + e.what());
     }
-    names += fs::path(a.meshes[i]).stem().string() + "\n";
+    stems.push_back(fs::path(a.meshes[i]).stem().string());
     bar.update(static_cast<double>(i + 1) / a.meshes.size(), fs::path(a.meshes[i]).filename().string());
   }
   auto mean = EncodingMean::average(absolute);
   Eigen::MatrixXd rows(absolute.size(), tmpl->encoding_size());
   for (size_t i = 0; i < absolute.size(); ++i)
     rows.row(i) = relative_to(mean, absolute[i]).values.transpose();
-  Npz npz;
-  npz.put("encodings", rows);
-  npz.put("mean", mean->values);
-  npz.put("template_vertices", Eigen::MatrixXd(tmpl->rest_vertices()));
-  npz.put("template_faces", Eigen::MatrixXi(tmpl->faces()));
-  npz.put_text("names", names);
-  npz.put_text("layout", kLayout);
-  npz.save(a.out);
+  EncodingFile file;
+  file.encodings = rows;
+  file.mean = mean->values;
+  file.template_vertices = tmpl->rest_vertices();
+  file.template_faces = tmpl->faces();
+  // The names decode gives the meshes: plain and distinct (body.obj and body.ply → body, body_2).
+  file.names = unique_file_names(stems, "mesh");
+  encoding_to_npz(file, kLayout).save(a.out);
   bar.finish(fmt::format("{} meshes, {} triangles, {} values each -> {}", absolute.size(),
                          tmpl->triangle_count(), tmpl->encoding_size(), a.out));
 }
@@ -104,94 +102,58 @@ void run_encode(const EncodeArgs& a) {
 
 struct DecodeArgs {
   std::string input, templ, out, format;
+  bool force = false;
 };
 
-// "row 3 ('walk_02')": an encoding row and the mesh it decodes to.
-std::string item_name(Eigen::Index row, const std::vector<std::string>& names) {
-  return fmt::format("row {} ('{}')", row, names[static_cast<size_t>(row)]);
-}
-
-// The first non-finite value of `M` as "NaN at row r, column c", or "".
-std::string first_non_finite(const Eigen::MatrixXd& M) {
-  for (Eigen::Index r = 0; r < M.rows(); ++r)
-    for (Eigen::Index c = 0; c < M.cols(); ++c)
-      if (!std::isfinite(M(r, c)))
-        return fmt::format("{} at row {}, column {}", std::isnan(M(r, c)) ? "NaN" : "infinity", r, c);
-  return "";
-}
-
 void run_decode(const DecodeArgs& a) {
-  const Npz npz = Npz::load(a.input);
+  std::string ext = a.format.empty() ? ".obj" : "." + a.format;
+  if (ext != ".obj" && ext != ".ply") throw InputError("--format must be obj or ply, found " + a.format);
+  // Every array is checked before anything is decoded or written.
+  const EncodingFile file = parse_encoding_npz(Npz::load(a.input), a.input, !a.templ.empty());
   Mesh t;
   if (!a.templ.empty()) {
     t = read_checked(a.templ);
   } else {
-    t.V = npz.matrix("template_vertices");
-    t.F = npz.int_matrix("template_faces");
-    if (const std::string bad = first_non_finite(t.V); !bad.empty())
-      throw InputError(fmt::format("{}: 'template_vertices' holds {}, expected finite coordinates",
-                                   a.input, bad));
+    t.V = file.template_vertices;
+    t.F = file.template_faces;
   }
   auto tmpl = make_template(t, a.templ.empty() ? a.input + ": 'template_vertices'/'template_faces'" : a.templ);
-  if (npz.has("template_faces")) {
-    const Eigen::MatrixXi F = npz.int_matrix("template_faces");
-    if (F.cols() != 3) throw InputError(a.input + ": template_faces must have 3 columns");
-    tmpl->check_faces(Eigen::MatrixX3i(F), "--template " + a.templ + " (against " + a.input + ")");
-  }
-  const Eigen::MatrixXd rows = npz.matrix("encodings");
-  if (rows.cols() != tmpl->encoding_size())
-    throw InputError(fmt::format("{}: 'encodings' has {} columns, the template needs {} "
-                                 "(15 per triangle)", a.input, rows.cols(), tmpl->encoding_size()));
-  const Eigen::VectorXd mean_values = npz.vector("mean");
-  if (mean_values.size() != tmpl->encoding_size())
-    throw InputError(fmt::format("{}: 'mean' has {} values, expected {}", a.input,
-                                 mean_values.size(), tmpl->encoding_size()));
-  for (Eigen::Index k = 0; k < mean_values.size(); ++k)
-    if (!std::isfinite(mean_values(k)))
-      throw InputError(fmt::format("{}: 'mean' holds {} at value {} (triangle {}), expected finite values",
-                                   a.input, std::isnan(mean_values(k)) ? "NaN" : "infinity", k, k / 15));
-  auto mean = EncodingMean::from_values(mean_values);
-  std::vector<std::string> names;
-  if (npz.has("names")) {
-    std::istringstream in(npz.text("names"));
-    for (std::string line; std::getline(in, line);)
-      if (!line.empty()) names.push_back(line);
-  }
-  while (names.size() < static_cast<size_t>(rows.rows()))
-    names.push_back(fmt::format("decoded_{:03d}", names.size()));
-  // Every row is checked before anything is written: a bad row names the file and the item.
-  for (Eigen::Index i = 0; i < rows.rows(); ++i)
-    for (Eigen::Index k = 0; k < rows.cols(); ++k)
-      if (!std::isfinite(rows(i, k)))
-        throw InputError(fmt::format("{}: 'encodings' {} holds {} at value {} (triangle {}), expected "
-                                     "finite values",
-                                     a.input, item_name(i, names), std::isnan(rows(i, k)) ? "NaN" : "infinity",
-                                     k, k / 15));
-  std::string ext = a.format.empty() ? ".obj" : "." + a.format;
-  if (ext != ".obj" && ext != ".ply") throw InputError("--format must be obj or ply, found " + a.format);
-  ensure_directory(a.out);
+  if (file.template_faces.rows() > 0)
+    tmpl->check_faces(file.template_faces, "--template " + a.templ + " (against " + a.input + ")");
+  if (file.encodings.cols() != tmpl->encoding_size())
+    throw InputError(fmt::format("{}: 'encodings' has {} columns, the template needs {} (15 per triangle)", a.input,
+                                 file.encodings.cols(), tmpl->encoding_size()));
+  for (size_t i = 0; i < file.names.size(); ++i)
+    if (file.file_names[i] != file.names[i])
+      cli::info(fmt::format("row {}: the stored name is not a plain file name or repeats an earlier one; writing "
+                            "'{}{}'",
+                            i, file.file_names[i], ext));
+  auto mean = EncodingMean::from_values(file.mean);
+  StagedFolder out(a.out, a.force);
   RelativeRotationDecoder decoder(tmpl);
   cli::ProgressBar bar("decode");
   double total_ms = 0;
-  for (Eigen::Index i = 0; i < rows.rows(); ++i) {
-    const Encoding e{rows.row(i).transpose(), mean};
+  const Eigen::Index n = file.encodings.rows();
+  auto item = [&](Eigen::Index i) { return fmt::format("row {} ('{}')", i, file.file_names[static_cast<size_t>(i)]); };
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const Encoding e{file.encodings.row(i).transpose(), mean};
     Eigen::MatrixX3d V;
     try {
       V = decoder.decode(e);
     } catch (const InputError& err) {
-      throw InputError(fmt::format("{}: 'encodings' {}: {}", a.input, item_name(i, names), err.what()));
+      throw InputError(fmt::format("{}: 'encodings' {}: {}", a.input, item(i), err.what()));
     } catch (const NumericalError& err) {
-      throw NumericalError(fmt::format("{}: 'encodings' {}: {}", a.input, item_name(i, names), err.what()));
+      throw NumericalError(fmt::format("{}: 'encodings' {}: {}", a.input, item(i), err.what()));
     }
     if (!V.allFinite())
-      throw NumericalError(fmt::format("{}: 'encodings' {} decoded to non-finite vertices", a.input,
-                                       item_name(i, names)));
+      throw NumericalError(fmt::format("{}: 'encodings' {} decoded to non-finite vertices", a.input, item(i)));
     total_ms += decoder.last_timing().total_ms;
-    write_mesh(output_name(a.out, names[i], ext), V, tmpl->faces());
-    bar.update(static_cast<double>(i + 1) / rows.rows(), names[i]);
+    write_mesh(out / (file.file_names[static_cast<size_t>(i)] + ext), V, tmpl->faces());
+    bar.update(static_cast<double>(i + 1) / n, file.file_names[static_cast<size_t>(i)]);
   }
-  bar.finish(fmt::format("{} meshes -> {} (decode {:.1f} ms per mesh)", rows.rows(), a.out,
-                         total_ms / std::max<Eigen::Index>(1, rows.rows())));
+  out.commit();
+  bar.finish(fmt::format("{} meshes -> {} (decode {:.1f} ms per mesh)", n, a.out,
+                         total_ms / std::max<Eigen::Index>(1, n)));
 }
 
 // ---- interpolate ----------------------------------------------------------------------------
@@ -200,7 +162,7 @@ struct InterpolateArgs {
   std::vector<std::string> meshes;  // exactly two
   std::string templ, out;
   int steps = 5;
-  bool vertex = false;
+  bool vertex = false, force = false;
 };
 
 void run_interpolate(const InterpolateArgs& a) {
@@ -216,7 +178,7 @@ void run_interpolate(const InterpolateArgs& a) {
     tmpl->check_vertices(m.V, name);
     tmpl->check_faces(m.F, name);
   }
-  ensure_directory(a.out);
+  StagedFolder out(a.out, a.force);
   std::string ext = fs::path(a.meshes[0]).extension().string();
   if (ext != ".ply" && ext != ".PLY") ext = ".obj";
   const std::string stem = a.vertex ? "vertex" : "rre";
@@ -239,9 +201,10 @@ void run_interpolate(const InterpolateArgs& a) {
       const Eigen::MatrixX3d& ref = u < 0.5 ? A.V : B.V;
       V = apply(fit_rigid_motion(V, ref), V);
     }
-    write_mesh(output_name(a.out, fmt::format("{}_{:03d}", stem, s), ext), V, tmpl->faces());
+    write_mesh(out / (fmt::format("{}_{:03d}", stem, s) + ext), V, tmpl->faces());
     bar.update(static_cast<double>(s + 1) / a.steps);
   }
+  out.commit();
   bar.finish(fmt::format("{} meshes -> {}", a.steps, a.out));
 }
 
@@ -275,8 +238,9 @@ BODYMODEL_VERB(add_encoding_verbs) {
     cmd->add_option("--template", a->templ,
                     "template mesh; default: the template stored in the .npz")
         ->check(CLI::ExistingFile);
-    cmd->add_option("--out", a->out, "output folder")->required();
+    cmd->add_option("--out", a->out, "output folder (must not exist unless --force)")->required();
     cmd->add_option("--format", a->format, "obj (default) or ply");
+    cmd->add_flag("--force", a->force, "Replace an existing output folder");
     cmd->callback([a] { run_decode(*a); });
   }
   {
@@ -294,8 +258,9 @@ BODYMODEL_VERB(add_encoding_verbs) {
     cmd->add_option("--steps", a->steps, "number of meshes written, ends included")
         ->capture_default_str();
     cmd->add_flag("--vertex", a->vertex, "naive vertex-position interpolation");
-    cmd->add_option("--out", a->out, "output folder (rre_000.obj ... or vertex_000.obj ...)")
+    cmd->add_option("--out", a->out, "output folder (rre_000.obj ... or vertex_000.obj ...; must not exist unless --force)")
         ->required();
+    cmd->add_flag("--force", a->force, "Replace an existing output folder");
     cmd->callback([a] { run_interpolate(*a); });
   }
 }

@@ -98,6 +98,7 @@ void run(const MakeHumanBodyArgs& a) {
     for (const auto& j : clip->joints) named += body.skeleton.find(j.name) >= 0;
     Pose pose;
     if (named * 2 >= body.skeleton.bone_count()) {
+      check_clip_by_bone_name(*clip, body.skeleton);  // renamed, duplicate or misplaced joints
       BvhPoseOptions o;
       o.apply_root_translation = a.translation;
       pose = bvh_frame_to_pose(*clip, a.frame, body.skeleton, o);

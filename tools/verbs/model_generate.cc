@@ -61,7 +61,10 @@ BODYMODEL_VERB(add_model_generate_verb) {
   cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`)")->required();
   cmd->add_option("--count", a->count, "Number of bodies")->capture_default_str()->check(CLI::Range(1, 100000));
   cmd->add_option("--where", a->where, "LABEL=VALUE or LABEL=LO..HI, repeatable (sex=female|male)");
-  cmd->add_option("--seed", a->seed, "Random seed (the crowd is a function of it)")->capture_default_str();
+  // NonNegativeNumber: CLI11 would read -1 into the unsigned seed as 18446744073709551615.
+  cmd->add_option("--seed", a->seed, "Random seed (the crowd is a function of it)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--spread", a->spread, "Scale of the random coefficients (1 = the data's spread)")
       ->capture_default_str();
   cmd->add_option("--format", a->format, "obj or ply")->check(CLI::IsMember({"obj", "ply"}))->capture_default_str();

@@ -13,7 +13,7 @@ namespace {
 struct MorphArgs {
   std::string model, in, out, mask, sex = "unknown";
   std::vector<std::string> set, keep;
-  bool clamp = false;
+  bool clamp = false, closest = false;
   int iterations = 8;
 };
 
@@ -37,6 +37,9 @@ BODYMODEL_VERB(add_model_morph_verb) {
   cmd->add_flag("--clamp", a->clamp, "Clamp values far outside the data to the data's range");
   cmd->add_option("--iterations", a->iterations, "Maximum measurement-corrected iterations")
       ->capture_default_str();
+  cmd->add_flag("--closest", a->closest,
+                "When a target cannot be met, write the closest body the model reaches (exit 0) instead of "
+                "failing without output");
   cmd->add_option("--out", a->out, "Output mesh (OBJ/PLY)")->required();
   cmd->callback([a] {
     if (a->set.empty()) throw InputError("morph: nothing to do: give at least one --set LABEL=VALUE");
@@ -63,10 +66,22 @@ BODYMODEL_VERB(add_model_morph_verb) {
     ShapeMorpher morpher(model);
     MorphSummary sum;
     Eigen::MatrixX3d out = morpher.morph(body.V, cond, o, &sum);
-    write_mesh(a->out, out, body.F);
     fmt::print("{}", sum.report());
+    // A target the model cannot meet (height_cm=-5 gave an inside-out 27 cm body, 1e9 a body
+    // 3 520 km tall) is a failure, not a result: no file, exit 2, unless asked for the closest.
+    if (!sum.converged && !a->closest) {
+      std::string missed;
+      for (const auto& l : sum.labels)
+        if (!l.satisfied)
+          missed += fmt::format("{}{} = {:.4g} (reached {:.4g})", missed.empty() ? "" : ", ", l.label, l.target,
+                                l.achieved);
+      throw InputError(fmt::format("morph: the model cannot meet {} from '{}' after {} iterations; nothing written "
+                                   "(--closest writes the closest body, --clamp keeps targets inside the data)",
+                                   missed, a->in, sum.iterations));
+    }
+    write_mesh(a->out, out, body.F);
     if (!sum.converged)
-      cli::warn("not every label reached its target (see above): the mask or the data may not allow it");
+      cli::warn("not every label reached its target (see above): wrote the closest body (--closest)");
     cli::info("wrote " + a->out);
   });
 }

@@ -19,6 +19,7 @@
 #include "core/error.h"
 #include "core/geometry.h"
 #include "core/io/atomic_write.h"
+#include "core/io/file_names.h"
 #include "core/io/mesh_io.h"
 #include "core/io/pose_csv.h"
 #include "core/makehuman.h"
@@ -108,8 +109,13 @@ BODYMODEL_VERB(add_eval_registration_verb) {
       std::istringstream in(read_text_file(db / "scans.csv"));
       std::string line;
       std::getline(in, line);
-      while (std::getline(in, line))
-        if (!line.empty()) ids.push_back(line.substr(0, line.find(',')));
+      for (int lineno = 2; std::getline(in, line); ++lineno) {
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        if (line.empty()) continue;
+        ids.push_back(line.substr(0, line.find(',')));
+        // The id names files read from DB/truth/ and REG/: one plain name.
+        check_file_name(ids.back(), (db / "scans.csv").string() + ":" + std::to_string(lineno), "scan id");
+      }
     }
     MakeHuman mh = MakeHuman::load();
     MakeHuman::Body body = mh.body(MacroSettings{});

@@ -24,6 +24,7 @@
 #include "registration/register_scan.h"
 #include "tools/console.h"
 #include "tools/pipeline/batch_jobs.h"
+#include "tools/pipeline/folder_settings.h"
 #include "tools/pipeline/registration_setup.h"
 #include "tools/verb.h"
 
@@ -126,7 +127,9 @@ BODYMODEL_VERB(add_register_mesh_verb) {
   cmd->add_option("--pose-iterations", a->pose_iterations,
                   "ICP iterations of the pose fit (0: landmarks only)")
       ->capture_default_str();
-  cmd->add_flag("--force", a->force, "Register again meshes that are already done");
+  cmd->add_flag("--force", a->force,
+                "Register again meshes that are already done; replace the results in OUT made with other settings "
+                "(without it such a folder is refused)");
   cmd->callback([a] {
     if (!(a->scale > 0) || !std::isfinite(a->scale))
       throw InputError("--scale must be a positive number of millimetres per mesh unit, got " +
@@ -149,7 +152,20 @@ BODYMODEL_VERB(add_register_mesh_verb) {
     }
     if (!fs::is_regular_file(a->landmarks))
       throw InputError("--landmarks '" + a->landmarks + "': file not found");
-    ensure_directory(out);
+    // Every setting that changes a registration, the landmarks by content: a rerun with other
+    // settings is refused instead of keeping the earlier results (tools/pipeline/folder_settings.h).
+    const nlohmann::json settings = {
+        {"verb", "register-mesh"}, {"landmarks", file_fingerprint(a->landmarks)},
+        {"scale", a->scale},       {"schedule", a->schedule},
+        {"fast_steps", a->fast_steps}, {"fast_stiffness_end", a->fast_k_end},
+        {"samples", a->samples},   {"detail", a->detail},
+        {"pose_only", a->pose_only}, {"keep_folds", a->keep_folds},
+        {"proportions", !a->no_proportions}, {"shape_fit", !a->no_shape_fit},
+        {"pose_iterations", a->pose_iterations}, {"up", a->up}};
+    ResumableFolder folder(out, "register-mesh.json", settings, a->force,
+                           outputs_named({"register-mesh.csv"}, {".ply", ".pose.csv", ".shape.json", ".register-mesh.csv",
+                                                                 ".detail.npz"}));
+    folder.open();
     BatchJobs batch({"mesh", "meshes", "registered", a->jobs, a->force}, stems, a->meshes);
     const size_t todo = batch.skip_done([&](size_t k) {
       const std::string& s = stems[k];

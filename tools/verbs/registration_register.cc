@@ -14,6 +14,7 @@
 #include "core/data_path.h"
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/io/file_names.h"
 #include "core/io/mesh_io.h"
 #include "core/landmarks.h"
 #include "core/makehuman.h"
@@ -24,6 +25,7 @@
 #include "registration/register_scan.h"
 #include "tools/console.h"
 #include "tools/pipeline/batch_jobs.h"
+#include "tools/pipeline/folder_settings.h"
 #include "tools/pipeline/registration_setup.h"
 #include "tools/verb.h"
 
@@ -61,8 +63,8 @@ std::vector<std::string> read_scan_ids(const fs::path& csv) {
     }
     if (line.empty()) continue;
     std::string id = line.substr(0, line.find(','));
-    if (id.empty() || id.find('/') != std::string::npos)
-      throw InputError(csv.string() + ":" + std::to_string(lineno) + ": bad scan id '" + id + "'");
+    // The id names files read (DB/scans/<id>.ply) and written (OUT/<id>.ply): one plain name.
+    check_file_name(id, csv.string() + ":" + std::to_string(lineno), "scan id");
     ids.push_back(id);
   }
   return ids;
@@ -160,7 +162,9 @@ BODYMODEL_VERB(add_register_verb) {
                 "skinning creases) from the rest template's shape (registration/"
                 "local_fold_repair.h; on for real bodies, off by default so the synthetic "
                 "database's figures stay as measured)");
-  cmd->add_flag("--force", a->force, "Register again scans that are already done");
+  cmd->add_flag("--force", a->force,
+                "Register again scans that are already done; replace the results in OUT made with other settings "
+                "(without it such a folder is refused)");
   cmd->callback([a] {
     const fs::path db = a->db, out = a->out;
     if (!fs::is_directory(db))
@@ -188,7 +192,21 @@ BODYMODEL_VERB(add_register_verb) {
         if (int(k % n) == i) mine.push_back(ids[k]);
       ids = mine;
     }
-    ensure_directory(out);
+    // Every setting that changes a registration, and the database by content: a rerun with other
+    // settings is refused instead of keeping the earlier results (tools/pipeline/folder_settings.h).
+    const nlohmann::json settings = {
+        {"verb", "register"},          {"database", file_fingerprint(db / "scans.csv")},
+        {"schedule", a->schedule},     {"fast_steps", a->fast_steps},
+        {"fast_stiffness_end", a->fast_k_end}, {"transform_length", a->transform_length},
+        {"scan_unit_mm", a->scan_unit_mm},     {"pose_only", a->pose_only},
+        {"pose_joints", a->pose_joints},       {"hand_stage", a->hand_stage},
+        {"shape_fit", !a->no_shape_fit},       {"proportions", !a->no_proportions},
+        {"proportions_with_shape", a->proportions_with_shape}, {"start_from_truth", a->start_from_truth},
+        {"repair_local_folds", a->repair_local_folds}};
+    ResumableFolder folder(out, "register.json", settings, a->force,
+                           outputs_named({"registration.csv", "evaluation.csv"},
+                                         {".ply", ".pose.csv", ".shape.json", ".summary.csv"}));
+    folder.open();
     BatchJobs batch({"scan", "scans", "registered", a->jobs, a->force}, ids);
     const size_t todo = batch.skip_done([&](size_t k) {
       return fs::exists(out / (ids[k] + ".ply")) && fs::exists(out / (ids[k] + ".pose.csv")) &&

@@ -235,7 +235,9 @@ BODYMODEL_VERB(add_eval_regressors_verb) {
                   "Simulated measurement noise added to the labels before cross-validation (seeded by\n"
                   "--seed): '0.2' = 0.2 x each label's standard deviation, or 'height_cm=1,weight_kg=0.5'\n"
                   "(sigma in the label's unit). RMSE is then against the noisy labels, as with measured ones");
-  cmd->add_option("--folds", a->folds, "Cross-validation folds (subjects grouped)")->capture_default_str();
+  cmd->add_option("--folds", a->folds, "Cross-validation folds (subjects grouped)")
+      ->capture_default_str()
+      ->check(CLI::Range(2, 1000000));
   cmd->add_option("--labels", a->labels, "Comma-separated label names; 'pose:*' = every joint angle")
       ->capture_default_str();
   cmd->add_option("--regressors", a->regressors, "Comma-separated: simple_linear, filtered_linear (the nested fits on the most\ncorrelated components, stacked on their leave-one-subject-out predictions), svr,\ngaussian_process (also filtered_linear_select: the one count with the lowest leave-one-out\nerror; filtered_linear_by_s: ranked by |s|; filtered_linear_10fold: one count by inner\n10-fold CV)")

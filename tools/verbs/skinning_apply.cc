@@ -9,6 +9,7 @@
 #include "core/io/mesh_io.h"
 #include "skinning/rig_io.h"
 #include "tools/console.h"
+#include "tools/pipeline/folder_settings.h"
 #include "tools/verb.h"
 #include "tools/verbs/skinning_common.h"
 #include "tools/verbs/skinning_motion.h"
@@ -19,12 +20,22 @@ namespace {
 struct ApplyArgs {
   std::string rig, bvh, out, format = "obj";
   int first = 0, count = 0, every = 1;
-  bool root_translation = false;
+  bool root_translation = false, force = false;
 };
 
 void run_apply(const ApplyArgs& a) {
   if (a.format != "obj" && a.format != "ply")
     throw InputError("--format must be obj or ply, found '" + a.format + "'");
+  // Frame k is a function of the rig, the clip and the root translation: a folder of frames made
+  // from others is refused, not resumed (tools/pipeline/folder_settings.h). --first, --count and
+  // --every only choose frames.
+  const nlohmann::json settings = {{"verb", "skin apply"},
+                                   {"rig", file_fingerprint(a.rig)},
+                                   {"bvh", file_fingerprint(a.bvh)},
+                                   {"root_translation", a.root_translation}};
+  ResumableFolder folder(a.out, "skin-apply.json", settings, a.force, [](const std::string& n) {
+    return n.rfind("frame_", 0) == 0 && (n.size() > 4 && (n.substr(n.size() - 4) == ".obj" || n.substr(n.size() - 4) == ".ply"));
+  });
   Eigen::MatrixX3i F;
   Skeleton stored;
   const SkinningRig rig = load_rig(a.rig, &F, nullptr, &stored);
@@ -35,7 +46,7 @@ void run_apply(const ApplyArgs& a) {
     throw InputError(a.rig + ": the rig has no skeleton (no 'skeleton_names' key, and it is not on the MakeHuman "
                      "body): a BVH clip cannot drive its " + std::to_string(rig.bone_count) + " bones");
   const ClipFrames clip = clip_bone_maps(a.bvh, skeleton, a.first, a.count, a.every, a.root_translation);
-  ensure_directory(a.out);
+  folder.open();
   int written = 0, kept = 0;
   ProgressBar bar("skin apply");
   for (size_t k = 0; k < clip.frames.size(); ++k) {
@@ -64,7 +75,8 @@ BODYMODEL_VERB(add_skin_apply_verb) {
       "apply",
       "Pose a rig (.npz from `skin fit` or `bodymodel character`) with a BVH clip, one mesh per frame\n"
       "(frame_NNNNN.obj). The clip is retargeted to the rig's skeleton (stored in the .npz, or the\n"
-      "MakeHuman default skeleton for rigs on the MakeHuman body). Existing frames are skipped.");
+      "MakeHuman default skeleton for rigs on the MakeHuman body). Existing frames of the same rig and clip\n"
+      "are skipped; OUT/skin-apply.json records them.");
   auto a = std::make_shared<ApplyArgs>();
   cmd->add_option("rig", a->rig, "Rig (.npz)")->required();
   cmd->add_option("--bvh", a->bvh, "Motion clip (.bvh: MakeHuman bone names or a CMU clip)")->required();
@@ -74,6 +86,9 @@ BODYMODEL_VERB(add_skin_apply_verb) {
   cmd->add_option("--every", a->every, "Use every k-th frame")->capture_default_str();
   cmd->add_flag("--root-translation", a->root_translation, "Apply the clip's root translation (default: in place)");
   cmd->add_option("--format", a->format, "obj or ply")->capture_default_str();
+  cmd->add_flag("--force", a->force,
+                "Replace the frames in OUT made from another rig, clip or root translation (without it such a "
+                "folder is refused; frames of the same ones are kept)");
   cmd->callback([a] { run_apply(*a); });
 }
 

@@ -27,21 +27,36 @@ inline CLI::App* skin_group(CLI::App& app) {
 struct MeshSequence {
   std::vector<std::string> names;           // file stems, sorted
   std::vector<Eigen::MatrixX3d> frames;     // #frames, #V by 3
-  Eigen::MatrixX3i F;                       // shared faces
+  Eigen::MatrixX3i F;                       // shared faces (the first frame's)
+  std::vector<Eigen::MatrixX3i> frame_faces;   // per frame, only when they differ and were allowed
 };
 
-// Every .obj / .ply in `dir`, sorted by name; all must share the first file's vertex count and faces.
-inline MeshSequence read_mesh_sequence(const std::filesystem::path& dir) {
+inline bool is_mesh_file_name(const std::filesystem::path& p) {
+  auto ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+  return ext == ".obj" || ext == ".ply" || ext == ".off";
+}
+
+// The given files in the given order; all must share the first file's vertex count and faces,
+// and their names (file names without extension) must differ. With `per_frame_faces`, frames may
+// triangulate the corresponding vertices differently (SCAPE): each keeps its own faces.
+inline MeshSequence read_mesh_files(const std::vector<std::filesystem::path>& files, bool per_frame_faces = false);
+
+// Every .obj / .ply / .off in `dir`, sorted by name; all must share the first file's vertex count
+// and faces.
+inline MeshSequence read_mesh_sequence(const std::filesystem::path& dir, bool per_frame_faces = false) {
   if (!std::filesystem::is_directory(dir))
-    throw InputError(dir.string() + ": expected a folder of .obj/.ply frames");
+    throw InputError(dir.string() + ": expected a folder of .obj/.ply/.off frames");
   std::vector<std::filesystem::path> files;
-  for (const auto& e : std::filesystem::directory_iterator(dir)) {
-    auto ext = e.path().extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
-    if (e.is_regular_file() && (ext == ".obj" || ext == ".ply")) files.push_back(e.path());
-  }
+  for (const auto& e : std::filesystem::directory_iterator(dir))
+    if (e.is_regular_file() && is_mesh_file_name(e.path())) files.push_back(e.path());
   std::sort(files.begin(), files.end());
-  if (files.empty()) throw InputError(dir.string() + ": no .obj or .ply frames in the folder");
+  if (files.empty()) throw InputError(dir.string() + ": no .obj, .ply or .off frames in the folder");
+  return read_mesh_files(files, per_frame_faces);
+}
+
+inline MeshSequence read_mesh_files(const std::vector<std::filesystem::path>& files, bool per_frame_faces) {
+  if (files.empty()) throw InputError("no mesh files given");
   MeshSequence seq;
   for (const auto& f : files) {
     Mesh m = read_mesh(f);
@@ -51,13 +66,21 @@ inline MeshSequence read_mesh_sequence(const std::filesystem::path& dir) {
       if (m.V.rows() != seq.frames[0].rows())
         throw InputError(f.string() + ": " + std::to_string(m.V.rows()) + " vertices, expected " +
                          std::to_string(seq.frames[0].rows()) + " like " + files[0].string());
-      if (m.F.rows() != seq.F.rows() || m.F != seq.F)
+      if (!per_frame_faces && (m.F.rows() != seq.F.rows() || m.F != seq.F))
         throw InputError(f.string() + ": its faces differ from " + files[0].string() +
-                         " (a sequence must share one connectivity)");
+                         " (a sequence must share one connectivity; --per-frame-faces accepts frames whose vertices "
+                         "correspond but are triangulated differently)");
     }
+    if (std::find(seq.names.begin(), seq.names.end(), f.stem().string()) != seq.names.end())
+      throw InputError(f.string() + ": a second frame named '" + f.stem().string() +
+                       "' (frames are named by file name without extension)");
     seq.names.push_back(f.stem().string());
     seq.frames.push_back(std::move(m.V));
+    seq.frame_faces.push_back(std::move(m.F));
   }
+  bool differ = false;
+  for (const auto& Ff : seq.frame_faces) differ = differ || Ff.rows() != seq.F.rows() || Ff != seq.F;
+  if (!differ) seq.frame_faces.clear();
   return seq;
 }
 

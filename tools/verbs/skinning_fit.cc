@@ -1,4 +1,4 @@
-// `bodymodel skin fit`: fit an SSD, Animation Space or MWE rig to example poses and write it as
+// `bodymodel skin fit`: fit a rig (ssd, dqs, as, mwe, psd, eigenskin, quadratic) to example poses and write it as
 // .npz (keys in skinning/rig_io.h).
 #include <fmt/format.h>
 
@@ -16,7 +16,7 @@ namespace bodymodel::cli {
 namespace {
 
 struct FitArgs {
-  std::string rest, poses, transforms, method = "mwe", out = "rig.npz";
+  std::string rest, poses, transforms, method = "mwe", out = "rig.npz", cv = "folds:5";
   int bones = 0, max_influences = 4;
   double as_ridge = AnimationSpaceFitOptions{}.ridge, mwe_s = MweFitOptions{}.ridge_scale;
   int mwe_components = MweFitOptions{}.components;
@@ -47,7 +47,26 @@ std::vector<BoneTransforms> read_pose_transforms(const std::filesystem::path& T,
 }
 
 void run_fit(const FitArgs& a) {
-  const SkinningMethod method = parse_skinning_method(a.method);
+  const SkinningModel method = parse_skinning_model(a.method);
+  CrossValidationOptions cv;
+  if (a.cv == "none") {
+    cv.scheme = CvScheme::none;
+  } else if (a.cv.rfind("folds:", 0) == 0 || a.cv.rfind("last:", 0) == 0) {
+    const bool folds = a.cv[0] == 'f';
+    int k = -1;
+    try {
+      size_t used = 0;
+      const std::string v = a.cv.substr(folds ? 6 : 5);
+      k = std::stoi(v, &used);
+      if (used != v.size()) k = -1;
+    } catch (const std::exception&) {
+    }
+    if (k < 0) throw InputError("--cv: expected none, folds:K or last:N, found '" + a.cv + "'");
+    cv.scheme = folds ? CvScheme::interleaved : CvScheme::last;
+    (folds ? cv.folds : cv.held_out) = k;
+  } else {
+    throw InputError("--cv: expected none, folds:K or last:N, found '" + a.cv + "'");
+  }
   const Mesh rest = read_mesh(a.rest);
   const MeshSequence seq = read_mesh_sequence(a.poses);
   for (size_t p = 0; p < seq.frames.size(); ++p)
@@ -56,72 +75,110 @@ void run_fit(const FitArgs& a) {
                        " vertices, the rest mesh " + a.rest + " has " + std::to_string(rest.V.rows()));
   if (a.transforms.empty() == (a.bones <= 0))
     throw InputError("give exactly one of --transforms (known bone transforms) or --bones N (recover N bones)");
+  if (static_cast<int>(seq.frames.size()) < minimum_examples(method))
+    throw InputError(a.poses + ": " + skinning_model_name(method) + " needs at least " +
+                     std::to_string(minimum_examples(method)) + " example poses, the folder has " +
+                     std::to_string(seq.frames.size()));
+  if (cv.scheme != CvScheme::none && method != SkinningModel::ssd && method != SkinningModel::dqs) {
+    const int count = static_cast<int>(seq.frames.size()) + (a.bones > 0 ? 1 : 0);   // + the rest frame
+    for (const auto& held : cv_folds(count, cv))
+      if (count - static_cast<int>(held.size()) < minimum_examples(method))
+        throw InputError("--cv " + a.cv + ": a fold leaves " + std::to_string(count - static_cast<int>(held.size())) +
+                         " example pose(s), " + skinning_model_name(method) + " needs " +
+                         std::to_string(minimum_examples(method)) + " (use fewer folds or --cv none)");
+  }
   ProgressBar bar("skin fit");
   auto cb = bar.callback();
-  SkinningExamples ex;
-  SkinningRig lbs;
+  PreparedSequence prep;
+  SequenceEvaluationOptions opt;
+  opt.max_influences = a.max_influences;
+  opt.cv = cv;
+  opt.fit.animation_space.ridge = a.as_ridge;
+  opt.fit.mwe.ridge_scale = a.mwe_s;
+  opt.fit.mwe.components = a.mwe_components;
   if (!a.transforms.empty()) {
+    SkinningExamples& ex = prep.examples;
     ex.rest = rest.V;
     ex.poses = seq.frames;
     ex.transforms = read_pose_transforms(a.transforms, seq);
-    LbsFitOptions lo;
+    LbsFitOptions lo = opt.lbs;
     lo.max_influences = a.max_influences;
-    LbsFitSummary ls;
-    lbs = fit_lbs(ex, {}, lo, &ls, [&](double f, std::string_view w) { return cb(0.4 * f, w); });
-    info(ls.brief());
+    prep.lbs = fit_lbs(ex, {}, lo, &prep.lbs_summary, [&](double f, std::string_view w) { return cb(0.3 * f, w); });
+    info(prep.lbs_summary.brief());
   } else {
     // Rest mesh as frame 0 (identity), every pose a training frame.
     std::vector<Eigen::MatrixX3d> frames{rest.V};
     frames.insert(frames.end(), seq.frames.begin(), seq.frames.end());
     std::vector<int> train(frames.size());
     for (size_t i = 0; i < train.size(); ++i) train[i] = static_cast<int>(i);
-    SequenceEvaluationOptions opt;
     opt.recovery.bones = a.bones;
-    opt.max_influences = a.max_influences;
-    const PreparedSequence prep = prepare_skinning_sequence(frames, rest.F, train, opt, {},
-        [&](double f, std::string_view w) { return cb(0.6 * f, w); });
-    ex = prep.examples;
-    lbs = prep.lbs;
+    prep = prepare_skinning_sequence(frames, rest.F, train, opt, {},
+                                     [&](double f, std::string_view w) { return cb(0.3 * f, w); });
     info(prep.recovery.brief());
     info(prep.lbs_summary.brief());
   }
-  SkinningRig rig = lbs;
-  if (method == SkinningMethod::animation_space) {
-    AnimationSpaceFitOptions o;
-    o.ridge = a.as_ridge;
-    AnimationSpaceFitSummary s;
-    rig = fit_animation_space(ex, &lbs, o, &s);
-    info(s.brief());
-  } else if (method == SkinningMethod::mwe) {
-    MweFitOptions o;
-    o.ridge_scale = a.mwe_s;
-    o.components = a.mwe_components;
-    MweFitSummary s;
-    rig = fit_mwe(ex, &lbs, o, &s, [&](double f, std::string_view w) { return cb(0.6 + 0.4 * f, w); });
-    info(s.brief());
+  const SkinningExamples& ex = prep.examples;
+  std::vector<std::unique_ptr<ReferenceSurface>> trees;
+  std::vector<const ReferenceSurface*> surfaces;
+  std::unique_ptr<CrossValidator> validator;
+  if (cv.scheme != CvScheme::none && method != SkinningModel::ssd && method != SkinningModel::dqs) {
+    for (const auto& P : ex.poses) {
+      trees.push_back(std::make_unique<ReferenceSurface>(P, rest.F));
+      surfaces.push_back(trees.back().get());
+    }
+    LbsFitOptions lo = opt.lbs;
+    lo.max_influences = a.max_influences;
+    lo.require_rigid = false;
+    validator = std::make_unique<CrossValidator>(ex, lo, cv, surfaces);
+    if (method == SkinningModel::mwe)   // the AS base's ridge, chosen the same way
+      opt.fit.mwe.base_as_ridge = validator->select(SkinningModel::as, opt.fit).chosen.animation_space.ridge;
+    if (method == SkinningModel::eigenskin || method == SkinningModel::quadratic) {   // PSD's pose space
+      const PoseSpaceOptions chosen = validator->select(SkinningModel::psd, opt.fit).chosen.pose_space;
+      opt.fit.pose_space.kernel_width = chosen.kernel_width;
+      opt.fit.pose_space.rbf_ridge = chosen.rbf_ridge;
+    }
   }
+  MethodFit mf;
+  const FittedModel model = fit_sequence_method(method, prep, opt, validator.get(), &mf,
+                                                [&](double f, std::string_view w) { return cb(0.3 + 0.7 * f, w); });
   bar.finish();
-  save_rig(a.out, rig, rest.F, ex.transforms);
-  info(fmt::format("wrote {} ({} rig, {} vertices, {} bones, ≤{} influences, {} poses)", a.out,
-                   skinning_method_name(rig.method), rig.vertex_count(), rig.bone_count, rig.max_influences(),
-                   ex.pose_count()));
+  if (!mf.cv.candidates.empty()) info("cross-validation: " + mf.cv.brief());
+  info(mf.brief);
+  if (model.is_pose_space()) {
+    save_pose_space_rig(a.out, model.pose_space, rest.F, ex.transforms);
+    info(fmt::format("wrote {} ({} rig over ssd, {} vertices, {} bones, {} example poses)", a.out,
+                     skinning_model_name(method), model.pose_space.vertex_count(), model.pose_space.bone_count(),
+                     ex.pose_count()));
+  } else {
+    save_rig(a.out, model.rig, rest.F, ex.transforms);
+    info(fmt::format("wrote {} ({} rig, {} vertices, {} bones, ≤{} influences, {} poses)", a.out,
+                     skinning_method_name(model.rig.method), model.rig.vertex_count(), model.rig.bone_count,
+                     model.rig.max_influences(), ex.pose_count()));
+  }
 }
 
 }  // namespace
 
 BODYMODEL_VERB(add_skin_fit_verb) {
   CLI::App* skin = skin_group(app);
-  auto* cmd = skin->add_subcommand("fit", "Fit an SSD, Animation Space or MWE rig to example poses (.npz out)");
+  auto* cmd = skin->add_subcommand(
+      "fit",
+      "Fit a rig to example poses (.npz out): ssd, dqs, as, mwe, or the pose-space methods psd,\n"
+      "eigenskin and quadratic (a separate rig format, see skinning/rig_io.h). The regularisation of\n"
+      "as, mwe and the pose-space methods is chosen by cross-validation over the example poses.\n"
+      "  bodymodel skin fit --rest rest.obj --poses poses/ --bones 24 --method mwe --out rig.npz");
   auto a = std::make_shared<FitArgs>();
   cmd->add_option("--rest", a->rest, "Rest mesh (.obj/.ply)")->required();
   cmd->add_option("--poses", a->poses, "Folder of example poses (.obj/.ply, same vertex order)")->required();
   cmd->add_option("--transforms", a->transforms,
                   "Bone transforms: a folder of <pose>.Tmat files or a libigl animation .dmat (one column per pose)");
   cmd->add_option("--bones", a->bones, "Recover this many bones from the poses instead (no skeleton)");
-  cmd->add_option("--method", a->method, "ssd, as or mwe");
+  cmd->add_option("--method", a->method, "ssd, dqs, as, mwe, psd, eigenskin or quadratic")->capture_default_str();
+  cmd->add_option("--cv", a->cv, "Cross-validation over the poses: folds:K (interleaved), last:N or none")
+      ->capture_default_str();
   cmd->add_option("--max-influences", a->max_influences, "Influence bones per vertex");
-  cmd->add_option("--as-ridge", a->as_ridge, "Animation Space ridge λ (relative)");
-  cmd->add_option("--mwe-s", a->mwe_s, "MWE ridge scale s, relative to the diagonal (λ_h = s·d⁴/σ²(c_h))");
+  cmd->add_option("--as-ridge", a->as_ridge, "Animation Space ridge λ (relative; with --cv none)");
+  cmd->add_option("--mwe-s", a->mwe_s, "MWE ridge scale s, relative to the diagonal (λ_h = s·d⁴/σ²(c_h); with --cv none)");
   cmd->add_option("--mwe-components", a->mwe_components, "MWE principal components kept (0 = all with variance)");
   cmd->add_option("--out", a->out, "Output rig (.npz)");
   cmd->callback([a] { run_fit(*a); });

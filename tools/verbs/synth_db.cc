@@ -29,11 +29,14 @@ BODYMODEL_VERB(add_synth_db_verb) {
       "A rerun with the same settings keeps the scans an earlier (interrupted) run finished and\n"
       "makes the rest; the folder ends identical to a clean run.");
   auto& o = a->options;
+  // Checked on the command line, before MakeHuman is loaded.
   cmd->add_option("--subjects", o.subjects, "Number of subjects (alternating female/male)")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--poses-per-subject", o.poses_per_subject,
                   "Scans per subject besides the standard A-pose")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--seed", o.seed, "Random seed (the database is a function of it)")
       ->capture_default_str();
   cmd->add_option("--noise", o.scanner.noise_sigma_mm, "Scanner noise sigma, mm")
