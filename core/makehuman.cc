@@ -22,6 +22,7 @@
 
 #include "core/data_path.h"
 #include "core/error.h"
+#include "core/plausibility.h"
 #include "core/point_index.h"
 
 namespace bodymodel {
@@ -404,6 +405,9 @@ struct MakeHuman::Impl {
   std::vector<Target> targets;            // 564 macro targets
   std::shared_ptr<const std::vector<TargetData>> data;  // distinct files, shared by copies
   std::vector<std::string> substituted;
+  // Measurement modifiers: names and their decr / incr target data (own parse, not shared).
+  std::vector<std::string> measure_names;
+  std::shared_ptr<const std::vector<std::array<TargetData, 2>>> measure_data;
   Eigen::MatrixX3i body_faces;
   // Skeleton topology; joint positions = joint_regressor * V.
   std::vector<std::string> bone_names;
@@ -510,6 +514,47 @@ void apply_options(MakeHuman::Impl& m, const MakeHuman::Options& options) {
       }
     }
   }
+}
+
+// targets/measure/measure-<name>-{decr,incr}.target in measurement_modifiers.json order (or the
+// sorted file names when that file is missing); nothing when the folder is missing.
+void load_measure_targets(MakeHuman::Impl& m) {
+  const fs::path dir = m.dir / "targets" / "measure";
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return;
+  std::vector<std::string> names;
+  const fs::path json = m.dir / "modifiers" / "measurement_modifiers.json";
+  if (fs::is_regular_file(json, ec)) {
+    const auto j = read_json(json);
+    for (const auto& group : j)
+      if (group.contains("modifiers"))
+        for (const auto& mod : group["modifiers"])
+          if (mod.contains("target") && mod["target"].is_string()) {
+            std::string t = mod["target"].get<std::string>();
+            if (t.rfind("measure-", 0) == 0) names.push_back(t.substr(8));
+          }
+  } else {
+    for (const auto& e : fs::directory_iterator(dir, ec)) {
+      const std::string stem = e.path().stem().string();
+      if (stem.rfind("measure-", 0) == 0 && stem.size() > 13 && stem.compare(stem.size() - 5, 5, "-incr") == 0)
+        names.push_back(stem.substr(8, stem.size() - 13));
+    }
+    std::sort(names.begin(), names.end());
+  }
+  auto data = std::make_shared<std::vector<std::array<TargetData, 2>>>(names.size());
+  std::vector<std::string> errors(2 * names.size());
+  tbb::parallel_for(size_t(0), 2 * names.size(), [&](size_t k) {
+    const fs::path f = dir / ("measure-" + names[k / 2] + (k % 2 ? "-incr" : "-decr") + ".target");
+    try {
+      (*data)[k / 2][k % 2] = parse_target(f, MakeHuman::kVertexCount);
+    } catch (const InputError& e) {
+      errors[k] = e.what();
+    }
+  });
+  for (const auto& e : errors)
+    if (!e.empty()) throw InputError(e);
+  m.measure_names = std::move(names);
+  m.measure_data = std::move(data);
 }
 
 void load_skeleton_json(MakeHuman::Impl& m, const nlohmann::ordered_json& j,
@@ -692,6 +737,7 @@ MakeHuman MakeHuman::load(const fs::path& makehuman_dir, const Options& options)
                      "': group 'body' must use exactly vertices 0.." +
                      std::to_string(kBodyVertexCount - 1));
   load_targets(*m, options);
+  load_measure_targets(*m);
   load_skeleton(*m);
   load_weights(*m);
   MakeHuman mh;
@@ -723,30 +769,77 @@ std::vector<std::pair<std::string, double>> MakeHuman::target_weights(
   return out;
 }
 
-Eigen::MatrixX3d MakeHuman::build_vertices(const MacroSettings& settings) const {
-  settings.validate();
-  const auto values = category_values(settings);
-  Eigen::MatrixX3d V = impl_->base_dm;
+namespace {
+
+void add_target(Eigen::MatrixX3d& V, const TargetData& d, double w) {
   double* x = V.col(0).data();
   double* y = V.col(1).data();
   double* z = V.col(2).data();
+  const size_t n = d.index.size();
+  const int* idx = d.index.data();
+  const float* off = d.offset.data();
+  for (size_t k = 0; k < n; ++k) {
+    const int i = idx[k];
+    x[i] += w * off[3 * k];
+    y[i] += w * off[3 * k + 1];
+    z[i] += w * off[3 * k + 2];
+  }
+}
+
+}  // namespace
+
+Eigen::MatrixX3d MakeHuman::build_vertices(const MacroSettings& settings) const {
+  return build_vertices(settings, Eigen::VectorXd(), BuildOptions{});
+}
+
+Eigen::MatrixX3d MakeHuman::build_vertices(const MacroSettings& settings, const Eigen::VectorXd& modifiers,
+                                           const BuildOptions& options) const {
+  if (!options.allow_extrapolation) {
+    settings.validate();
+  } else {
+    for (double v : {settings.gender, settings.age, settings.muscle, settings.weight, settings.height,
+                     settings.proportions, settings.cup, settings.firmness})
+      if (!std::isfinite(v)) throw InputError("macro slider is not finite");
+    for (double v : {settings.gender, settings.african, settings.asian, settings.caucasian})
+      if (!(v >= 0 && v <= 1))
+        throw InputError("gender and the ethnic sliders must stay in [0, 1], found " + std::to_string(v));
+  }
+  const int nm = static_cast<int>(impl_->measure_names.size());
+  if (modifiers.size() != 0 && modifiers.size() != nm)
+    throw InputError("expected " + std::to_string(nm) + " measurement modifier values, found " +
+                     std::to_string(modifiers.size()));
+  for (Eigen::Index k = 0; k < modifiers.size(); ++k)
+    if (!std::isfinite(modifiers(k)) || (!options.allow_extrapolation && std::abs(modifiers(k)) > 1))
+      throw InputError("measurement modifier '" + impl_->measure_names[k] + "' must be in [-1, 1], found " +
+                       std::to_string(modifiers(k)));
+  const auto values = category_values(settings);
+  Eigen::MatrixX3d V = impl_->base_dm;
   for (const auto& t : impl_->targets) {
     double w = 1;
     for (int c : t.categories) w *= values[c];
     if (w == 0) continue;
-    const TargetData& d = (*impl_->data)[t.data];
-    const size_t n = d.index.size();
-    const int* idx = d.index.data();
-    const float* off = d.offset.data();
-    for (size_t k = 0; k < n; ++k) {
-      const int i = idx[k];
-      x[i] += w * off[3 * k];
-      y[i] += w * off[3 * k + 1];
-      z[i] += w * off[3 * k + 2];
-    }
+    add_target(V, (*impl_->data)[t.data], w);
   }
+  for (Eigen::Index k = 0; k < modifiers.size(); ++k)
+    if (modifiers(k) != 0) add_target(V, (*impl_->measure_data)[k][modifiers(k) > 0 ? 1 : 0], std::abs(modifiers(k)));
   V *= kDmToMm;
   return V;
+}
+
+const std::vector<std::string>& MakeHuman::measure_modifier_names() const { return impl_->measure_names; }
+
+int MakeHuman::measure_modifier_index(const std::string& name) const {
+  for (size_t k = 0; k < impl_->measure_names.size(); ++k)
+    if (impl_->measure_names[k] == name) return static_cast<int>(k);
+  return -1;
+}
+
+Eigen::MatrixX3d MakeHuman::measure_modifier_offsets(int modifier, bool increase) const {
+  if (modifier < 0 || modifier >= static_cast<int>(impl_->measure_names.size()))
+    throw InputError("measurement modifier index " + std::to_string(modifier) + " out of range");
+  Eigen::MatrixX3d D = Eigen::MatrixX3d::Zero(kVertexCount, 3);
+  add_target(D, (*impl_->measure_data)[modifier][increase ? 1 : 0], 1.0);
+  return D * kDmToMm;
 }
 
 const Eigen::MatrixX3d& MakeHuman::base_vertices() const { return impl_->base_mm; }
@@ -897,8 +990,17 @@ Skeleton MakeHuman::skeleton_from_body(const Eigen::MatrixX3d& body_vertices) co
   return s;
 }
 
+std::vector<char> MakeHuman::trunk_and_limbs_region() const {
+  return bodymodel::trunk_and_limbs_region(impl_->bone_names, impl_->parents, impl_->weights_body);
+}
+
 MakeHuman::Body MakeHuman::body(const MacroSettings& settings) const {
-  const Eigen::MatrixX3d V = build_vertices(settings);
+  return body(settings, Eigen::VectorXd(), BuildOptions{});
+}
+
+MakeHuman::Body MakeHuman::body(const MacroSettings& settings, const Eigen::VectorXd& modifiers,
+                                const BuildOptions& options) const {
+  const Eigen::MatrixX3d V = build_vertices(settings, modifiers, options);
   Body b;
   b.mesh.V = V.topRows(kBodyVertexCount);
   b.mesh.F = impl_->body_faces;

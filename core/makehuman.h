@@ -74,6 +74,32 @@ class MakeHuman {
 
   // All 19158 vertices (#V by 3, mm) of the body with these sliders.
   Eigen::MatrixX3d build_vertices(const MacroSettings& settings) const;
+
+  // MakeHuman's 20 measurement modifiers (README §5.2 "Measure targets", targets/measure/):
+  // names without the "measure-" prefix ("neck-circ", ..., "waist-circ", ...) in
+  // modifiers/measurement_modifiers.json order; empty when the data has no targets/measure
+  // folder. A modifier value v gives the decr target weight max(0, −v) and the incr weight
+  // max(0, v); MakeHuman's sliders span v in [−1, 1].
+  const std::vector<std::string>& measure_modifier_names() const;
+  // Index of a modifier name, −1 when unknown.
+  int measure_modifier_index(const std::string& name) const;
+
+  // Options of the extended build below.
+  struct BuildOptions {
+    // false: every macro slider in [0, 1] and every modifier in [−1, 1] (MakeHuman's own
+    // range; InputError otherwise). true: any finite value; beyond the range the targets are
+    // extrapolated LINEARLY along their last segment (e.g. weight 1.25 gives maxweight 1.5,
+    // averageweight −0.5), which is what fit-measurements' extended space uses. Ethnic weights
+    // and gender must stay in [0, 1] either way.
+    bool allow_extrapolation = false;
+  };
+  // The body with macro sliders AND measurement modifiers (`modifiers`: one value per
+  // measure_modifier_names(), or empty = all 0). All 19158 vertices, mm.
+  Eigen::MatrixX3d build_vertices(const MacroSettings& settings, const Eigen::VectorXd& modifiers,
+                                  const BuildOptions& options) const;
+  // The offsets (19158 by 3, mm) of one modifier at v = +1 (incr) or v = −1 (decr): the mesh is
+  // linear in each modifier on either side of 0.
+  Eigen::MatrixX3d measure_modifier_offsets(int modifier, bool increase) const;
   // The raw base.obj vertices (19158 by 3, mm); not the default human (README §5.2).
   const Eigen::MatrixX3d& base_vertices() const;
   // Target files (relative to targets/) with non-zero weight for `settings`, and the weights.
@@ -103,12 +129,19 @@ class MakeHuman {
   const SkinWeights& body_weights() const;  // 13380 by #bones
   const SkinWeights& weights() const;       // 19158 by #bones (helpers included)
 
+  // The trunk and limbs of the body template (13380 entries, 1 = in the region;
+  // core/plausibility.h trunk_and_limbs_region with the default skeleton and body weights): the
+  // region core/plausibility.h's roughness is reported over.
+  std::vector<char> trunk_and_limbs_region() const;
+
   struct Body {
     Mesh mesh;          // body-only template: V 13380 by 3 (mm), F = body_faces()
     Skeleton skeleton;  // default skeleton on this body (mm)
     SkinWeights weights;  // = body_weights()
   };
   Body body(const MacroSettings& settings) const;
+  // The same with measurement modifiers (see build_vertices above).
+  Body body(const MacroSettings& settings, const Eigen::VectorXd& modifiers, const BuildOptions& options) const;
 
   // Stems of motion/poses/*.bvh, sorted ("benchmark", "fight01", ..., "tpose").
   std::vector<std::string> pose_names() const;

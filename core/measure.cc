@@ -13,6 +13,7 @@
 
 #include "core/error.h"
 #include "core/geometry.h"
+#include "core/landmarks.h"
 
 namespace bodymodel {
 
@@ -26,26 +27,31 @@ inline uint64_t edge_key(int a, int b) {
   return (static_cast<uint64_t>(static_cast<uint32_t>(a)) << 32) | static_cast<uint32_t>(b);
 }
 
-// Closed loops of the section of the mesh with the plane x[up] = h, as 2-D polygons in the two
-// remaining coordinates. Open chains (non-closed meshes) are returned too.
-std::vector<std::vector<Eigen::Vector2d>> section_loops(const Eigen::MatrixX3d& V,
-                                                        const Eigen::MatrixX3i& F, double h,
-                                                        int up) {
-  const int a0 = (up + 1) % 3, a1 = (up + 2) % 3;
+// Closed loops of the section of the mesh (the triangles `faces`, or all when null) with the
+// plane (x − origin)·normal = 0, as 2-D polygons in the in-plane axes (u, w) relative to
+// `origin`. Open chains (non-closed meshes, or a face subset cut short) are returned too.
+std::vector<std::vector<Eigen::Vector2d>> section_loops(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
+                                                        const std::vector<int>* faces,
+                                                        const Eigen::Vector3d& origin, const Eigen::Vector3d& normal,
+                                                        const Eigen::Vector3d& u, const Eigen::Vector3d& w) {
   // Each crossing triangle gives a segment between two edge points; link segments by edge.
   std::unordered_map<uint64_t, Eigen::Vector2d> point_of_edge;
   std::unordered_map<uint64_t, std::vector<uint64_t>> links;
-  auto side = [&](int v) { return V(v, up) >= h; };
-  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+  auto distance = [&](int v) { return (V.row(v).transpose() - origin).dot(normal); };
+  const Eigen::Index face_count = faces ? static_cast<Eigen::Index>(faces->size()) : F.rows();
+  for (Eigen::Index k0 = 0; k0 < face_count; ++k0) {
+    const Eigen::Index f = faces ? (*faces)[k0] : k0;
     uint64_t ends[2];
     int n = 0;
+    const double d[3] = {distance(F(f, 0)), distance(F(f, 1)), distance(F(f, 2))};
     for (int k = 0; k < 3; ++k) {
-      int i = F(f, k), j = F(f, (k + 1) % 3);
-      if (side(i) == side(j)) continue;
-      double t = (h - V(i, up)) / (V(j, up) - V(i, up));
+      const int a = k, b = (k + 1) % 3;
+      if ((d[a] >= 0) == (d[b] >= 0)) continue;
+      const int i = F(f, a), j = F(f, b);
+      const double t = d[a] / (d[a] - d[b]);
+      const Eigen::Vector3d p = V.row(i).transpose() + t * (V.row(j) - V.row(i)).transpose() - origin;
       uint64_t key = edge_key(i, j);
-      point_of_edge.emplace(key, Eigen::Vector2d(V(i, a0) + t * (V(j, a0) - V(i, a0)),
-                                                 V(i, a1) + t * (V(j, a1) - V(i, a1))));
+      point_of_edge.emplace(key, Eigen::Vector2d(p.dot(u), p.dot(w)));
       if (n < 2) ends[n++] = key;
     }
     if (n == 2) {
@@ -74,6 +80,16 @@ std::vector<std::vector<Eigen::Vector2d>> section_loops(const Eigen::MatrixX3d& 
   return loops;
 }
 
+// The same for the horizontal plane x[up] = h, in the two remaining coordinates.
+std::vector<std::vector<Eigen::Vector2d>> section_loops(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
+                                                        double h, int up, const std::vector<int>* faces = nullptr) {
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero(), normal = Eigen::Vector3d::Zero();
+  origin(up) = h;
+  normal(up) = 1;
+  return section_loops(V, F, faces, origin, normal, Eigen::Vector3d::Unit((up + 1) % 3),
+                       Eigen::Vector3d::Unit((up + 2) % 3));
+}
+
 double polygon_area(const std::vector<Eigen::Vector2d>& p) {
   double a = 0;
   for (size_t i = 0; i < p.size(); ++i) {
@@ -95,17 +111,166 @@ double hull_perimeter(const std::vector<Eigen::Vector2d>& loop) {
   return per;
 }
 
-}  // namespace
-
-double girth_at_height(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, double h,
-                       int up_axis) {
-  auto loops = section_loops(V, F, h, up_axis);
+const std::vector<Eigen::Vector2d>* largest_loop(const std::vector<std::vector<Eigen::Vector2d>>& loops) {
   const std::vector<Eigen::Vector2d>* best = nullptr;
   double best_area = -1;
   for (auto& l : loops) {
     double a = polygon_area(l);
     if (a > best_area) { best_area = a; best = &l; }
   }
+  return best;
+}
+
+Eigen::Vector3d landmark_point(const Eigen::MatrixX3d& V, const std::vector<int>& vertices) {
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  for (int v : vertices) p += V.row(v).transpose();
+  return p / static_cast<double>(vertices.size());
+}
+
+// Triangles whose extent along `up` overlaps [a, b].
+std::vector<int> faces_spanning(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, int up, double a, double b) {
+  std::vector<int> out;
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    const double p = V(F(f, 0), up), q = V(F(f, 1), up), r = V(F(f, 2), up);
+    if (std::max({p, q, r}) >= a && std::min({p, q, r}) <= b) out.push_back(static_cast<int>(f));
+  }
+  return out;
+}
+
+// The survey measurements (header comment) of a template-topology body; `lo` = lowest point
+// along up. Fills m's survey fields and hips_cm / hips_at_cm.
+void measure_survey(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const MeasureOptions& o, double lo,
+                    BodyMeasurements& m) {
+  const SurveyLandmarks& L = survey_landmarks();
+  const int up = o.up_axis;
+  const double to_cm = o.mm_per_unit / 10.0, mm = 1.0 / o.mm_per_unit;  // mm in mesh units
+  const Eigen::Vector3d e_up = Eigen::Vector3d::Unit(up);
+  const Eigen::Vector3d u = Eigen::Vector3d::Unit((up + 1) % 3), w = Eigen::Vector3d::Unit((up + 2) % 3);
+  auto horizontal = [&](Eigen::Vector3d v) { return Eigen::Vector3d(v - v.dot(e_up) * e_up); };
+
+  // Waist at the iliac crest.
+  const double crest = landmark_point(V, L.iliac_crest)(up);
+  {
+    const std::vector<int> faces = faces_spanning(V, F, up, crest, crest);
+    const auto loops = section_loops(V, F, crest, up, &faces);
+    if (const auto* l = largest_loop(loops)) {
+      m.waist_iliac_cm = hull_perimeter(*l) * to_cm;
+      m.waist_iliac_at_cm = (crest - lo) * to_cm;
+    }
+  }
+
+  // Hip: the level of the maximum posterior extension of the buttocks, searched in the lower part
+  // of the crotch → iliac crest span (MeasureOptions::hip_band_fraction). Posterior = minus the
+  // body's forward direction (left-right axis × up).
+  {
+    const Eigen::Vector3d left = horizontal(V.row(L.hip_l).transpose() - V.row(L.hip_r).transpose());
+    Eigen::Vector3d forward = left.cross(e_up);
+    const Eigen::Vector3d mid = 0.5 * (V.row(L.hip_l) + V.row(L.hip_r)).transpose();
+    if ((V.row(L.navel).transpose() - mid).dot(forward) < 0) forward = -forward;
+    const Eigen::Vector2d back2 = -Eigen::Vector2d(forward.dot(u), forward.dot(w)).normalized();
+    const double crotch = landmark_point(V, L.crotch)(up);
+    const double bottom = crotch + 10 * mm, top = crotch + o.hip_band_fraction * (crest - crotch);
+    const int n = std::max(2, o.hip_slices);
+    if (top > bottom && left.norm() > 0) {
+      std::vector<double> extension(n, -std::numeric_limits<double>::infinity()), girth(n, 0), at(n, 0);
+      for (int s = 0; s < n; ++s) at[s] = bottom + (top - bottom) * s / (n - 1);
+      // Each cut only looks at the triangles whose vertical extent contains its height.
+      std::vector<std::vector<int>> cut_faces(n);
+      for (int f : faces_spanning(V, F, up, bottom, top)) {
+        const double p = V(F(f, 0), up), q = V(F(f, 1), up), r = V(F(f, 2), up);
+        const auto first = std::lower_bound(at.begin(), at.end(), std::min({p, q, r}));
+        const auto last = std::upper_bound(first, at.end(), std::max({p, q, r}));
+        for (auto it = first; it != last; ++it) cut_faces[it - at.begin()].push_back(f);
+      }
+      std::vector<std::vector<Eigen::Vector2d>> torso(n);
+      for (int s = 0; s < n; ++s) {
+        auto loops = section_loops(V, F, at[s], up, &cut_faces[s]);
+        if (const auto* l = largest_loop(loops)) torso[s] = *l;
+        for (const auto& p : torso[s]) extension[s] = std::max(extension[s], p.dot(back2));
+      }
+      const double most = *std::max_element(extension.begin(), extension.end());
+      int best = -1;
+      for (int s = 0; s < n; ++s)
+        if (std::isfinite(extension[s]) && extension[s] >= most - o.hip_extension_tolerance_mm * mm) {
+          girth[s] = hull_perimeter(torso[s]);
+          if (best < 0 || girth[s] > girth[best]) best = s;
+        }
+      if (best >= 0) {
+        m.hips_cm = girth[best] * to_cm;
+        m.hips_at_cm = (at[best] - lo) * to_cm;
+      }
+    }
+  }
+
+  // Arm circumference: the template's edge ring round the right upper arm at its middle,
+  // projected onto the plane perpendicular to acromion → olecranon (a tape held square to the
+  // arm); the ring follows the arm, never the torso it may press into.
+  const Eigen::Vector3d acromion = landmark_point(V, L.acromion), olecranon = landmark_point(V, L.olecranon);
+  m.upper_arm_length_cm = (olecranon - acromion).norm() * to_cm;
+  if ((olecranon - acromion).norm() > 0) {
+    const Eigen::Vector3d n = (olecranon - acromion).normalized();
+    Eigen::Vector3d a = n.cross(e_up);
+    if (a.norm() < 1e-6) a = n.cross(u);
+    a.normalize();
+    const Eigen::Vector3d b = n.cross(a);
+    std::vector<Eigen::Vector2d> ring;
+    for (int v : L.upper_arm_ring) {
+      const Eigen::Vector3d p = V.row(v).transpose() - acromion;
+      ring.emplace_back(p.dot(a), p.dot(b));
+    }
+    m.arm_circumference_cm = hull_perimeter(ring) * to_cm;
+  }
+  m.upper_leg_length_cm = (landmark_point(V, L.inguinal) - landmark_point(V, L.patella_top)).norm() * to_cm;
+  m.survey = true;
+}
+
+}  // namespace
+
+const std::vector<MeasurementDefinition>& measurement_definitions() {
+  static const std::vector<MeasurementDefinition> table = {
+      {"height_cm", "cm", "standing height: extent of the body along the up axis"},
+      {"weight_kg", "kg", "enclosed volume (divergence theorem) x 1.01 kg/L"},
+      {"volume_l", "L", "enclosed volume (divergence theorem)"},
+      {"waist_iliac_cm", "cm",
+       "NHANES waist: horizontal girth at the right iliac crest (template landmark, 0.58 of the default body's "
+       "stature)"},
+      {"hips_cm", "cm",
+       "NHANES hip: horizontal girth at the level of the maximum posterior extension of the buttocks, searched in "
+       "the lower half of the crotch-iliac crest span"},
+      {"arm_circumference_cm", "cm",
+       "NHANES mid upper arm circumference (right): girth perpendicular to the acromion-olecranon line at its "
+       "midpoint"},
+      {"upper_arm_length_cm", "cm", "NHANES upper arm length (right): acromion to olecranon, straight line"},
+      {"upper_leg_length_cm", "cm",
+       "NHANES upper leg length (right): inguinal crease to the top of the patella, straight line"},
+      {"waist_cm", "cm", "natural waist: the smallest torso girth between 0.55 and 0.67 of the height"},
+      {"chest_cm", "cm", "largest torso girth between 0.68 and 0.80 of the height, below the armpits"},
+      {"neck_cm", "cm", "smallest girth between 0.80 and 0.88 of the height"},
+      {"body_fat_pct", "%", "U.S. Navy circumference formula (Hodgdon & Beckett 1984), needs the sex"},
+  };
+  return table;
+}
+
+double measurement_value(const BodyMeasurements& m, const std::string& name) {
+  if (name == "height_cm") return m.height_cm;
+  if (name == "weight_kg") return m.weight_kg;
+  if (name == "volume_l") return m.volume_l;
+  if (name == "waist_iliac_cm") return m.waist_iliac_cm;
+  if (name == "hips_cm") return m.hips_cm;
+  if (name == "arm_circumference_cm") return m.arm_circumference_cm;
+  if (name == "upper_arm_length_cm") return m.upper_arm_length_cm;
+  if (name == "upper_leg_length_cm") return m.upper_leg_length_cm;
+  if (name == "waist_cm") return m.waist_cm;
+  if (name == "chest_cm") return m.chest_cm;
+  if (name == "neck_cm") return m.neck_cm;
+  if (name == "body_fat_pct") return m.body_fat_pct;
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
+double girth_at_height(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, double h,
+                       int up_axis) {
+  auto loops = section_loops(V, F, h, up_axis);
+  const std::vector<Eigen::Vector2d>* best = largest_loop(loops);
   return best ? hull_perimeter(*best) : 0.0;
 }
 
@@ -194,10 +359,17 @@ BodyMeasurements measure_body(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i&
     }
     return std::isfinite(best) && best > 0 ? best * to_cm : 0.0;
   };
-  m.neck_cm = band(0.80, 0.88, false, m.neck_at_cm);
-  m.chest_cm = band(0.68, 0.80, true, m.chest_at_cm, true);
-  m.waist_cm = band(0.55, 0.67, false, m.waist_at_cm);
-  m.hips_cm = band(0.45, 0.55, true, m.hips_at_cm);
+  if (o.band_girths) {
+    m.neck_cm = band(0.80, 0.88, false, m.neck_at_cm);
+    m.chest_cm = band(0.68, 0.80, true, m.chest_at_cm, true);
+    m.waist_cm = band(0.55, 0.67, false, m.waist_at_cm);
+    m.hips_cm = band(0.45, 0.55, true, m.hips_at_cm);
+  } else {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    m.neck_cm = m.chest_cm = m.waist_cm = m.hips_cm = nan;
+    m.neck_at_cm = m.chest_at_cm = m.waist_at_cm = m.hips_at_cm = nan;
+  }
+  if (o.survey_measurements && V.rows() == kSurveyTemplateVertexCount) measure_survey(V, F, o, lo, m);
   m.body_fat_pct = navy_body_fat_pct(sex, m.height_cm, m.neck_cm, m.waist_cm, m.hips_cm);
   return m;
 }

@@ -81,15 +81,21 @@ SubjectTable read_subject_table(const fs::path& path) {
   int sex_col = -1;
   for (size_t c = 0; c < h.size(); ++c) {
     if (static_cast<int>(c) == id_col) continue;
+    if (h[c] == "seqn") continue;  // a population subject's person id (synth-db --population), not a label
     if (h[c] == "sex") {
       sex_col = static_cast<int>(c);
       continue;
     }
-    bool numeric = rows.size() > 1;
+    // A label column holds numbers and at least one of them (an all-empty column, e.g. a text
+    // column no row filled in, is not a label).
+    bool numeric = rows.size() > 1, any = false;
     double v;
-    for (size_t r = 1; r < rows.size() && numeric; ++r)
-      if (!rows[r][c].empty() && !parse_double(rows[r][c], v)) numeric = false;
-    if (numeric) cols.push_back(static_cast<int>(c));
+    for (size_t r = 1; r < rows.size() && numeric; ++r) {
+      if (rows[r][c].empty()) continue;
+      if (!parse_double(rows[r][c], v)) numeric = false;
+      any = true;
+    }
+    if (numeric && any) cols.push_back(static_cast<int>(c));
   }
   if (sex_col >= 0) t.labels.push_back({"sex", ""});
   for (int c : cols) t.labels.push_back({h[c], unit_of(h[c])});

@@ -43,6 +43,14 @@ std::string model_fingerprint(const BodyModel& model) {
 void generate_crowd_bodies(std::shared_ptr<const BodyModel> model, const std::vector<LabelCondition>& conditions,
                            const std::vector<int>& indices, const GenerateCrowdOptions& o,
                            const std::function<void(CrowdBody&&)>& on_body, const ProgressCallback& progress) {
+  generate_crowd_bodies_for(
+      std::move(model), [&](int) { return conditions; }, indices, o, on_body, progress);
+}
+
+void generate_crowd_bodies_for(std::shared_ptr<const BodyModel> model,
+                               const std::function<std::vector<LabelCondition>(int)>& conditions_of,
+                               const std::vector<int>& indices, const GenerateCrowdOptions& o,
+                               const std::function<void(CrowdBody&&)>& on_body, const ProgressCallback& progress) {
   if (o.threads < 0) throw InputError(fmt::format("generate: {} threads", o.threads));
   const ShapeMorpher morpher(model);
   std::mutex mutex;  // the progress callback is not assumed thread-safe
@@ -51,7 +59,7 @@ void generate_crowd_bodies(std::shared_ptr<const BodyModel> model, const std::ve
   auto body = [&](int t) {
     CrowdBody b;
     b.index = indices[t];
-    b.body = generate_body(morpher, conditions, crowd_body_seed(o.seed, b.index), o.generate);
+    b.body = generate_body(morpher, conditions_of(b.index), crowd_body_seed(o.seed, b.index), o.generate);
     b.flipped_triangles = flipped_triangle_count(*model, b.body.V);
     on_body(std::move(b));
     std::lock_guard<std::mutex> lock(mutex);

@@ -49,5 +49,13 @@ std::string model_fingerprint(const BodyModel& model);
 void generate_crowd_bodies(std::shared_ptr<const BodyModel> model, const std::vector<LabelCondition>& conditions,
                            const std::vector<int>& indices, const GenerateCrowdOptions& options,
                            const std::function<void(CrowdBody&&)>& on_body, const ProgressCallback& progress = {});
+// The same with conditions of their own per body (a population crowd: body k is morphed to
+// person k's labels): `conditions_of(k)` gives body k's conditions (called once per body, from
+// the worker threads: it must be thread-safe).
+void generate_crowd_bodies_for(std::shared_ptr<const BodyModel> model,
+                               const std::function<std::vector<LabelCondition>(int)>& conditions_of,
+                               const std::vector<int>& indices, const GenerateCrowdOptions& options,
+                               const std::function<void(CrowdBody&&)>& on_body,
+                               const ProgressCallback& progress = {});
 
 }  // namespace bodymodel

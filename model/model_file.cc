@@ -14,12 +14,15 @@ std::string json_list(const std::vector<std::string>& v) { return nlohmann::json
 
 // A NaN or infinity in a model array would reach every body decoded from it: refused on load,
 // naming the array and the first bad element.
+// `missing_ok`: NaN is a missing value (a subject's label table may have gaps, e.g. a
+// population subject's unrecorded NHANES value; the regression uses the known ones).
 template <typename Derived>
-void check_finite(const Eigen::DenseBase<Derived>& M, const std::string& key, const std::string& what) {
+void check_finite(const Eigen::DenseBase<Derived>& M, const std::string& key, const std::string& what,
+                  bool missing_ok = false) {
   if (M.allFinite()) return;
   for (Eigen::Index r = 0; r < M.rows(); ++r)
     for (Eigen::Index c = 0; c < M.cols(); ++c)
-      if (!std::isfinite(M(r, c)))
+      if (!std::isfinite(M(r, c)) && !(missing_ok && std::isnan(M(r, c))))
         throw InputError(fmt::format("{}: '{}' holds {} at {}, expected finite values", what, key,
                                      std::isnan(M(r, c)) ? "NaN" : "infinity", M.cols() == 1 ? fmt::format("element {}", r)
                                                             : fmt::format("row {}, column {}", r, c)));
@@ -138,7 +141,7 @@ SubModel get_sub_model(const Npz& z, const std::string& p, bool shape, int D, co
       m.labels.rows() != m.pca.coefficients.rows() ||
       static_cast<int>(m.sample_ids.size()) != m.pca.coefficients.rows())
     throw InputError(fmt::format("{}: the {} model's label arrays disagree with its {} labels", what, p, L));
-  check_finite(m.labels, lp + "labels", what);
+  check_finite(m.labels, lp + "labels", what, /*missing_ok=*/true);
   check_finite(stats, lp + "label_statistics", what);
   check_finite(m.regression.offsets, p + "_label_offsets", what);
   check_finite(m.regression.gradients, p + "_label_gradients", what);

@@ -16,20 +16,16 @@
 namespace bodymodel {
 
 std::optional<double> measured_label(const std::string& name, const BodyMeasurements& m) {
-  if (name == "height_cm") return m.height_cm;
-  if (name == "weight_kg") return m.weight_kg;
-  if (name == "waist_cm") return m.waist_cm;
-  if (name == "hips_cm") return m.hips_cm;
-  if (name == "chest_cm") return m.chest_cm;
-  if (name == "neck_cm") return m.neck_cm;
-  if (name == "volume_l") return m.volume_l;
-  if (name == "body_fat_pct" && std::isfinite(m.body_fat_pct)) return m.body_fat_pct;
+  if (!is_measurable_label(name)) return std::nullopt;
+  const double v = measurement_value(m, name);
+  if (std::isfinite(v)) return v;
   return std::nullopt;
 }
 
 bool is_measurable_label(const std::string& name) {
-  static const std::set<std::string> names = {"height_cm", "weight_kg", "waist_cm", "hips_cm",
-                                              "chest_cm",  "neck_cm",   "volume_l", "body_fat_pct"};
+  static const std::set<std::string> names = {"height_cm", "weight_kg", "waist_cm", "hips_cm", "chest_cm", "neck_cm",
+                                              "volume_l", "body_fat_pct", "waist_iliac_cm", "arm_circumference_cm",
+                                              "upper_arm_length_cm", "upper_leg_length_cm"};
   return names.count(name) > 0;
 }
 
@@ -60,6 +56,13 @@ BodyMeasurements ShapeMorpher::measure(const Eigen::MatrixX3d& V, Sex sex) const
 }
 
 namespace {
+
+// The eq. 11 options of a morph: with prior_weighted, the metric of the model's eigenvalues.
+ConstrainedChangeOptions change_options(const SubModel& sm, const MorphOptions& o) {
+  ConstrainedChangeOptions c = o.change;
+  if (o.prior_weighted) c.metric = sm.pca.eigenvalues.cwiseMax(1e-12 * std::max(1e-300, sm.pca.eigenvalues.maxCoeff()));
+  return c;
+}
 
 double tolerance_for(const LabelInfo& info, const MorphOptions& o) {
   if (info.unit == "cm") return o.tolerance_cm;
@@ -105,7 +108,7 @@ Eigen::MatrixXd ShapeMorpher::measured_response(const std::vector<LabelCondition
                                                 const MorphOptions& o) const {
   const SubModel& sm = model_->shape;
   const int m = static_cast<int>(conditions.size());
-  std::string key = std::to_string(static_cast<int>(o.sex));
+  std::string key = std::to_string(static_cast<int>(o.sex)) + (o.prior_weighted ? "|likely" : "");
   for (auto& c : conditions) key += "|" + c.label;
   std::lock_guard<std::mutex> lock(response_cache_->mutex);
   auto found = response_cache_->inverse_jacobians.find(key);
@@ -128,7 +131,7 @@ Eigen::MatrixXd ShapeMorpher::measured_response(const std::vector<LabelCondition
     const double step = info.unit == "cm" || info.unit == "kg" ? 5.0 : 0.5 * std::max(info.stddev, 1e-9);
     Eigen::VectorXd delta = Eigen::VectorXd::Zero(m);
     delta(i) = step;
-    const Eigen::VectorXd z = constrained_change(S, delta, o.change);
+    const Eigen::VectorXd z = constrained_change(S, delta, change_options(sm, o));
     const Eigen::VectorXd v = label_values(*this, conditions, idx, z, decode(sm.pca.mean + sm.pca.basis * z), o.sex);
     J.col(i) = (v - v0) / step;
     if (!(J(i, i) > 0.2 && J(i, i) < 5)) usable = false;  // not a usable slope: keep the unit one
@@ -253,7 +256,7 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
   bool ok = start_measured && all_ok(start);
   while (!ok && it < o.max_iterations) {
     ++it;
-    z = constrained_change(S, delta, o.change);
+    z = constrained_change(S, delta, change_options(sm, o));
     x = apply_change(z);
     V = decode(x);
     ++decodes;

@@ -29,7 +29,9 @@
 namespace bodymodel {
 
 // The measured value of a label on a mesh (height_cm, weight_kg, waist_cm, hips_cm, chest_cm,
-// neck_cm, volume_l, body_fat_pct when finite), or nullopt for labels a mesh cannot tell.
+// neck_cm, volume_l, body_fat_pct, and on template bodies the survey measurements
+// waist_iliac_cm, arm_circumference_cm, upper_arm_length_cm, upper_leg_length_cm; core/measure.h),
+// or nullopt for labels a mesh cannot tell.
 std::optional<double> measured_label(const std::string& name, const BodyMeasurements& m);
 bool is_measurable_label(const std::string& name);
 
@@ -58,6 +60,13 @@ struct MorphOptions {
   Eigen::VectorXd triangle_mask;   // #F in [0, 1] (§5.1, Fig. 6); empty = the whole body
   Sex sex = Sex::unknown;          // for the body-fat measurement
   ConstrainedChangeOptions change; // eq. 11 solver
+  // The most likely change instead of the smallest: eq. 11 in the metric of the PCA eigenvalues
+  // (ConstrainedChangeOptions::metric), i.e. the model's conditional mean of the body given the
+  // label changes. From the mean body this makes "the typical person" with those labels (the
+  // smallest change would leave every direction the labels do not force at the mean, however
+  // strongly the data ties it to them); for an existing body the paper's smallest change keeps
+  // more of the person.
+  bool prior_weighted = false;
   // Correct with the measured response instead of a unit slope: the Jacobian J of the measured
   // labels with respect to the requested (eq. 11) change, by finite differences at the model's
   // mean body (1 + #measured-labels decodes, once per morpher and label set, cached), and each

@@ -88,6 +88,16 @@ Eigen::VectorXd constrained_change(const Eigen::MatrixXd& S, const Eigen::Vector
   if (S.cols() == 0) return Eigen::VectorXd::Zero(S.rows());
   if (!S.allFinite() || !delta.allFinite())
     throw InputError("constrained change: non-finite directions or targets");
+  if (options.metric.size() != 0) {
+    // z = D y with D = diag(√w): min ‖y‖ subject to (D S)ᵀ y = Δ is min Σ z²/w subject to Sᵀ z = Δ.
+    if (options.metric.size() != S.rows() || !(options.metric.array() > 0).all())
+      throw InputError(fmt::format("constrained change: metric of {} values for {} coefficients (all must be > 0)",
+                                   options.metric.size(), S.rows()));
+    ConstrainedChangeOptions euclidean = options;
+    euclidean.metric.resize(0);
+    const Eigen::VectorXd d = options.metric.cwiseSqrt();
+    return d.cwiseProduct(constrained_change(d.asDiagonal() * S, delta, euclidean));
+  }
   // z = S (SᵀS)⁺ Δ through the SVD of Sᵀ = U Σ Vᵀ: z = V Σ⁺ Uᵀ Δ (minimum-norm solution).
   Eigen::JacobiSVD<Eigen::MatrixXd> svd(S.transpose(), Eigen::ComputeThinU | Eigen::ComputeThinV);
   const Eigen::VectorXd& sv = svd.singularValues();

@@ -62,6 +62,10 @@ struct ConstrainedChangeOptions {
   // constraints against the size of the change when there are nearly as many constraints as
   // components (pose morphing constrains every joint angle). 0 = exact minimum norm (eq. 11).
   double damping = 0;
+  // K positive values w: minimise Σ z_k² / w_k instead of ‖z‖². With the PCA eigenvalues this is
+  // the most likely change under the model's Gaussian (the conditional mean of the body given
+  // the label changes) rather than the smallest one. Empty = Euclidean, eq. 11 as in the paper.
+  Eigen::VectorXd metric;
 };
 
 // Eq. 11: minimum-norm z (K) with Sᵀ z = delta. S K by m (columns = gradients s_i), delta m.

@@ -16,6 +16,8 @@ packages=(
   libcli11-dev nlohmann-json3-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev libtinygltf-dev libstb-dev libsvm-dev zlib1g-dev
   snakemake  # workflow/Snakefile: registration at scale (register --shard jobs as rules)
+  pybind11-dev python3-pybind11 python3-numpy python3-pytest python3-matplotlib   # the Python module
+  libcpp-httplib-dev chromium
 )
 
 missing=()
@@ -29,9 +31,39 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -q --no-install-recommends "${missing[@]}"
 fi
 
+build="${BODYMODEL_BUILD:-$here/build}"
+
+# `import bodymodel` for every python3 here (docs/python.md): a .pth file in each interpreter's
+# user site names the build's python folder, and, for an interpreter without numpy of its own
+# (a pyenv python3 on PATH), Debian's dist-packages (python3-numpy) when the versions match.
+# Interpreters of one version share the user site, so the file gets the lines all of them need.
+declare -A pth_lines=()
+for py in $(command -v python3 || true) /usr/bin/python3; do
+  [ -x "$py" ] || continue
+  site="$("$py" -m site --user-site 2>/dev/null)" || continue
+  lines="${pth_lines[$site]:-$build/python}"
+  if ! "$py" -c "import numpy" 2>/dev/null && [ -d /usr/lib/python3/dist-packages ] &&
+     [ "$("$py" -c 'import sys; print(sys.version_info[:2])')" = "$(/usr/bin/python3 -c 'import sys; print(sys.version_info[:2])' 2>/dev/null)" ]; then
+    lines="$lines"$'\n'/usr/lib/python3/dist-packages
+  fi
+  pth_lines[$site]="$lines"
+done
+for site in "${!pth_lines[@]}"; do
+  mkdir -p "$site" 2>/dev/null && printf '%s\n' "${pth_lines[$site]}" > "$site/bodymodel.pth" 2>/dev/null || true
+done
+
+# three.js (npm, pinned) for `bodymodel viewer` and the report's viewer, kept inside the build
+# folder and copied into each viewer folder (no CDN: the report opens offline). Best effort:
+# without node/npm the viewer verb says what is missing.
+three_version=0.160.0
+if [ ! -f "$build/npm/node_modules/three/build/three.min.js" ] && command -v npm >/dev/null; then
+  mkdir -p "$build/npm"
+  npm install --prefix "$build/npm" --no-audit --no-fund --silent "three@$three_version" >/dev/null 2>&1 ||
+    echo "setup: npm could not install three@$three_version; bodymodel viewer will need --three" >&2
+fi
+
 [ "${1:-}" = "--no-build" ] && exit 0
 
-build="${BODYMODEL_BUILD:-$here/build}"
 jobs="${BODYMODEL_JOBS:-2}"
 if [ ! -f "$build/build.ninja" ]; then
   cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release

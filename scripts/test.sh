@@ -8,8 +8,9 @@ set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # ccache: paths relative to the checkout, so a fresh clone elsewhere still hits the cache.
 export CCACHE_BASEDIR="$here" CCACHE_NOHASHDIR=1
-"$here/scripts/setup.sh" --no-build
 build="$here/build"
+[ "${1:-}" = "--sanitize" ] && build="$here/build-asan"
+BODYMODEL_BUILD="$build" "$here/scripts/setup.sh" --no-build
 config=(-DCMAKE_BUILD_TYPE=Release)
 ctest_args=()   # the sanitizer phase selects labels
 if [ "${1:-}" = "--sanitize" ]; then
@@ -20,7 +21,8 @@ if [ "${1:-}" = "--sanitize" ]; then
     rm -rf "$build"
   fi
   config=(-DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo
-          "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG" -DBODYMODEL_SANITIZE=ON -DBODYMODEL_BENCH=OFF)
+          "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG" -DBODYMODEL_SANITIZE=ON -DBODYMODEL_BENCH=OFF
+          -DBODYMODEL_PYTHON=OFF)
   # halt_on_error: the first report fails the test (UBSan too: -fno-sanitize-recover).
   # Leak checking is off by default (LeakSanitizer cannot run under ptrace, as in some CI
   # containers); BODYMODEL_DETECT_LEAKS=1 turns it on.

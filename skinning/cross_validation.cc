@@ -19,7 +19,7 @@ std::string CrossValidationResult::brief() const {
   return s.str();
 }
 
-std::vector<std::vector<int>> cv_folds(int count, const CrossValidationOptions& o) {
+std::vector<std::vector<int>> cv_folds(int count, const SkinCrossValidationOptions& o) {
   std::vector<std::vector<int>> folds;
   if (o.scheme == CvScheme::none) return folds;
   if (count < 2)
@@ -40,7 +40,7 @@ std::vector<std::vector<int>> cv_folds(int count, const CrossValidationOptions& 
   return folds;
 }
 
-CrossValidator::CrossValidator(const SkinningExamples& ex, const LbsFitOptions& lbs, const CrossValidationOptions& o,
+CrossValidator::CrossValidator(const SkinningExamples& ex, const LbsFitOptions& lbs, const SkinCrossValidationOptions& o,
                                std::vector<const ReferenceSurface*> surfaces)
     : ex_(ex), options_(o), surfaces_(std::move(surfaces)) {
   if (!surfaces_.empty() && static_cast<int>(surfaces_.size()) != ex.pose_count())
@@ -115,7 +115,7 @@ CrossValidationResult CrossValidator::select(SkinningModel model, const ModelFit
   std::vector<CvCandidate> cands;
   std::vector<std::vector<double>> paths;   // MWE: the scales of each candidate group
   auto add = [&](const std::string& s, const ModelFitOptions& o) { cands.push_back({s, 0.0, o}); };
-  const CrossValidationOptions& c = options_;
+  const SkinCrossValidationOptions& c = options_;
   switch (model) {
     case SkinningModel::as:
       for (double l : or_first(c.as_ridges, start.animation_space.ridge)) {

@@ -27,7 +27,7 @@ namespace bodymodel {
 
 enum class CvScheme { none, interleaved, last };
 
-struct CrossValidationOptions {
+struct SkinCrossValidationOptions {
   CvScheme scheme = CvScheme::interleaved;
   int folds = 5;      // interleaved: at most this many folds (fewer when there are fewer examples)
   int held_out = 0;   // last: examples held back, 0 = a third of them (10 of the 30 Vlasic frames)
@@ -74,13 +74,13 @@ struct CrossValidationResult {
 
 // The folds of a scheme: for each fold, the held-out example indices (0..count−1).
 // Throws InputError when the scheme leaves no example to fit on or none to hold out.
-std::vector<std::vector<int>> cv_folds(int count, const CrossValidationOptions& options);
+std::vector<std::vector<int>> cv_folds(int count, const SkinCrossValidationOptions& options);
 
 class CrossValidator {
  public:
   // ex: the training examples (rest, transforms, poses). lbs: how the SSD base is fitted.
   // surfaces: one per example (the example mesh's surface) or empty; F their faces.
-  CrossValidator(const SkinningExamples& ex, const LbsFitOptions& lbs, const CrossValidationOptions& options,
+  CrossValidator(const SkinningExamples& ex, const LbsFitOptions& lbs, const SkinCrossValidationOptions& options,
                  std::vector<const ReferenceSurface*> surfaces = {});
   // Chooses the setting of `model` (starting from `start`, whose other fields are kept).
   // ssd and dqs have nothing to choose: the result holds `start`.
@@ -91,7 +91,7 @@ class CrossValidator {
  private:
   double held_out_error(const FittedModel& m, int fold) const;   // Σ over held-out vertices
   const SkinningExamples& ex_;
-  CrossValidationOptions options_;
+  SkinCrossValidationOptions options_;
   std::vector<const ReferenceSurface*> surfaces_;
   std::vector<std::vector<int>> folds_;
   std::vector<SkinningExamples> fold_train_;

@@ -51,7 +51,7 @@ struct SequenceEvaluationOptions {
   // surface and normals use frame_faces[f], bone recovery the rest frame's. Empty = every frame
   // uses the faces passed with the frames.
   std::vector<Eigen::MatrixX3i> frame_faces;
-  CrossValidationOptions cv;      // scheme none = use `fit` as given
+  SkinCrossValidationOptions cv;      // scheme none = use `fit` as given
 };
 
 struct MethodSplitStats {

@@ -2,12 +2,16 @@
 // in-test MakeHuman model (model_test_util.h).
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <limits>
+
 #include <filesystem>
 #include <fstream>
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
+#include "model/database.h"
 #include "model/model_file.h"
 #include "model/morph.h"
 #include "model/pose_edit.h"
@@ -76,6 +80,39 @@ TEST(ModelFile, BasesTakeHalfTheSpaceOfFloat64) {
   z.put("full_basis", model->full.pca.basis);
   const size_t v1 = z.serialize().size();
   EXPECT_LT(static_cast<double>(v2), 0.6 * static_cast<double>(v1)) << v2 << " vs " << v1 << " bytes";
+}
+
+// A population subject's unrecorded NHANES value is a missing label (NaN): the file keeps it;
+// an infinite label is still corruption.
+TEST(ModelFile, MissingLabelValuesLoadInfiniteOnesDoNot) {
+  Npz z = model_to_npz(*shape_test_model());
+  Eigen::MatrixXd labels = z.matrix("labels");
+  ASSERT_GT(labels.rows(), 0);
+  const Eigen::Index c = labels.cols() - 1;
+  labels(0, c) = std::numeric_limits<double>::quiet_NaN();
+  z.put("labels", labels);
+  const BodyModel m = model_from_npz(z, "m.npz");
+  EXPECT_TRUE(std::isnan(m.shape.labels(0, c)));
+  EXPECT_TRUE(std::isfinite(m.shape.labels(labels.rows() - 1, c)));
+  labels(0, c) = std::numeric_limits<double>::infinity();
+  z.put("labels", labels);
+  EXPECT_THROW(model_from_npz(z, "m.npz"), InputError);
+}
+
+// A population database's subjects.csv: the person id (seqn) and text or all-empty columns are
+// not labels; an empty cell of a label is a missing value.
+TEST(SubjectTable, PersonIdsAndEmptyColumnsAreNotLabels) {
+  fixtures::TempDir dir;
+  std::ofstream(dir / "subjects.csv") << "subject_id,sex,seqn,height_cm,fit_reached,fit_reason\n"
+                                         "s0,female,109273,160.5,yes,\n"
+                                         "s1,male,109312,,no,\n";
+  const SubjectTable t = read_subject_table(dir / "subjects.csv");
+  ASSERT_EQ(t.labels.size(), 2u);
+  EXPECT_EQ(t.labels[0].name, "sex");
+  EXPECT_EQ(t.labels[1].name, "height_cm");
+  EXPECT_DOUBLE_EQ(t.values(0, 1), 160.5);
+  EXPECT_TRUE(std::isnan(t.values(1, 1)));
+  EXPECT_DOUBLE_EQ(t.values(1, 0), 1.0);
 }
 
 TEST(ModelFile, ForeignOrWrongVersionFilesAreInputErrors) {

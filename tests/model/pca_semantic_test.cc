@@ -85,6 +85,31 @@ TEST(ConstrainedChange, MeetsEveryConstraintWithMinimumNorm) {
   EXPECT_GT((z + null).norm(), z.norm());
 }
 
+// The metric form: min Σ z²/w subject to Sᵀz = Δ has the closed form z = W S (Sᵀ W S)⁻¹ Δ
+// (W = diag(w)); with the PCA eigenvalues it is the Gaussian's conditional mean.
+TEST(ConstrainedChange, MetricGivesTheMostLikelyChange) {
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n(0, 1);
+  Eigen::MatrixXd S(8, 2);
+  for (int i = 0; i < S.size(); ++i) S.data()[i] = n(rng);
+  Eigen::VectorXd w(8), d(2);
+  w << 9, 4, 2, 1, 0.5, 0.25, 0.1, 0.01;
+  d << 1.5, -0.5;
+  ConstrainedChangeOptions o;
+  o.metric = w;
+  const Eigen::VectorXd z = constrained_change(S, d, o);
+  EXPECT_NEAR((S.transpose() * z - d).norm(), 0, 1e-10);
+  const Eigen::MatrixXd WS = w.asDiagonal() * S;
+  const Eigen::VectorXd expected = WS * (S.transpose() * WS).ldlt().solve(d);
+  EXPECT_NEAR((z - expected).norm(), 0, 1e-10);
+  // It differs from the Euclidean minimum norm, which is shorter but less likely.
+  const Eigen::VectorXd e = constrained_change(S, d);
+  EXPECT_LT(e.norm(), z.norm());
+  EXPECT_LT(z.cwiseAbs2().cwiseQuotient(w).sum(), e.cwiseAbs2().cwiseQuotient(w).sum());
+  o.metric(3) = 0;  // not a metric
+  EXPECT_THROW(constrained_change(S, d, o), InputError);
+}
+
 TEST(SemanticRegression, RecoversALinearLabelAndBuildsAnOrthonormalBasis) {
   std::mt19937 rng(5);
   std::normal_distribution<double> n(0, 1);

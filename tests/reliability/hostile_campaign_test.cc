@@ -446,6 +446,11 @@ std::vector<Case> quick_cases() {
                  fs::create_directories(b.out);
                },
                {"render", "{in}/a.obj", "--out", "{out}/"}, 2, {"folder"}});
+  c.push_back({"viewer_missing_rig", [](const Sandbox&) {},
+               {"viewer", "--rig", "{in}/missing.npz", "--bvh", "{in}/x.bvh", "--out", "{out}"}, 2, {"missing.npz"},
+               {"{out}"}});
+  c.push_back({"serve_missing_model", [](const Sandbox&) {},
+               {"serve", "{in}/missing.npz", "--port", "1"}, 2, {"missing.npz"}});
   c.push_back({"demo_into_an_existing_folder",
                [](const Sandbox& b) {
                  fs::create_directories(b.out);

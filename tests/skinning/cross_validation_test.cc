@@ -16,7 +16,7 @@ using testing::bulging_examples;
 using testing::make_tube;
 
 TEST(CrossValidation, FoldsOfBothSchemes) {
-  CrossValidationOptions o;
+  SkinCrossValidationOptions o;
   o.folds = 3;
   const auto f = cv_folds(7, o);
   ASSERT_EQ(f.size(), 3u);
@@ -94,7 +94,7 @@ TEST(CrossValidation, ChoosesStrongRegularisationForNoiseAndWeakForSignal) {
   std::normal_distribution<double> n(0, 0.05);
   for (auto& P : noisy.poses)
     for (Eigen::Index i = 0; i < P.size(); ++i) P.data()[i] += n(rng);
-  CrossValidationOptions o;
+  SkinCrossValidationOptions o;
   o.folds = 5;
   o.as_ridges = {1e-6, 1e-3, 1, 1e3};
   LbsFitOptions lo;
@@ -114,7 +114,7 @@ TEST(CrossValidation, ChoosesStrongRegularisationForNoiseAndWeakForSignal) {
 TEST(CrossValidation, TooFewExamplesForAFoldIsAClearError) {
   const auto t = make_tube(5, 6);
   const SkinningExamples ex = bulging_examples(t, 3, 1);
-  CrossValidationOptions o;
+  SkinCrossValidationOptions o;
   o.scheme = CvScheme::last;
   o.held_out = 2;   // leaves one example: AS needs two
   LbsFitOptions lo;

@@ -9,6 +9,7 @@
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "core/io/bvh.h"
+#include "core/data_path.h"
 #include "core/io/npz.h"
 #include "core/makehuman.h"
 #include "core/retarget.h"
@@ -133,9 +134,11 @@ TEST(EndToEndCli, AModelOfAnOlderFormatVersionIsRefusedAndNothingIsWritten) {
   const fs::path old = temp_dir() / "old_model.npz";
   z.save(old);
   const fs::path out = temp_dir() / "char_old";
+  // A real clip: options are checked before the model is read, so a missing clip would be reported first.
+  const fs::path cmu_clip = data_file("makehuman/motion/cmu/02_02.bvh");
   expect_one_line_error(run_cli("character '" + old.string() + "' --out '" + out.string() + "'"), "version");
   EXPECT_FALSE(fs::exists(out));
-  expect_one_line_error(run_cli("crowd '" + old.string() + "' --bvh x.bvh --out '" + (temp_dir() / "crowd_old").string() + "'"),
+  expect_one_line_error(run_cli("crowd '" + old.string() + "' --bvh '" + cmu_clip.string() + "' --out '" + (temp_dir() / "crowd_old").string() + "'"),
                         "version");
 }
 

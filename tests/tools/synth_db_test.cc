@@ -166,3 +166,25 @@ TEST(Cli, BadInputGivesOneLineErrorAndNonZeroExit) {
   EXPECT_NE(r.output.find("keep.txt"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "z" / "subjects.csv"));
 }
+
+// synth-db --population refuses bad people files before anything is written: one line naming
+// the file and what is wrong, exit 2, no output folder.
+TEST(Cli, BadPopulationFilesAreRefusedBeforeWriting) {
+  fixtures::TempDir dir;
+  const auto run = [&](const std::string& csv, const std::string& extra = "") {
+    std::ofstream(dir / "people.csv") << csv;
+    return fixtures::run_cli("synth-db --subjects 2 --population '" + (dir / "people.csv").string() + "' " + extra +
+                             " --out '" + (dir / "db").string() + "'");
+  };
+  auto r = run("SEQN,RIAGENDR,RIDAGEYR,BMXHT\n1,2,40,160\n");  // no weight, waist, ...
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("BMXWT"), std::string::npos) << r.output;
+  const std::string header = "SEQN,RIAGENDR,RIDAGEYR,BMXHT,BMXWT,BMXWAIST,BMXHIP,BMXARMC,WTMECPRP\n";
+  r = run(header + "1,2,12,150,40,60,70,20,1000\n2,1,15,160,50,70,80,22,1000\n");  // children only
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("under 18"), std::string::npos) << r.output;
+  r = run(header + "1,2,40,160,60,80,95,28,1000\n", "--population-measurements height_cm,shoe_size");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("shoe_size"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "db"));
+}

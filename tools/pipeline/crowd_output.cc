@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -11,6 +12,7 @@
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
+#include "core/plausibility.h"
 #include "tools/pipeline/folder_settings.h"
 
 namespace bodymodel {
@@ -21,8 +23,22 @@ namespace {
 
 constexpr const char* kLabelsHeader =
     "body,file,sex,height_cm,weight_kg,volume_l,waist_cm,hips_cm,chest_cm,neck_cm,body_fat_pct,"
-    "constraints_met,iterations,attempts,flipped_triangles,flipped_before_repair";
-constexpr int kColumnMet = 11, kColumnFlipped = 14, kColumnBeforeRepair = 15, kColumns = 16;
+    "constraints_met,iterations,attempts,flipped_triangles,flipped_before_repair,waist_iliac_cm,"
+    "arm_circumference_cm,roughness_p95_deg,roughness_max_deg,self_intersections";
+constexpr int kColumnMet = 11, kColumnFlipped = 14, kColumnBeforeRepair = 15, kColumnRoughness = 18,
+              kColumnSelfIntersections = 20;
+
+// The header of labels.csv: the base columns, then a population crowd's person columns.
+std::string labels_header(const CrowdOutputOptions& o) {
+  std::string h = kLabelsHeader;
+  if (!o.people.empty()) {
+    h += ",seqn";
+    for (const auto& n : o.recorded_names) h += ",nhanes_" + n;
+  }
+  return h;
+}
+
+int column_count(const std::string& header) { return static_cast<int>(std::count(header.begin(), header.end(), ',')) + 1; }
 
 std::vector<std::string> split_row(const std::string& line) {
   std::vector<std::string> cells;
@@ -37,6 +53,18 @@ std::string sex_name(const std::vector<LabelCondition>& conditions) {
   for (auto& c : conditions)
     if (c.label == "sex" && !c.keep) return c.lo < 0.5 ? "female" : "male";
   return "";
+}
+
+// A population crowd's people (file and every person's id and conditions), null otherwise.
+nlohmann::json population_json(const CrowdOutputOptions& o) {
+  if (o.people.empty()) return nullptr;
+  nlohmann::json people = nlohmann::json::array();
+  for (const auto& p : o.people) {
+    nlohmann::json cond = nlohmann::json::array();
+    for (auto& c : p.conditions) cond.push_back({c.label, c.lo, c.hi});
+    people.push_back({{"id", p.id}, {"conditions", cond}});
+  }
+  return {{"file", o.population_source}, {"people", people}};
 }
 
 nlohmann::json settings_json(const std::string& fingerprint, const std::vector<LabelCondition>& conditions,
@@ -59,20 +87,21 @@ nlohmann::json settings_json(const std::string& fingerprint, const std::vector<L
           {"tolerance_kg", g.morph.tolerance_kg},
           {"tolerance_other", g.morph.tolerance_other},
           {"range_margin", g.morph.range_margin},
-          {"format", o.format}};
+          {"format", o.format},
+          {"population", population_json(o)}};
 }
 
 // Rows of an earlier labels.csv by body index (empty when missing or of another layout).
-std::vector<std::optional<std::string>> read_previous_rows(const fs::path& csv, int count) {
+std::vector<std::optional<std::string>> read_previous_rows(const fs::path& csv, int count, const std::string& header) {
   std::vector<std::optional<std::string>> rows(count);
   std::error_code ec;
   if (!fs::is_regular_file(csv, ec)) return rows;
   std::stringstream ss(read_text_file(csv));
   std::string line;
-  if (!std::getline(ss, line) || line != kLabelsHeader) return rows;
+  if (!std::getline(ss, line) || line != header) return rows;
   while (std::getline(ss, line)) {
     auto cells = split_row(line);
-    if (static_cast<int>(cells.size()) != kColumns) continue;
+    if (static_cast<int>(cells.size()) != column_count(header)) continue;
     char* end = nullptr;
     long i = std::strtol(cells[0].c_str(), &end, 10);
     if (!end || *end != '\0' || i < 0 || i >= count) continue;
@@ -81,8 +110,8 @@ std::vector<std::optional<std::string>> read_previous_rows(const fs::path& csv, 
   return rows;
 }
 
-std::string labels_csv(const std::vector<std::optional<std::string>>& rows) {
-  std::string csv = std::string(kLabelsHeader) + "\n";
+std::string labels_csv(const std::vector<std::optional<std::string>>& rows, const std::string& header) {
+  std::string csv = header + "\n";
   for (auto& r : rows)
     if (r) csv += *r + "\n";
   return csv;
@@ -103,6 +132,9 @@ GenerateCrowdSummary write_crowd(std::shared_ptr<const BodyModel> model,
   if (o.crowd.generate.max_attempts < 1)
     throw InputError(fmt::format("generate: {} attempts per body, expected at least 1", o.crowd.generate.max_attempts));
   const fs::path csv_path = out / "labels.csv";
+  if (!o.people.empty() && static_cast<int>(o.people.size()) != count)
+    throw InputError(fmt::format("generate: {} people for {} bodies", o.people.size(), count));
+  const std::string header = labels_header(o);
   // The settings record of tools/pipeline/folder_settings.h: the same settings resume, others are
   // refused unless force (every body is then made again). Checked before anything is written.
   ResumableFolder folder(out, "generate.json", settings_json(model_fingerprint(*model), conditions, o), o.force,
@@ -113,7 +145,7 @@ GenerateCrowdSummary write_crowd(std::shared_ptr<const BodyModel> model,
                          });
   const bool resume = folder.open(o.resume);
   std::vector<std::optional<std::string>> rows(count);
-  if (resume) rows = read_previous_rows(csv_path, count);
+  if (resume) rows = read_previous_rows(csv_path, count, header);
 
   GenerateCrowdSummary summary;
   summary.count = count;
@@ -143,22 +175,34 @@ GenerateCrowdSummary write_crowd(std::shared_ptr<const BodyModel> model,
     write_mesh(out / summary.files[i], g.V, model->tmpl->faces());
     const BodyMeasurements& m = g.measured;
     auto num = [](double v) { return std::isfinite(v) ? fmt::format("{:.2f}", v) : std::string(); };
-    std::string row = fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}", i, summary.files[i], sex,
-                                  num(m.height_cm), num(m.weight_kg), num(m.volume_l), num(m.waist_cm),
-                                  num(m.hips_cm), num(m.chest_cm), num(m.neck_cm), num(m.body_fat_pct),
-                                  g.satisfied ? 1 : 0, g.summary.iterations, g.attempts, flipped,
-                                  o.crowd.generate.repair_folds ? g.folds.flipped_before : flipped);
+    const Roughness rough = roughness(g.V, model->tmpl->faces(), o.roughness_region);
+    const int crossing = self_intersecting_triangle_pairs(g.V, model->tmpl->faces());
+    std::string row = fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}", i, summary.files[i],
+                                  o.people.empty() ? sex : o.people[i].sex, num(m.height_cm), num(m.weight_kg),
+                                  num(m.volume_l), num(m.waist_cm), num(m.hips_cm), num(m.chest_cm), num(m.neck_cm),
+                                  num(m.body_fat_pct), g.satisfied ? 1 : 0, g.summary.iterations, g.attempts, flipped,
+                                  o.crowd.generate.repair_folds ? g.folds.flipped_before : flipped,
+                                  num(m.waist_iliac_cm), num(m.arm_circumference_cm), num(rough.p95_deg),
+                                  num(rough.max_deg), crossing);
+    if (!o.people.empty()) {
+      row += "," + o.people[i].id;
+      for (double v : o.people[i].recorded) row += "," + (std::isfinite(v) ? fmt::format("{:.1f}", v) : std::string());
+    }
     std::lock_guard<std::mutex> lock(mutex);
     rows[i] = std::move(row);
     const auto now = std::chrono::steady_clock::now();
     if (std::chrono::duration<double>(now - last_flush).count() >= o.labels_flush_seconds) {
-      write_text_file(csv_path, labels_csv(rows));
+      write_text_file(csv_path, labels_csv(rows, header));
       last_flush = now;
     }
   };
-  generate_crowd_bodies(model, conditions, todo, o.crowd, write_body, progress);
+  if (o.people.empty())
+    generate_crowd_bodies(model, conditions, todo, o.crowd, write_body, progress);
+  else
+    generate_crowd_bodies_for(
+        model, [&](int k) { return o.people[k].conditions; }, todo, o.crowd, write_body, progress);
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  write_text_file(csv_path, labels_csv(rows));
+  write_text_file(csv_path, labels_csv(rows, header));
   for (auto& r : rows) {
     auto cells = split_row(*r);
     summary.constraints_met += cells[kColumnMet] == "1" ? 1 : 0;
@@ -166,6 +210,8 @@ GenerateCrowdSummary write_crowd(std::shared_ptr<const BodyModel> model,
     summary.flipped_triangles += flipped;
     summary.max_flipped_triangles = std::max(summary.max_flipped_triangles, flipped);
     summary.flipped_before_repair.push_back(std::atoi(cells[kColumnBeforeRepair].c_str()));
+    summary.self_intersections.push_back(std::atoi(cells[kColumnSelfIntersections].c_str()));
+    summary.roughness_p95.push_back(std::atof(cells[kColumnRoughness].c_str()));
   }
   return summary;
 }

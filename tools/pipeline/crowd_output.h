@@ -1,6 +1,8 @@
 // A crowd of random bodies written to a folder (`bodymodel generate`; the bodies come from
 // model/generate_crowd.h): OUT/body_NNN.obj|ply, OUT/labels.csv with the MEASURED labels of
-// every body, and OUT/generate.json with the settings the crowd was made with.
+// every body (girths, survey measurements, roughness p95/max and self-intersecting triangle
+// pairs, core/plausibility.h; for a population crowd also the person's id and recorded
+// values), and OUT/generate.json with the settings the crowd was made with.
 //
 // RESUME. A rerun into the same folder with the same settings (generate.json equal: model
 // fingerprint, seed, conditions, spread, attempts, girths, format, generator version) skips
@@ -23,8 +25,25 @@
 
 namespace bodymodel {
 
+// One person of a population crowd (`generate --population`): body k is morphed to people[k]'s
+// conditions and labels.csv keeps the person's recorded values beside the measured ones.
+struct CrowdPerson {
+  std::string id;                        // SEQN
+  std::string sex;                       // female | male
+  std::vector<LabelCondition> conditions;
+  std::vector<double> recorded;          // population/people.h recorded_measurement_names(), NaN = none
+};
+
 struct CrowdOutputOptions {
   GenerateCrowdOptions crowd;  // what the bodies are (seed, per-body generation, threads)
+  // A population crowd: one person per body (count == people.size()); empty = every body has the
+  // `conditions` given to write_crowd.
+  std::vector<CrowdPerson> people;
+  std::string population_source;   // the people file (recorded in generate.json)
+  std::vector<std::string> recorded_names;  // names of CrowdPerson::recorded (labels.csv nhanes_*)
+  // Trunk-and-limbs region for the roughness columns (core/plausibility.h; #V entries or empty =
+  // every vertex), e.g. from the model's rig.
+  std::vector<char> roughness_region;
   std::string format = "obj";  // mesh format: obj or ply
   bool force = false;          // replace a crowd made with other settings instead of refusing
   bool resume = true;          // skip complete bodies of a crowd made with the same settings
@@ -39,6 +58,8 @@ struct GenerateCrowdSummary {
   int flipped_triangles = 0;  // total over the crowd after the fold repair (flipped_triangle_count)
   int max_flipped_triangles = 0;    // ... of the worst body
   std::vector<int> flipped_before_repair;  // per body, as decoded (labels.csv flipped_before_repair)
+  std::vector<int> self_intersections;     // per body (labels.csv self_intersections)
+  std::vector<double> roughness_p95;       // per body, degrees
   double seconds = 0;         // wall time of the generation (set-up excluded)
   std::vector<std::string> files;  // count mesh file names (relative to the folder)
 };

@@ -6,7 +6,10 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <fmt/format.h>
+
 #include <Eigen/Dense>
+#include <algorithm>
 #include <array>
 #include <cctype>
 #include <cerrno>
@@ -14,6 +17,7 @@
 #include <cmath>
 #include <fstream>
 #include <iomanip>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -31,6 +35,7 @@
 #include "core/measure.h"
 #include "core/point_index.h"
 #include "core/retarget.h"
+#include "population/people.h"
 #include "core/rotation.h"
 
 namespace bodymodel {
@@ -306,6 +311,13 @@ std::string description_json(const SyntheticDatabaseOptions& o, const std::vecto
                    {"pixel_mm", sc.pixel_mm},
                    {"normal_neighbours", sc.normal_neighbours}}},
       {"note", "truth/ is for evaluation only: nothing in the pipeline may read it"}};
+  if (!o.population.empty()) {
+    meta["population"] = {{"file", o.population},
+                          {"measurements", o.population_measurements},
+                          {"space", o.fit.extended_space ? "extended" : "standard"},
+                          {"reused_fits", o.fits}};
+  }
+  if (o.truth_only) meta["truth_only"] = true;  // no scans/*.ply: for `build`, not `register`
   return meta.dump(2) + "\n";
 }
 
@@ -372,6 +384,202 @@ int finished_scan_points(const fs::path& dir, const std::string& id) {
 
 }  // namespace
 
+namespace {
+
+// A fit-measurements fit.csv's bodies by person id (SyntheticDatabaseOptions::fits).
+struct StoredFit {
+  std::string sex, fitted;
+  double age_years = 0;
+  MacroSettings sliders;
+  Eigen::VectorXd modifiers;
+  bool reached = false, extrapolated = false;
+  std::string reason;
+};
+
+std::map<std::string, StoredFit> read_stored_fits(const fs::path& path, const MakeHuman& mh) {
+  std::ifstream in(path);
+  if (!in) throw InputError("cannot open '" + path.string() + "'");
+  auto split = [](const std::string& line) {  // RFC 4180 cells: the reason is quoted
+    std::vector<std::string> cells(1);
+    bool quoted = false;
+    for (size_t i = 0; i < line.size(); ++i) {
+      const char ch = line[i];
+      if (quoted && ch == '"' && i + 1 < line.size() && line[i + 1] == '"') {
+        cells.back() += '"';
+        ++i;
+      } else if (ch == '"') {
+        quoted = !quoted;
+      } else if (ch == ',' && !quoted) {
+        cells.emplace_back();
+      } else if (ch != '\r') {
+        cells.back() += ch;
+      }
+    }
+    return cells;
+  };
+  std::string line;
+  std::getline(in, line);
+  const std::vector<std::string> header = split(line);
+  auto col = [&](const std::string& name) {
+    const auto it = std::find(header.begin(), header.end(), name);
+    if (it == header.end())
+      throw InputError("'" + path.string() + "': no column '" + name + "' (not a fit-measurements fit.csv)");
+    return static_cast<size_t>(it - header.begin());
+  };
+  const size_t id = col("id"), sex = col("sex"), age = col("age_years"), fitted = col("fitted"), reached = col("reached"),
+               extrapolated = col("extrapolated"), reason = col("reason");
+  const std::vector<std::string> sliders = {"gender", "age",     "muscle",  "weight", "height",   "proportions",
+                                            "cup",    "firmness", "african", "asian",  "caucasian"};
+  std::vector<size_t> slider_cols, modifier_cols;
+  for (const auto& s : sliders) slider_cols.push_back(col("slider_" + s));
+  for (const auto& m : mh.measure_modifier_names()) modifier_cols.push_back(col("modifier_" + m));
+  std::map<std::string, StoredFit> fits;
+  int line_no = 1;
+  while (std::getline(in, line)) {
+    ++line_no;
+    const std::vector<std::string> c = split(line);
+    if (c.size() != header.size())
+      throw InputError(fmt::format("'{}' line {}: {} cells for {} columns", path.string(), line_no, c.size(),
+                                   header.size()));
+    try {
+      StoredFit f;
+      f.sex = c[sex];
+      f.age_years = std::stod(c[age]);
+      f.fitted = c[fitted];
+      f.reached = c[reached] == "1";
+      f.extrapolated = c[extrapolated] == "1";
+      f.reason = c[reason];
+      double* v[] = {&f.sliders.gender, &f.sliders.age,     &f.sliders.muscle,  &f.sliders.weight,
+                     &f.sliders.height, &f.sliders.proportions, &f.sliders.cup, &f.sliders.firmness,
+                     &f.sliders.african, &f.sliders.asian,  &f.sliders.caucasian};
+      for (size_t k = 0; k < slider_cols.size(); ++k) *v[k] = std::stod(c[slider_cols[k]]);
+      f.modifiers.resize(static_cast<Eigen::Index>(modifier_cols.size()));
+      for (size_t k = 0; k < modifier_cols.size(); ++k) f.modifiers(k) = std::stod(c[modifier_cols[k]]);
+      fits[c[id]] = std::move(f);
+    } catch (const std::logic_error&) {  // stod: not a number
+      throw InputError(fmt::format("'{}' line {}: a slider, modifier or age is not a number", path.string(), line_no));
+    }
+  }
+  return fits;
+}
+
+// The population's subjects (SyntheticDatabaseOptions::population): drawn by survey weight with
+// the database's seed, each fitted to the person's recorded measurements (in parallel).
+std::vector<SyntheticSubject> population_subjects(const MakeHuman& mh, const SyntheticDatabaseOptions& o,
+                                                  SyntheticDatabaseSummary& summary, const ProgressCallback& progress) {
+  const PeopleTable table = read_people(o.population);
+  require_columns(table, {"sex", "age_years"});
+  require_columns(table, o.population_measurements);
+  PopulationFilter filter;
+  filter.required = o.population_measurements;
+  const EligibleSummary eligible = eligible_people(table, filter);
+  summary.eligible_people = static_cast<int>(eligible.eligible.size());
+  const std::vector<int> drawn = sample_population(table, eligible.eligible, o.subjects, o.seed);
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<SyntheticSubject> subjects(drawn.size());
+  std::map<std::string, StoredFit> stored;
+  if (!o.fits.empty()) stored = read_stored_fits(o.fits, mh);
+  std::string fitted_names;
+  for (const auto& m : o.population_measurements) fitted_names += (fitted_names.empty() ? "" : ";") + m;
+  std::atomic<int> done{0}, reused{0};
+  std::mutex mutex;
+  std::atomic<bool> cancelled{false};
+  tbb::task_arena arena(o.threads > 0 ? o.threads : tbb::task_arena::automatic);
+  arena.execute([&] {
+    tbb::parallel_for(size_t(0), drawn.size(), [&](size_t k) {
+      if (cancelled) return;
+      const Person& p = table.people[drawn[k]];
+      SyntheticSubject& s = subjects[k];
+      s.sex = p.sex == Sex::male ? "male" : "female";
+      s.age_years = p.age_years;
+      s.person_id = p.id;
+      s.recorded = p.measurements;
+      const auto it = stored.find(p.id);
+      if (it != stored.end() && it->second.sex == s.sex && std::abs(it->second.age_years - p.age_years) < 0.5 &&
+          it->second.fitted == fitted_names) {
+        const StoredFit& f = it->second;
+        s.sliders = f.sliders;
+        s.modifiers = f.modifiers;
+        s.extrapolated = f.extrapolated;
+        s.fit_reached = f.reached;
+        s.fit_reason = f.reason;
+        ++reused;
+      } else {
+        const MeasurementFit f = fit_measurements(mh, person_spec(p, o.population_measurements), o.fit);
+        s.sliders = f.sliders;
+        s.modifiers = f.modifiers;
+        s.extrapolated = f.extrapolated;
+        s.fit_reached = f.reached;
+        s.fit_reason = f.reason;
+      }
+      const int d = ++done;
+      std::lock_guard<std::mutex> lock(mutex);
+      try {
+        report_progress(progress, 0.5 * d / drawn.size(), "fitting person " + p.id);
+      } catch (const Cancelled&) {
+        cancelled = true;
+      }
+    });
+  });
+  if (cancelled) throw Cancelled{};
+  summary.reused_fits = reused;
+  summary.fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return subjects;
+}
+
+std::string csv_value(double v, int decimals) { return std::isfinite(v) ? fmt_double(v, decimals) : std::string(); }
+
+// A free-text cell for readers that split on every comma (model/database.cc): commas become ';'.
+std::string csv_text(std::string s) {
+  for (char& c : s)
+    if (c == ',' || c == '\n' || c == '"') c = c == ',' ? ';' : ' ';
+  return s;
+}
+
+// subjects.csv: the labels measured on the standard-pose truth mesh and the sliders; for a
+// population, the person (seqn, not a label), the recorded values (nhanes_*), the modifiers
+// and whether the fit reached the person.
+std::string subjects_csv(const std::vector<SyntheticSubject>& subjects, const MakeHuman& mh, bool population) {
+  std::string csv =
+      "subject_id,sex,age_years,height_cm,weight_kg,body_fat_pct,muscle,waist_cm,hips_cm,"
+      "chest_cm,neck_cm,waist_iliac_cm,arm_circumference_cm,upper_arm_length_cm,upper_leg_length_cm,"
+      "slider_gender,slider_age,slider_muscle,slider_weight,slider_height,"
+      "slider_proportions,slider_african,slider_asian,slider_caucasian";
+  if (population) {
+    csv += ",seqn";
+    for (const auto& m : recorded_measurement_names()) csv += ",nhanes_" + m;
+    for (const auto& m : mh.measure_modifier_names()) csv += ",modifier_" + m;
+    csv += ",fit_reached,fit_extrapolated,fit_reason";
+  }
+  csv += "\n";
+  for (const auto& s : subjects) {
+    const auto& k = s.sliders;
+    csv += s.id + "," + s.sex + "," + fmt_double(s.age_years, 1) + "," + fmt_double(s.height_cm, 2) + "," +
+           fmt_double(s.weight_kg, 2) + "," + fmt_double(s.body_fat_pct, 2) + "," + fmt_double(s.muscle, 1) + "," +
+           fmt_double(s.waist_cm, 2) + "," + fmt_double(s.hips_cm, 2) + "," + fmt_double(s.chest_cm, 2) + "," +
+           fmt_double(s.neck_cm, 2) + "," + csv_value(s.waist_iliac_cm, 2) + "," +
+           csv_value(s.arm_circumference_cm, 2) + "," + csv_value(s.upper_arm_length_cm, 2) + "," +
+           csv_value(s.upper_leg_length_cm, 2) + "," + fmt_double(k.gender, 4) + "," + fmt_double(k.age, 4) + "," +
+           fmt_double(k.muscle, 4) + "," + fmt_double(k.weight, 4) + "," + fmt_double(k.height, 4) + "," +
+           fmt_double(k.proportions, 4) + "," + fmt_double(k.african, 4) + "," + fmt_double(k.asian, 4) + "," +
+           fmt_double(k.caucasian, 4);
+    if (population) {
+      csv += "," + s.person_id;
+      for (size_t m = 0; m < recorded_measurement_names().size(); ++m)
+        csv += "," + (m < s.recorded.size() ? csv_value(s.recorded[m], 1) : std::string());
+      for (size_t m = 0; m < mh.measure_modifier_names().size(); ++m)
+        csv += "," + fmt_double(static_cast<Eigen::Index>(m) < s.modifiers.size() ? s.modifiers(m) : 0.0, 4);
+      // Text, not 0/1: subjects.csv's numeric columns become model labels, these are not labels.
+      csv += std::string(",") + (s.fit_reached ? "yes" : "no") + "," + (s.extrapolated ? "yes" : "no") + "," +
+             csv_text(s.fit_reason);
+    }
+    csv += "\n";
+  }
+  return csv;
+}
+
+}  // namespace
+
 std::string synthetic_database_description(const MakeHuman& mh, const SyntheticDatabaseOptions& o) {
   return description_json(o, PosePool(mh, false).names());
 }
@@ -409,15 +617,22 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
     uint64_t seed;
   };
   std::vector<Job> jobs;
+  // A real population: the people are drawn and their bodies fitted before any scan is made.
+  std::vector<SyntheticSubject> people;
+  if (!o.population.empty()) people = population_subjects(mh, o, summary, progress);
   for (int s = 0; s < o.subjects; ++s) {
     SyntheticSubject subj;
+    if (!people.empty()) {
+      subj = people[s];
+    } else {
+      bool male = (s % 2) == 1;
+      subj.sliders = random_synthetic_subject(rng, male);
+      subj.sex = subj.sliders.gender >= 0.5 ? "male" : "female";
+      subj.age_years = subj.sliders.age_years();
+    }
     char id[32];
     std::snprintf(id, sizeof id, "s%03d", s);
     subj.id = id;
-    bool male = (s % 2) == 1;
-    subj.sliders = random_synthetic_subject(rng, male);
-    subj.sex = subj.sliders.gender >= 0.5 ? "male" : "female";
-    subj.age_years = subj.sliders.age_years();
     subj.muscle = subj.sliders.muscle * 100;
     summary.subjects.push_back(subj);
     jobs.push_back({s, 0, -1, rng()});
@@ -466,7 +681,9 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
       const bool keep = kept_points >= 0;
       if (!keep || job.index == 0) {
         std::mt19937_64 r(job.seed);
-        MakeHuman::Body body = mh.body(subj.sliders);
+        MakeHuman::BuildOptions extrapolate;
+        extrapolate.allow_extrapolation = true;  // a fitted body may use the extended space
+        MakeHuman::Body body = mh.body(subj.sliders, subj.modifiers, extrapolate);
         Pose pose = Pose::rest(body.skeleton.bone_count());
         if (job.pose >= 0) {
           const PoolPose& pp = pool[job.pose];
@@ -492,6 +709,10 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
           subj.hips_cm = m.hips_cm;
           subj.chest_cm = m.chest_cm;
           subj.neck_cm = m.neck_cm;
+          subj.waist_iliac_cm = m.waist_iliac_cm;
+          subj.arm_circumference_cm = m.arm_circumference_cm;
+          subj.upper_arm_length_cm = m.upper_arm_length_cm;
+          subj.upper_leg_length_cm = m.upper_leg_length_cm;
         }
         if (!keep) {
           // Placement on the scanner platform: a turn about +y and a horizontal shift.
@@ -501,9 +722,11 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
                         .toRotationMatrix();
           place.t = Eigen::Vector3d(u(r) * o.max_shift_mm, 0, u(r) * o.max_shift_mm);
           Eigen::MatrixX3d truth = apply(place, posed);
-          PointCloud scan = simulate_scan(truth, body.mesh.F, o.scanner, r);
-
-          write_point_cloud(dir / "scans" / (id + ".ply"), scan);
+          PointCloud scan;
+          if (!o.truth_only) {
+            scan = simulate_scan(truth, body.mesh.F, o.scanner, r);
+            write_point_cloud(dir / "scans" / (id + ".ply"), scan);
+          }
           nlohmann::ordered_json lm;
           std::normal_distribution<double> ln(0.0, o.landmark_sigma_mm);
           for (auto& [name, v] : body_landmarks()) {
@@ -534,7 +757,9 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
       int finished = ++done;
       std::lock_guard<std::mutex> lock(progress_mutex);
       try {
-        report_progress(progress, double(finished) / jobs.size(), keep ? id + " (kept)" : id);
+        // A population's fits took the first half of the bar.
+        const double base = o.population.empty() ? 0.0 : 0.5;
+        report_progress(progress, base + (1 - base) * double(finished) / jobs.size(), keep ? id + " (kept)" : id);
       } catch (const Cancelled&) {
         cancelled = true;
       }
@@ -546,25 +771,8 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
   std::string scans_csv = "scan_id,subject_id,pose,points\n";
   for (auto& s : summary.scans)
     scans_csv += s.id + "," + s.subject_id + "," + s.pose + "," + std::to_string(s.points) + "\n";
-  std::string subjects_csv =
-      "subject_id,sex,age_years,height_cm,weight_kg,body_fat_pct,muscle,waist_cm,hips_cm,"
-      "chest_cm,neck_cm,slider_gender,slider_age,slider_muscle,slider_weight,slider_height,"
-      "slider_proportions,slider_african,slider_asian,slider_caucasian\n";
-  for (auto& s : summary.subjects) {
-    const auto& k = s.sliders;
-    subjects_csv += s.id + "," + s.sex + "," + fmt_double(s.age_years, 1) + "," +
-                    fmt_double(s.height_cm, 2) + "," + fmt_double(s.weight_kg, 2) + "," +
-                    fmt_double(s.body_fat_pct, 2) + "," + fmt_double(s.muscle, 1) + "," +
-                    fmt_double(s.waist_cm, 2) + "," + fmt_double(s.hips_cm, 2) + "," +
-                    fmt_double(s.chest_cm, 2) + "," + fmt_double(s.neck_cm, 2) + "," +
-                    fmt_double(k.gender, 4) + "," + fmt_double(k.age, 4) + "," +
-                    fmt_double(k.muscle, 4) + "," + fmt_double(k.weight, 4) + "," +
-                    fmt_double(k.height, 4) + "," + fmt_double(k.proportions, 4) + "," +
-                    fmt_double(k.african, 4) + "," + fmt_double(k.asian, 4) + "," +
-                    fmt_double(k.caucasian, 4) + "\n";
-  }
+  write_text_file(dir / "subjects.csv", subjects_csv(summary.subjects, mh, !o.population.empty()));
   write_text_file(dir / "scans.csv", scans_csv);
-  write_text_file(dir / "subjects.csv", subjects_csv);
   summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return summary;

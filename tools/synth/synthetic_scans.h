@@ -17,6 +17,7 @@
 #include "core/makehuman.h"
 #include "core/mesh.h"
 #include "core/progress.h"
+#include "population/fit_measurements.h"
 
 namespace bodymodel {
 
@@ -51,16 +52,42 @@ struct SyntheticDatabaseOptions {
   // files of this database's scan ids are removed first, so a later resume never keeps a file
   // made with other options). Either way the folder ends byte-identical to a clean run.
   bool resume = true;
+  // A real population instead of uniform sliders: a people file (population/people.h, e.g.
+  // NHANES); `subjects` adults with sex, age and every `population_measurements` value are drawn
+  // by survey weight (seeded, sample_population) and each subject's truth body is the MakeHuman
+  // body fitted to the person's recorded measurements (fit_measurements, `fit`). Empty = the
+  // uniform slider draw (random_synthetic_subject).
+  std::string population;
+  std::vector<std::string> population_measurements = {"height_cm", "weight_kg", "waist_iliac_cm", "hips_cm",
+                                                      "arm_circumference_cm"};
+  FitMeasurementsOptions fit;
+  // A fit-measurements batch's fit.csv whose bodies are reused: a drawn person listed there with
+  // the same sex, age and fitted measurements gets that row's sliders and modifiers (stored to 4
+  // decimals) instead of a new fit (~10-20 s each). Empty = fit every person.
+  std::string fits;
+  // Write the truth meshes, poses and tables only, without simulating the scanner: what `build`
+  // reads (it builds from truth/), for model studies where registration is not the question.
+  bool truth_only = false;
 };
 
 // What a subject is: slider values and measured labels (measured on the standard-pose mesh).
 struct SyntheticSubject {
   std::string id;
   MacroSettings sliders;
+  Eigen::VectorXd modifiers;  // MakeHuman's measurement modifiers (population subjects; empty = 0)
+  bool extrapolated = false;  // sliders or modifiers beyond MakeHuman's range (extended space)
   std::string sex;  // "female" | "male" (gender slider < 0.5 | ≥ 0.5)
   double age_years = 0;
   double height_cm = 0, weight_kg = 0, body_fat_pct = 0, muscle = 0;
   double waist_cm = 0, hips_cm = 0, chest_cm = 0, neck_cm = 0;
+  // Survey measurements of the truth mesh (core/measure.h).
+  double waist_iliac_cm = 0, arm_circumference_cm = 0, upper_arm_length_cm = 0, upper_leg_length_cm = 0;
+  // Population subjects: the person (SEQN), the recorded values (recorded_measurement_names(),
+  // NaN = not recorded) and whether the fit reached every fitted measurement, else why not.
+  std::string person_id;
+  std::vector<double> recorded;
+  bool fit_reached = true;
+  std::string fit_reason;
 };
 
 struct SyntheticScanInfo {
@@ -76,6 +103,9 @@ struct SyntheticDatabaseSummary {
   double seconds = 0;
   int skipped = 0;               // scans kept from an earlier run of the same database
   int removed_temporaries = 0;   // stale write_atomically temporaries of killed runs removed
+  int eligible_people = 0;       // population: adults with every needed value and a weight
+  double fit_seconds = 0;        // population: fitting the truth bodies
+  int reused_fits = 0;           // population: bodies taken from SyntheticDatabaseOptions::fits
 };
 
 // What OUT/database.json would hold for these options (seed, sizes, scanner, noise, pose pool):

@@ -22,6 +22,7 @@
 #include "tools/pipeline/output_folder.h"
 #include "tools/render/render.h"
 #include "tools/report/html.h"
+#include "tools/viewer/viewer_assets.h"
 #include "tools/verb.h"
 
 namespace bodymodel {
@@ -219,6 +220,20 @@ BODYMODEL_VERB(add_demo_verb) {
       stages.push_back({"animate " + c, {"animate", p("character/rig.npz"), "--bvh", (cmu / (c + ".bvh")).string(),
                                          "--out", p("animation/" + c), "--format", "none"},
                         {"character (MWE rig)"}});
+    // The interactive viewer (offline three.js page) when three.js is installed (scripts/setup.sh):
+    // the character playing clip 12_03 with its MWE rig and SSD base, the sweeps' ends and a
+    // registration to orbit.
+    const bool viewer = fs::is_regular_file(cli::default_three_js());
+    if (viewer)
+      stages.push_back({"interactive viewer",
+                        {"viewer", "--rig", p("character/rig.npz"), "--bvh", (cmu / "12_03.bvh").string(), "--frames", "60",
+                         "--every", "2", "--mesh", p("reg/" + reg_ids[0] + ".ply"), "--mesh", p("sweeps/height_155.obj"),
+                         "--mesh", p("sweeps/height_195.obj"), "--mesh", p("sweeps/weight_50.obj"), "--mesh",
+                         p("sweeps/weight_110.obj"), "--no-check", "--out", p("viewer"), "--force"},
+                        {"character (MWE rig)", "register scan " + reg_ids[0], "height sweep 155 cm", "height sweep 195 cm",
+                         "weight sweep 50 kg", "weight sweep 110 kg"}});
+    else
+      cli::warn("three.js not found at " + cli::default_three_js().string() + ": the report gets no interactive viewer");
     ensure_directory(out / "sweeps");
     ensure_directory(out / "animation");
 
@@ -333,6 +348,10 @@ BODYMODEL_VERB(add_demo_verb) {
       b += html_figure(out / "animation" / c / "frames.png", "animation/" + c + "/frames.png",
                        "Clip " + c + ": six frames of the MWE-skinned character.");
     b += html_table_from_csv(out / "animation.csv", "animation.csv");
+    if (viewer && status["interactive viewer"] == 0)
+      b += "<p><b><a href=\"viewer/index.html\">Interactive 3D viewer</a></b> (opens from the file system, no "
+           "network): the character playing clip 12_03, skinned in a WebGL vertex shader with its MWE rig or its SSD "
+           "base, the per-vertex distance between them, and the registered scan and sweep ends to orbit.</p>\n";
     b += "<p>Largest edge-length ratio to rest over all frames (the issue's check: at most 3), its largest "
          "99th percentile over edges, the main bone at the worst edge, and flipped triangles (normal against the "
          "rotation of the triangle's main bone), for the MWE rig, its SSD base (MakeHuman's weights smoothed) and "

@@ -1,7 +1,11 @@
 // bodymodel morph model.npz --in body.ply --set height_cm=185 --keep weight_kg [--mask arms] --out out.obj
+// bodymodel morph model.npz --set sex=female --set age_years=40 --set height_cm=165 --set weight_kg=80 --out body.obj
 #include <fmt/format.h>
 
+#include "core/data_path.h"
 #include "core/io/mesh_io.h"
+#include "core/plausibility.h"
+#include "population/fit_measurements.h"
 #include "model/body_regions.h"
 #include "model/morph.h"
 #include "tools/verb.h"
@@ -13,7 +17,8 @@ namespace {
 struct MorphArgs {
   std::string model, in, out, mask, sex = "unknown";
   std::vector<std::string> set, keep;
-  bool clamp = false, closest = false;
+  bool clamp = false, reference = false, closest = false;
+  std::string change;
   int iterations = 8;
 };
 
@@ -24,10 +29,20 @@ BODYMODEL_VERB(add_model_morph_verb) {
   auto* cmd = app.add_subcommand(
       "morph",
       "Change a body's labels with the shape model (eq. 11: the smallest change meeting all\n"
-      "--set values while holding the --keep labels). Measurable labels (height, weight, girths)\n"
-      "are met as MEASURED on the output mesh: a few corrected iterations (model/morph.h).");
+      "--set values while holding the --keep labels). Measurable labels (height, weight, girths,\n"
+      "the survey measurements) are met as MEASURED on the output mesh: a few corrected iterations\n"
+      "(model/morph.h). Without --in the start is the model's mean body and the change the most\n"
+      "likely one (--change likely): 'the typical person' with the --set labels. Prints the output's\n"
+      "roughness and self-intersections (core/plausibility.h).");
   cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`)")->required();
-  cmd->add_option("--in", a->in, "Body mesh with the model's topology (OBJ/PLY, mm)")->required();
+  cmd->add_option("--in", a->in, "Body mesh with the model's topology (OBJ/PLY, mm); default: the model's mean body");
+  cmd->add_option("--change", a->change,
+                  "smallest (eq. 11, the paper; default with --in) or likely (eq. 11 in the metric of the PCA\n"
+                  "eigenvalues: the model's conditional mean; default without --in)")
+      ->check(CLI::IsMember({"smallest", "likely"}));
+  cmd->add_flag("--reference", a->reference,
+                "Also fit MakeHuman to the output's height, weight, waist and hip and print that body's "
+                "roughness (the plausibility reference, ~2 s)");
   cmd->add_option("--set", a->set, "LABEL=VALUE, repeatable (e.g. height_cm=185, sex=female)");
   cmd->add_option("--keep", a->keep, "LABEL to hold at its current value, repeatable");
   cmd->add_option("--mask", a->mask,
@@ -56,16 +71,32 @@ BODYMODEL_VERB(add_model_morph_verb) {
       reg.index(k);
       cond.push_back(LabelCondition::keep_current(k));
     }
-    Mesh body = read_mesh(a->in);
-    model->check_topology(body.V, body.F, "'" + a->in + "'");
     MorphOptions o;
     o.max_iterations = a->iterations;
     o.sex = a->sex == "female" ? Sex::female : a->sex == "male" ? Sex::male : Sex::unknown;
-    if (!a->mask.empty())
-      o.triangle_mask = triangle_mask_from_vertices(model->tmpl->faces(), body_region_vertex_mask(model->rig, a->mask));
+    for (auto& c : cond)
+      if (c.label == "sex" && o.sex == Sex::unknown) o.sex = c.lo < 0.5 ? Sex::female : Sex::male;
+    o.prior_weighted = a->change.empty() ? a->in.empty() : a->change == "likely";
     ShapeMorpher morpher(model);
     MorphSummary sum;
-    Eigen::MatrixX3d out = morpher.morph(body.V, cond, o, &sum);
+    Mesh body;
+    Eigen::MatrixX3d out;
+    if (a->in.empty()) {
+      if (!a->keep.empty()) throw InputError("--keep needs a body to keep the labels of (--in)");
+      if (!a->mask.empty()) throw InputError("--mask needs a body to restrict the change on (--in)");
+      body.F = model->tmpl->faces();
+      out = morpher.morph_encoding(model->shape.pca.mean, cond, o, &sum);
+    } else {
+      body = read_mesh(a->in);
+      model->check_topology(body.V, body.F, "'" + a->in + "'");
+      if (!a->mask.empty())
+        o.triangle_mask = triangle_mask_from_vertices(model->tmpl->faces(), body_region_vertex_mask(model->rig, a->mask));
+      out = morpher.morph(body.V, cond, o, &sum);
+    }
+    // generate's fold repair (model/morph.h): the few tiny triangles a decoded body can fold.
+    FoldRepairOptions repair;
+    repair.passes = 8;
+    const int flipped_before = repair_body_folds(*model, out, repair).flipped_before;
     fmt::print("{}", sum.report());
     // A target the model cannot meet (height_cm=-5 gave an inside-out 27 cm body, 1e9 a body
     // 3 520 km tall) is a failure, not a result: no file, exit 2, unless asked for the closest.
@@ -75,11 +106,32 @@ BODYMODEL_VERB(add_model_morph_verb) {
         if (!l.satisfied)
           missed += fmt::format("{}{} = {:.4g} (reached {:.4g})", missed.empty() ? "" : ", ", l.label, l.target,
                                 l.achieved);
-      throw InputError(fmt::format("morph: the model cannot meet {} from '{}' after {} iterations; nothing written "
+      throw InputError(fmt::format("morph: the model cannot meet {} from {} after {} iterations; nothing written "
                                    "(--closest writes the closest body, --clamp keeps targets inside the data)",
-                                   missed, a->in, sum.iterations));
+                                   missed, a->in.empty() ? std::string("the mean body") : "'" + a->in + "'",
+                                   sum.iterations));
     }
     write_mesh(a->out, out, body.F);
+    if (out.rows() == MakeHuman::kBodyVertexCount) {
+      const MakeHuman mh = MakeHuman::load();
+      const Roughness r = roughness(out, body.F, mh.trunk_and_limbs_region());
+      fmt::print("plausibility: roughness p95 {:.1f} deg, max {:.1f} deg (trunk and limbs), {} self-intersecting "
+                 "triangle pairs, {} flipped triangles ({} before the fold repair)\n",
+                 r.p95_deg, r.max_deg, self_intersecting_triangle_pairs(out, body.F), flipped_triangle_count(*model, out),
+                 flipped_before);
+      if (a->reference) {
+        // The reference's age: the --set one, else the data's mean age (40 without an age label).
+        const int age = model->shape.regression.find("age_years");
+        double years = age >= 0 ? model->shape.regression.labels[age].mean : 40;
+        for (auto& c : cond)
+          if (c.label == "age_years" && !c.keep) years = c.lo;
+        const PlausibilityReport p = plausibility_against_makehuman(mh, out, body.F, o.sex, years);
+        fmt::print("reference:    nearest MakeHuman body p95 {:.1f} deg, max {:.1f} deg, {} self-intersecting pairs "
+                   "(ratio p95 {:.2f}{})\n",
+                   p.reference.p95_deg, p.reference.max_deg, p.reference_self_intersections, p.p95_ratio(),
+                   p.reference_reached ? "" : "; the reference does not measure exactly as the body");
+      }
+    }
     if (!sum.converged)
       cli::warn("not every label reached its target (see above): wrote the closest body (--closest)");
     cli::info("wrote " + a->out);

@@ -87,8 +87,8 @@ MeshSequence read_inputs(const EvalArgs& a) {
 }
 
 // "auto", "none", "folds:K", "last:N" (N = 0: a third).
-CrossValidationOptions parse_cv(const std::string& s, bool future_split) {
-  CrossValidationOptions o;
+SkinCrossValidationOptions parse_cv(const std::string& s, bool future_split) {
+  SkinCrossValidationOptions o;
   auto number = [&](const std::string& v) {
     try {
       size_t used = 0;
@@ -115,7 +115,7 @@ CrossValidationOptions parse_cv(const std::string& s, bool future_split) {
   return o;
 }
 
-std::string cv_text(const CrossValidationOptions& o) {
+std::string cv_text(const SkinCrossValidationOptions& o) {
   if (o.scheme == CvScheme::none) return "none (settings as given)";
   if (o.scheme == CvScheme::interleaved) return fmt::format("{}-fold interleaved over the training frames", o.folds);
   return o.held_out > 0 ? fmt::format("the last {} training frames held back", o.held_out)
@@ -208,7 +208,8 @@ void run_eval(const EvalArgs& a) {
       for (int f = 0; f < nf; f += a.train_every) t.push_back(f);
       protocol = fmt::format("every {}th frame trained", a.train_every);
     } else {
-      const int k = a.train_count > 0 ? a.train_count : 10;
+      // Default: 10 frames, but always leave one unseen on short sequences.
+      const int k = a.train_count > 0 ? a.train_count : std::max(1, std::min(10, nf - 1));
       t = evenly_spaced_frames(nf, k);
       protocol = fmt::format("{} evenly spaced training frames", t.size());
     }
@@ -382,7 +383,7 @@ BODYMODEL_VERB(add_skin_eval_verb) {
       ->capture_default_str();
   cmd->add_option("--train-every", a->train_every, "Train on every K-th frame (frame 1, 1+K, ...)")
       ->check(CLI::NonNegativeNumber);
-  cmd->add_option("--train-count", a->train_count, "Train on N evenly spaced frames (default 10)")
+  cmd->add_option("--train-count", a->train_count, "Train on N evenly spaced frames (default 10, at most all frames but one)")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--train-fraction", a->train_fraction, "Train on the first fraction of the frames (0.6 = first 60 %)");
   cmd->add_option("--train", a->train, "Training frame names, comma-separated or @file (one per line)");

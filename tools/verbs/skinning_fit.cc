@@ -48,7 +48,7 @@ std::vector<BoneTransforms> read_pose_transforms(const std::filesystem::path& T,
 
 void run_fit(const FitArgs& a) {
   const SkinningModel method = parse_skinning_model(a.method);
-  CrossValidationOptions cv;
+  SkinCrossValidationOptions cv;
   if (a.cv == "none") {
     cv.scheme = CvScheme::none;
   } else if (a.cv.rfind("folds:", 0) == 0 || a.cv.rfind("last:", 0) == 0) {

@@ -6,6 +6,7 @@
 #include "core/data_path.h"
 #include "core/error.h"
 #include "tools/console.h"
+#include "population/people.h"
 #include "tools/synth/synthetic_scans.h"
 #include "tools/verb.h"
 
@@ -15,6 +16,7 @@ struct SynthArgs {
   SyntheticDatabaseOptions options;
   std::string out;
   bool force = false, no_resume = false;
+  std::string population_measurements = "height_cm,weight_kg,waist_iliac_cm,hips_cm,arm_circumference_cm";
 };
 }  // namespace
 
@@ -30,7 +32,7 @@ BODYMODEL_VERB(add_synth_db_verb) {
       "makes the rest; the folder ends identical to a clean run.");
   auto& o = a->options;
   // Checked on the command line, before MakeHuman is loaded.
-  cmd->add_option("--subjects", o.subjects, "Number of subjects (alternating female/male)")
+  cmd->add_option("--subjects", o.subjects, "Number of subjects (alternating female/male; with --population as drawn)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   cmd->add_option("--poses-per-subject", o.poses_per_subject,
@@ -48,6 +50,20 @@ BODYMODEL_VERB(add_synth_db_verb) {
   cmd->add_option("--perturbation", o.perturbation_deg,
                   "Sigma of the random joint perturbation added to each pose, degrees")
       ->capture_default_str();
+  cmd->add_option("--population", o.population,
+                  "A people file (NHANES, e.g. ../shared/data/anthropometry/nhanes_2017_2020_bmx_demo.csv, or\n"
+                  "own columns, see fit-measurements): draw the subjects by survey weight (WTMECPRP) and make\n"
+                  "each truth body with fit-measurements from the person's recorded values; subjects.csv\n"
+                  "adds seqn and nhanes_* (the recorded values) beside the values measured on the truth mesh");
+  cmd->add_option("--population-measurements", a->population_measurements,
+                  "With --population: the recorded measurements the bodies are fitted to (comma-separated)")
+      ->capture_default_str();
+  cmd->add_option("--reuse-fits", o.fits,
+                  "With --population: a fit-measurements --people batch's fit.csv; a drawn person fitted there to\n"
+                  "the same measurements keeps that body instead of a new fit (sliders stored to 4 decimals)");
+  cmd->add_flag("--truth-only", o.truth_only,
+                "Write the truth bodies, poses and tables without simulating the scanner (what `build` reads;\n"
+                "nothing for `register`): for model studies on many subjects");
   cmd->add_option("--jobs", o.threads, "Threads (0 = all cores)")->capture_default_str();
   cmd->add_option("--out", a->out, "Output folder")->required();
   cmd->add_flag("--force", a->force,
@@ -62,6 +78,26 @@ BODYMODEL_VERB(add_synth_db_verb) {
       throw InputError("output folder '" + a->out +
                        "' exists and is not empty (use --force to write into it)");
     a->options.resume = !a->no_resume;
+    a->options.population_measurements = cli::split_commas(a->population_measurements);
+    if (!a->options.population.empty()) {
+      validate_measurement_names(a->options.population_measurements);
+      // The file is checked (columns, eligible people) before any folder is touched.
+      const PeopleTable table = read_people(a->options.population);
+      require_columns(table, {"sex", "age_years"});
+      require_columns(table, a->options.population_measurements);
+      PopulationFilter filter;
+      filter.required = a->options.population_measurements;
+      const EligibleSummary e = eligible_people(table, filter);
+      if (e.eligible.empty())
+        throw InputError(fmt::format("'{}': no adult has a sex, an age, a survey weight and {} ({} incomplete, "
+                                     "{} under 18, {} without a weight)",
+                                     a->options.population, a->population_measurements, e.incomplete, e.children,
+                                     e.no_weight));
+      cli::info(fmt::format("population {}: {} adults eligible ({} incomplete rows, {} under 18, {} without a "
+                            "survey weight); drawing {} by survey weight",
+                            a->options.population, e.eligible.size(), e.incomplete, e.children, e.no_weight,
+                            a->options.subjects));
+    }
     const auto& o = a->options;
     cli::info(fmt::format("synth-db: {} subjects x {} scans, seed {}, noise {} mm, landmarks {} mm, "
                           "{} pillars, min {} points/scan",
@@ -96,8 +132,18 @@ BODYMODEL_VERB(add_synth_db_verb) {
     }
     for (auto& scan : s.scans) points += scan.points;
     fmt::print("database      {}\n", a->out);
-    fmt::print("subjects      {} ({} female, {} male)\n", s.subjects.size(),
-               (s.subjects.size() + 1) / 2, s.subjects.size() / 2);
+    int females = 0, reached = 0, extrapolated = 0;
+    for (auto& subj : s.subjects) {
+      females += subj.sex == "female";
+      reached += subj.fit_reached;
+      extrapolated += subj.extrapolated;
+    }
+    fmt::print("subjects      {} ({} female, {} male)\n", s.subjects.size(), females, s.subjects.size() - females);
+    if (!o.population.empty())
+      fmt::print("population    {} eligible adults; {} drawn, {} fitted within 0.5 cm / 1 kg / 2 cm, {} in the "
+                 "extended space; fits {:.1f} s ({} reused from {})\n",
+                 s.eligible_people, s.subjects.size(), reached, extrapolated, s.fit_seconds, s.reused_fits,
+                 o.fits.empty() ? "no file" : o.fits);
     fmt::print("scans         {} (standard pose + {} of: {}); {} made now, {} kept\n", s.scans.size(),
                o.poses_per_subject, fmt::join(s.pose_pool, ", "), s.scans.size() - s.skipped,
                s.skipped);

@@ -1,0 +1,216 @@
+// `bodymodel serve`: its HTTP/JSON API on loopback, on a small model built in-test from
+// MakeHuman bodies. Morphs answer with a body that measures what was asked; bad JSON, unknown
+// labels and values far outside the data get 400 with the CLI's message; oversized bodies 413;
+// a flood of 200 concurrent bad or oversized requests leaves the server answering with its
+// resident memory bounded.
+#ifdef BODYMODEL_HAVE_HTTPLIB  // set by tests/CMakeLists.txt when cpp-httplib is found
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <fstream>
+#include <random>
+#include <thread>
+
+#include "core/io/atomic_write.h"
+#include "core/makehuman.h"
+#include "core/measure.h"
+#include "model/body_model.h"
+#include "model/model_file.h"
+#include "support/fixtures.h"
+// Last: it pulls in <resolv.h>, whose _res macro breaks Eigen headers parsed after it.
+#include <httplib.h>
+
+namespace bodymodel {
+namespace {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+BodyModel shape_model(const MakeHuman& mh) {
+  ModelBuildInput in;
+  in.F = mh.body_faces();
+  in.subject_labels = {{"height_cm", "cm"}, {"weight_kg", "kg"}};
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0.1, 0.9);
+  const int S = 10;
+  in.subject_label_values.resize(S, 2);
+  for (int s = 0; s < S; ++s) {
+    MacroSettings m;
+    m.height = u(rng);
+    m.weight = u(rng);
+    m.gender = s % 2;
+    const auto b = mh.body(m);
+    const BodyMeasurements me = measure_body(b.mesh.V, b.mesh.F, s % 2 ? Sex::male : Sex::female);
+    in.meshes.push_back(b.mesh.V);
+    in.scan_ids.push_back("s" + std::to_string(s));
+    in.subject_ids.push_back("s" + std::to_string(s));
+    in.is_standard_pose.push_back(1);
+    in.subject_label_values.row(s) << me.height_cm, me.weight_kg;
+  }
+  in.pose_label_values.resize(S, 0);
+  return build_body_model(in);
+}
+
+// One HTTP/1.1 POST over a plain socket (Connection: close); the status, or -1 when the
+// connection failed or closed before a status line (as for a refused oversized body).
+int raw_post(int port, const std::string& body) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) return -1;
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  timeval tv{20, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
+  std::string req = "POST /api/body HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nConnection: close\r\n"
+                    "Content-Length: " + std::to_string(body.size()) + "\r\n\r\n" + body;
+  int status = -1;
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0) {
+    for (size_t sent = 0; sent < req.size();) {
+      const ssize_t n = ::send(fd, req.data() + sent, req.size() - sent, MSG_NOSIGNAL);
+      if (n <= 0) break;
+      sent += static_cast<size_t>(n);
+    }
+    std::string reply;
+    char buf[4096];
+    for (ssize_t n; (n = ::recv(fd, buf, sizeof buf, 0)) > 0;) reply.append(buf, static_cast<size_t>(n));
+    if (reply.rfind("HTTP/1.1 ", 0) == 0 && reply.size() > 12) status = std::stoi(reply.substr(9, 3));
+  }
+  ::close(fd);
+  return status;
+}
+
+long rss_kb(pid_t pid) {
+  std::ifstream f("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(f, line))
+    if (line.rfind("VmRSS:", 0) == 0) return std::stol(line.substr(6));
+  return -1;
+}
+
+TEST(ServeApi, MorphsAndRefusesBadRequestsWithTheCliMessage) {
+  fixtures::TempDir tmp;
+  const MakeHuman mh = MakeHuman::load();
+  save_model(tmp / "model.npz", shape_model(mh));
+  const int port = 20000 + static_cast<int>(::getpid() % 20000);
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    const std::string exe = BODYMODEL_EXE, model = (tmp / "model.npz").string(), p = std::to_string(port);
+    const std::string log = (tmp / "serve.log").string();
+    freopen(log.c_str(), "w", stdout);
+    freopen(log.c_str(), "a", stderr);
+    execl(exe.c_str(), exe.c_str(), "serve", model.c_str(), "--port", p.c_str(), "--max-decodes", "2", "--timeout", "10",
+          static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  struct Kill {
+    pid_t pid;
+    ~Kill() {
+      ::kill(pid, SIGTERM);
+      int st;
+      ::waitpid(pid, &st, 0);
+    }
+  } killer{pid};
+  httplib::Client cli("127.0.0.1", port);
+  cli.set_read_timeout(60, 0);
+  auto model = cli.Get("/api/model");
+  for (int i = 0; i < 300 && !model; ++i) {  // the server loads the model first
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    model = cli.Get("/api/model");
+  }
+  ASSERT_TRUE(model) << "server did not answer; log:\n" << read_text_file(tmp / "serve.log");
+  ASSERT_EQ(model->status, 200);
+  const json m = json::parse(model->body);
+  ASSERT_GE(m["labels"].size(), 2u);
+  EXPECT_EQ(m["vertex_count"], mh.body(MacroSettings{}).mesh.V.rows());
+  ASSERT_TRUE(cli.Get("/")) << "page";
+  EXPECT_EQ(cli.Get("/")->status, 200);
+  EXPECT_EQ(cli.Get("/three.min.js")->status, 200);
+
+  // A morph lands on the asked height (measured on the answered body by the server).
+  auto r = cli.Post("/api/body", R"({"labels": {"height_cm": 172}})", "application/json");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200) << r->body;
+  const json b = json::parse(r->body);
+  EXPECT_NEAR(b["measured"]["height_cm"].get<double>(), 172, 0.5) << r->body.substr(0, 300);
+  EXPECT_EQ(b["positions"].get<std::string>().size(), 4u * ((12u * m["vertex_count"].get<unsigned>() + 2) / 3));
+  // A quick morph (slider dragging: one decode) still moves the height towards the request.
+  auto q = cli.Post("/api/body", R"({"labels": {"height_cm": 172}, "quick": true})", "application/json");
+  ASSERT_TRUE(q);
+  ASSERT_EQ(q->status, 200) << q->body;
+  const auto mean_body = cli.Post("/api/body", "{}", "application/json");
+  ASSERT_TRUE(mean_body);
+  const double h_mean = json::parse(mean_body->body)["measured"]["height_cm"].get<double>();
+  const double h_quick = json::parse(q->body)["measured"]["height_cm"].get<double>();
+  EXPECT_LT(std::abs(h_quick - 172), std::abs(h_mean - 172) + 1e-9) << "mean " << h_mean << ", quick " << h_quick;
+  auto g1 = cli.Post("/api/body", R"({"seed": 3})", "application/json");
+  auto g2 = cli.Post("/api/body", R"({"seed": 3})", "application/json");
+  auto g3 = cli.Post("/api/body", R"({"seed": 4})", "application/json");
+  ASSERT_TRUE(g1 && g2 && g3);
+  ASSERT_EQ(g1->status, 200) << g1->body;
+  EXPECT_EQ(json::parse(g1->body)["positions"], json::parse(g2->body)["positions"]) << "same seed, same body";
+  EXPECT_NE(json::parse(g1->body)["positions"], json::parse(g3->body)["positions"]);
+  auto obj = cli.Post("/api/body.obj", R"({"labels": {"weight_kg": 70}})", "application/json");
+  ASSERT_TRUE(obj);
+  EXPECT_EQ(obj->status, 200);
+  EXPECT_EQ(std::count(obj->body.begin(), obj->body.end(), '\n'), 1 + m["vertex_count"].get<long>() +
+                                                                     static_cast<long>(mh.body_faces().rows()));
+
+  // 400s with the messages the CLI prints.
+  auto bad = [&](const std::string& body, const std::string& expect) {
+    auto x = cli.Post("/api/body", body, "application/json");
+    ASSERT_TRUE(x);
+    EXPECT_EQ(x->status, 400) << body;
+    EXPECT_NE(json::parse(x->body)["error"].get<std::string>().find(expect), std::string::npos) << x->body;
+  };
+  bad("{\"labels\": {\"height_cm\": ", "bad JSON");
+  bad(R"({"labels": {"height_cm": 900}})", "height_cm = 900 is far outside the data");
+  bad(R"({"labels": {"height_cm": "tall"}})", "value of 'height_cm'");
+  bad(R"({"labels": {"shoe_size": 40}})", "shoe_size");
+  bad(R"({"seed": -1})", "'seed' must be a non-negative integer");
+  bad(R"([1, 2])", "JSON object");
+  auto big = cli.Post("/api/body", std::string(100000, ' '), "application/json");
+  ASSERT_TRUE(big);
+  EXPECT_EQ(big->status, 413);
+
+  // A flood: 200 concurrent bad or oversized requests, then the server still answers and its
+  // memory has not grown by more than 64 MB.
+  const long rss0 = rss_kb(pid);
+  std::vector<std::thread> flood;
+  // Oversized bodies: 413, or the connection closed before the status (the server stops
+  // reading at --max-body); the others must each get their 400.
+  std::atomic<int> answered_400{0}, oversized_refused{0};
+  for (int t = 0; t < 200; ++t)
+    flood.emplace_back([&, t] {
+      if (t % 3 == 0) {
+        const int st = raw_post(port, std::string(200000, 'x'));
+        if (st == -1 || st == 413) ++oversized_refused;
+        return;
+      }
+      const int st = raw_post(port, t % 3 == 1 ? "{not json" : R"({"labels": {"weight_kg": -1e9}})");
+      if (st == 400) ++answered_400;
+      else std::printf("flood request %d: status %d\n", t, st);
+    });
+  for (auto& t : flood) t.join();
+  const long rss1 = rss_kb(pid);
+  std::printf("flood: %d of 133 bad requests answered 400, %d of 67 oversized refused, resident memory %ld kB -> %ld kB\n",
+              answered_400.load(), oversized_refused.load(), rss0, rss1);
+  EXPECT_EQ(answered_400.load(), 133);
+  EXPECT_EQ(oversized_refused.load(), 67);
+  EXPECT_LT(rss1 - rss0, 64 * 1024);
+  auto after = cli.Post("/api/body", R"({"labels": {"height_cm": 168}})", "application/json");
+  ASSERT_TRUE(after);
+  EXPECT_EQ(after->status, 200);
+}
+
+}  // namespace
+}  // namespace bodymodel
+#endif

@@ -1,0 +1,283 @@
+// `bodymodel serve model.npz`: live morphing in the browser. A small HTTP/JSON API (cpp-httplib)
+// around one ShapeMorpher, and a page with a slider per label, a seed box for generate, the
+// measured labels and an OBJ download. Loopback by default; request bodies are capped, reads
+// and writes time out, and at most --max-decodes morphs run at once (others get 503 at once, so
+// a flood cannot queue unbounded work or memory).
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <memory>
+
+#include "core/error.h"
+#include "core/io/atomic_write.h"
+#include "model/morph.h"
+#include "tools/console.h"
+#include "tools/verb.h"
+#include "tools/verbs/model_common.h"
+#include "tools/viewer/viewer_assets.h"
+// Last: it pulls in <resolv.h>, whose _res macro breaks Eigen headers parsed after it.
+#include <httplib.h>
+
+namespace bodymodel {
+namespace {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+struct ServeArgs {
+  std::string model, host = "127.0.0.1", three;
+  int port = 8080, max_decodes = 2, threads = 8, timeout = 10;
+  size_t max_body = 16 * 1024;
+};
+
+std::string base64(const void* data, size_t n) {
+  static const char* tab = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  const auto* p = static_cast<const unsigned char*>(data);
+  std::string s;
+  s.reserve((n + 2) / 3 * 4);
+  for (size_t i = 0; i < n; i += 3) {
+    unsigned v = p[i] << 16 | (i + 1 < n ? p[i + 1] << 8 : 0) | (i + 2 < n ? p[i + 2] : 0);
+    s += tab[v >> 18 & 63];
+    s += tab[v >> 12 & 63];
+    s += i + 1 < n ? tab[v >> 6 & 63] : '=';
+    s += i + 2 < n ? tab[v & 63] : '=';
+  }
+  return s;
+}
+
+// A request that cannot be served as asked: answered 400 with this message.
+struct BadRequest : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+class MorphService {
+ public:
+  MorphService(std::shared_ptr<const BodyModel> model, int max_decodes)
+      : model_(std::move(model)), morpher_(model_), max_decodes_(max_decodes) {}
+
+  const BodyModel& model() const { return *model_; }
+
+  json describe() const {
+    json j;
+    for (auto& l : model_->shape.regression.labels)
+      j["labels"].push_back({{"name", l.name}, {"unit", l.unit}, {"min", l.min}, {"max", l.max}, {"mean", l.mean},
+                             {"measured", is_measurable_label(l.name)}});
+    const auto& F = model_->tmpl->faces();
+    std::vector<uint32_t> f;
+    for (int i = 0; i < F.rows(); ++i)
+      for (int k = 0; k < 3; ++k) f.push_back(static_cast<uint32_t>(F(i, k)));
+    j["faces"] = base64(f.data(), f.size() * 4);
+    j["vertex_count"] = model_->tmpl->vertex_count();
+    return j;
+  }
+
+  // The request's conditions, checked as the CLI checks --set / --where values: numbers (sex
+  // also female/male) and not far outside the data (the CLI warns there; the server refuses).
+  std::vector<LabelCondition> conditions(const json& body) const {
+    std::vector<LabelCondition> out;
+    if (!body.contains("labels")) return out;
+    if (!body["labels"].is_object()) throw BadRequest("'labels' must be an object of label: value");
+    const SemanticRegression& reg = model_->shape.regression;
+    for (auto& [name, v] : body["labels"].items()) {
+      double value;
+      if (v.is_number()) value = v.get<double>();
+      else if (v.is_string()) value = model_cli::parse_label_value(name, v.get<std::string>());
+      else throw BadRequest(fmt::format("value of '{}' must be a number", name));
+      const int i = reg.index(name);  // InputError listing the labels when unknown
+      if (!std::isfinite(value)) throw BadRequest(fmt::format("value of '{}' must be finite", name));
+      const LabelInfo& info = reg.labels[static_cast<size_t>(i)];
+      const double range = info.max - info.min;
+      if (value < info.min - 0.25 * range || value > info.max + 0.25 * range)
+        throw BadRequest(fmt::format("{} = {} is far outside the data ({:.4g} .. {:.4g} {})", info.name, value, info.min,
+                                     info.max, info.unit));
+      out.push_back(LabelCondition::exact(name, value));
+    }
+    return out;
+  }
+
+  struct Body {
+    Eigen::MatrixX3d V;
+    BodyMeasurements measured;
+    double seconds = 0;
+  };
+
+  // Morph of the mean body to the labels, or (with "seed") a generated body meeting them.
+  Body make(const json& body) {
+    const auto cond = conditions(body);
+    uint64_t seed = 0;
+    const bool generate = body.contains("seed");
+    if (generate) {
+      if (!body["seed"].is_number_integer() || body["seed"].get<long long>() < 0)
+        throw BadRequest("'seed' must be a non-negative integer");
+      seed = body["seed"].get<uint64_t>();
+    }
+    struct Slot {  // the cap on concurrent decodes
+      std::atomic<int>& n;
+      ~Slot() { --n; }
+    };
+    if (++running_ > max_decodes_) {
+      --running_;
+      throw std::overflow_error(fmt::format("busy: {} decodes running (--max-decodes)", max_decodes_));
+    }
+    Slot slot{running_};
+    const auto t0 = std::chrono::steady_clock::now();
+    Body b;
+    Sex sex = Sex::unknown;
+    for (auto& c : cond)
+      if (c.label == "sex") sex = c.lo < 0.5 ? Sex::female : Sex::male;
+    if (generate) {
+      GenerateOptions o;
+      GeneratedBody g = generate_body(morpher_, cond, seed, o);
+      b.V = std::move(g.V);
+      b.measured = g.measured;
+    } else {
+      MorphOptions o;
+      o.sex = sex;
+      // "quick" (the page's slider drags): one decode, no measured correction, so the body
+      // follows the slider at interactive rates; the measured labels shown are the drawn body's.
+      // Its measured labels are the cheap ones (height, volume, weight; no girths).
+      const bool quick = body.contains("quick") && body["quick"].is_boolean() && body["quick"].get<bool>();
+      if (quick) o.max_iterations = 1;
+      const Eigen::VectorXd x0 = Eigen::VectorXd::Zero(model_->tmpl->encoding_size());
+      b.V = cond.empty() ? morpher_.decode(x0) : morpher_.morph_encoding(x0, cond, o, nullptr);
+      b.measured = quick ? measure_height_and_weight(b.V, model_->tmpl->faces()) : morpher_.measure(b.V, sex);
+    }
+    b.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return b;
+  }
+
+  json to_json(const Body& b) const {
+    std::vector<float> p;
+    p.reserve(static_cast<size_t>(b.V.size()));
+    for (int v = 0; v < b.V.rows(); ++v)
+      for (int k = 0; k < 3; ++k) p.push_back(static_cast<float>(b.V(v, k)));
+    json j = {{"positions", base64(p.data(), p.size() * 4)}, {"seconds", b.seconds}};
+    for (auto& l : model_->shape.regression.labels)
+      if (auto m = measured_label(l.name, b.measured); m && std::isfinite(*m)) j["measured"][l.name] = *m;
+    return j;
+  }
+
+  std::string obj(const Body& b) const {
+    std::string s = "# bodymodel serve\n";
+    for (int v = 0; v < b.V.rows(); ++v) s += fmt::format("v {:.4f} {:.4f} {:.4f}\n", b.V(v, 0), b.V(v, 1), b.V(v, 2));
+    const auto& F = model_->tmpl->faces();
+    for (int i = 0; i < F.rows(); ++i) s += fmt::format("f {} {} {}\n", F(i, 0) + 1, F(i, 1) + 1, F(i, 2) + 1);
+    return s;
+  }
+
+ private:
+  std::shared_ptr<const BodyModel> model_;
+  ShapeMorpher morpher_;
+  int max_decodes_;
+  std::atomic<int> running_{0};
+};
+
+void error_reply(httplib::Response& res, int status, const std::string& message) {
+  res.status = status;
+  res.set_content(json{{"error", message}}.dump(), "application/json");
+}
+
+// Runs f(parsed body), mapping failures to statuses: 400 bad JSON / bad values (the message
+// the CLI prints), 503 when the decode cap is reached, 500 otherwise.
+template <class F>
+void handle(const httplib::Request& req, httplib::Response& res, F&& f) {
+  try {
+    json body = req.body.empty() ? json::object() : json::parse(req.body);
+    if (!body.is_object()) throw BadRequest("the request body must be a JSON object");
+    f(body);
+  } catch (const json::exception& e) {
+    error_reply(res, 400, std::string("bad JSON: ") + e.what());
+  } catch (const BadRequest& e) {
+    error_reply(res, 400, e.what());
+  } catch (const InputError& e) {
+    error_reply(res, 400, e.what());
+  } catch (const std::overflow_error& e) {
+    error_reply(res, 503, e.what());
+  } catch (const std::exception& e) {
+    error_reply(res, 500, e.what());
+  }
+}
+
+
+httplib::Server* g_server = nullptr;
+void stop_server(int) {
+  if (g_server) g_server->stop();
+}
+
+void run_serve(const ServeArgs& a) {
+  auto model = std::make_shared<const BodyModel>(model_cli::load_model_for_cli(a.model));
+  const fs::path three = a.three.empty() ? cli::default_three_js() : fs::path(a.three);
+  if (three.empty() || !fs::is_regular_file(three))
+    throw InputError("three.js not found at '" + three.string() +
+                     "' (scripts/setup.sh installs it into the build folder; or give --three FILE / BODYMODEL_THREE)");
+  const std::string three_js = read_text_file(three);
+  auto service = std::make_shared<MorphService>(model, a.max_decodes);
+  const std::string describe = service->describe().dump();
+
+  httplib::Server svr;
+  svr.set_payload_max_length(a.max_body);  // larger bodies: 413 before any parsing
+  svr.set_read_timeout(a.timeout, 0);
+  svr.set_write_timeout(a.timeout, 0);
+  svr.set_keep_alive_max_count(20);
+  const int threads = a.threads;
+  svr.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<size_t>(threads)); };
+  svr.Get("/", [](const httplib::Request&, httplib::Response& res) { res.set_content(cli::serve_html(), "text/html"); });
+  svr.Get("/three.min.js", [&three_js](const httplib::Request&, httplib::Response& res) {
+    res.set_content(three_js, "text/javascript");
+  });
+  svr.Get("/api/model", [&describe](const httplib::Request&, httplib::Response& res) {
+    res.set_content(describe, "application/json");
+  });
+  svr.Post("/api/body", [service](const httplib::Request& req, httplib::Response& res) {
+    handle(req, res, [&](const json& body) { res.set_content(service->to_json(service->make(body)).dump(), "application/json"); });
+  });
+  svr.Post("/api/body.obj", [service](const httplib::Request& req, httplib::Response& res) {
+    handle(req, res, [&](const json& body) {
+      res.set_header("Content-Disposition", "attachment; filename=\"body.obj\"");
+      res.set_content(service->obj(service->make(body)), "model/obj");
+    });
+  });
+  if (!svr.bind_to_port(a.host, a.port))
+    throw InputError(fmt::format("cannot listen on {}:{} (in use, or not an address of this machine)", a.host, a.port));
+  if (a.host != "127.0.0.1" && a.host != "localhost" && a.host != "::1")
+    cli::warn("serving on " + a.host + ": reachable from other machines (no authentication)");
+  g_server = &svr;
+  std::signal(SIGINT, stop_server);
+  std::signal(SIGTERM, stop_server);
+  fmt::print("serving {} on http://{}:{}/ (Ctrl-C stops)\n", a.model, a.host, a.port);
+  std::fflush(stdout);
+  svr.listen_after_bind();
+  g_server = nullptr;
+}
+
+}  // namespace
+
+BODYMODEL_VERB(add_serve_verb) {
+  auto a = std::make_shared<ServeArgs>();
+  auto* cmd = app.add_subcommand(
+      "serve",
+      "Live morphing in the browser: serves a page with a slider per label of the model, a seed box\n"
+      "for generate, the measured labels and an OBJ download, and its JSON API:\n"
+      "  GET /api/model         labels (name, unit, min, max, mean) and the faces\n"
+      "  POST /api/body         {\"labels\": {LABEL: VALUE, ...}} morphs the mean body, {\"seed\": N, ...}\n"
+      "                         generates one, \"quick\": true = one decode (no measured correction);\n"
+      "                         answers positions (base64 float32) and the measured labels\n"
+      "  POST /api/body.obj     the same body as an OBJ file\n"
+      "Bad JSON or values far outside the data: 400 with the message. Loopback unless --host.");
+  cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`)")->required();
+  cmd->add_option("--port", a->port, "TCP port")->capture_default_str()->check(CLI::Range(1, 65535));
+  cmd->add_option("--host", a->host, "Address to listen on (127.0.0.1: this machine only)")->capture_default_str();
+  cmd->add_option("--max-decodes", a->max_decodes, "Morphs run at once; more get 503")
+      ->capture_default_str()->check(CLI::Range(1, 64));
+  cmd->add_option("--threads", a->threads, "Connection threads")->capture_default_str()->check(CLI::Range(1, 256));
+  cmd->add_option("--max-body", a->max_body, "Largest request body (bytes); larger get 413")
+      ->capture_default_str()->check(CLI::Range(size_t{64}, size_t{1} << 20));
+  cmd->add_option("--timeout", a->timeout, "Read/write timeout per connection (s)")
+      ->capture_default_str()->check(CLI::Range(1, 600));
+  cmd->add_option("--three", a->three, "three.min.js to serve (default: the build folder's npm install)");
+  cmd->callback([a] { run_serve(*a); });
+}
+
+}  // namespace bodymodel
