@@ -93,31 +93,21 @@ RegistrationErrors registration_errors(const Eigen::MatrixX3d& reg, const Eigen:
   return e;
 }
 
-std::vector<char> locally_folded_triangles(const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_rest,
-                                           const Eigen::MatrixX3i& F, int rings) {
-  if (V.rows() != V_rest.rows() || (F.size() > 0 && F.maxCoeff() >= V.rows()))
-    throw InputError("locally_folded_triangles: V (" + std::to_string(V.rows()) + " rows) and V_rest (" +
-                     std::to_string(V_rest.rows()) + ") differ or F indexes outside them");
+Eigen::MatrixX3d ring_normals(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, int rings) {
   std::vector<std::vector<int>> vertex_faces(V.rows());
   for (Eigen::Index f = 0; f < F.rows(); ++f)
     for (int c = 0; c < 3; ++c) vertex_faces[F(f, c)].push_back(int(f));
   // Unnormalised face normals (twice the area): their sum is the area-weighted normal.
-  const auto raw_normals = [&](const Eigen::MatrixX3d& X) {
-    Eigen::MatrixX3d N(F.rows(), 3);
-    for (Eigen::Index f = 0; f < F.rows(); ++f)
-      N.row(f) = (X.row(F(f, 1)) - X.row(F(f, 0))).cross(X.row(F(f, 2)) - X.row(F(f, 0)));
-    return N;
-  };
-  const Eigen::MatrixX3d N = raw_normals(V), N_rest = raw_normals(V_rest);
-  std::vector<char> folded(F.rows(), 0);
+  Eigen::MatrixX3d N(F.rows(), 3);
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    N.row(f) = (V.row(F(f, 1)) - V.row(F(f, 0))).cross(V.row(F(f, 2)) - V.row(F(f, 0)));
+  Eigen::MatrixX3d S(F.rows(), 3);
   std::vector<int> stamp(F.rows(), -1), front, next;
   for (Eigen::Index f = 0; f < F.rows(); ++f) {
     // Triangles within `rings` vertex rings: grow through shared vertices.
-    Eigen::RowVector3d sum = Eigen::RowVector3d::Zero(), sum_rest = Eigen::RowVector3d::Zero();
+    Eigen::RowVector3d sum = N.row(f);
     front.assign(1, int(f));
     stamp[f] = int(f);
-    sum += N.row(f);
-    sum_rest += N_rest.row(f);
     for (int r = 0; r < rings; ++r) {
       next.clear();
       for (int g : front)
@@ -127,12 +117,30 @@ std::vector<char> locally_folded_triangles(const Eigen::MatrixX3d& V, const Eige
               stamp[h] = int(f);
               next.push_back(h);
               sum += N.row(h);
-              sum_rest += N_rest.row(h);
             }
       front.swap(next);
     }
-    folded[f] = N.row(f).dot(sum) < 0 && N_rest.row(f).dot(sum_rest) >= 0;
+    S.row(f) = sum;
   }
+  return S;
+}
+
+std::vector<char> locally_folded_triangles(const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_rest,
+                                           const Eigen::MatrixX3i& F, int rings) {
+  if (V.rows() != V_rest.rows() || (F.size() > 0 && F.maxCoeff() >= V.rows()))
+    throw InputError("locally_folded_triangles: V (" + std::to_string(V.rows()) + " rows) and V_rest (" +
+                     std::to_string(V_rest.rows()) + ") differ or F indexes outside them");
+  const auto raw_normals = [&](const Eigen::MatrixX3d& X) {
+    Eigen::MatrixX3d N(F.rows(), 3);
+    for (Eigen::Index f = 0; f < F.rows(); ++f)
+      N.row(f) = (X.row(F(f, 1)) - X.row(F(f, 0))).cross(X.row(F(f, 2)) - X.row(F(f, 0)));
+    return N;
+  };
+  const Eigen::MatrixX3d N = raw_normals(V), N_rest = raw_normals(V_rest);
+  const Eigen::MatrixX3d S = ring_normals(V, F, rings), S_rest = ring_normals(V_rest, F, rings);
+  std::vector<char> folded(F.rows(), 0);
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    folded[f] = N.row(f).dot(S.row(f)) < 0 && N_rest.row(f).dot(S_rest.row(f)) >= 0;
   return folded;
 }
 

@@ -45,6 +45,10 @@ RegistrationErrors registration_errors(const Eigen::MatrixX3d& reg, const Eigen:
                                        const Eigen::MatrixX3d& scan_points,
                                        double hole_distance = 5.0);
 
+// The area-weighted normal (unnormalised: the sum of twice-area face normals) of the triangles
+// within `rings` vertex rings of each triangle, itself included.   #F by 3
+Eigen::MatrixX3d ring_normals(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, int rings = 2);
+
 // Triangles folded against their own neighbourhood: f is folded in V when its normal has a
 // negative dot product with the area-weighted normal of the triangles within `rings` vertex
 // rings of it (its 2-ring by default), and is not so in V_rest (sharp features of the rest mesh,

@@ -15,6 +15,7 @@ packages=(
   libceres-dev libnanoflann-dev libsuitesparse-dev libtbb-dev
   libcli11-dev nlohmann-json3-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev libtinygltf-dev libstb-dev libsvm-dev zlib1g-dev
+  snakemake  # workflow/Snakefile: registration at scale (register --shard jobs as rules)
   pybind11-dev python3-pybind11 python3-numpy python3-pytest python3-matplotlib   # the Python module
   libcpp-httplib-dev chromium
 )

@@ -1,12 +1,15 @@
 #include "core/io/mesh_io.h"
 
+#include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <cstring>
 #include <sstream>
 #include <unordered_map>
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/io/off.h"
 
 namespace bodymodel {
 
@@ -133,6 +136,167 @@ Eigen::MatrixX3i triangulate(const std::vector<std::vector<int>>& polygons) {
   for (auto& p : polygons)
     for (size_t k = 1; k + 1 < p.size(); ++k) F.row(r++) << p[0], p[k], p[k + 1];
   return F;
+}
+
+
+// ---- OFF ---------------------------------------------------------------------------------------
+
+ObjContents parse_off(std::string_view text, const std::string& path) {
+  // Lines with their numbers, comments ('#' to the end of the line) and blank lines skipped.
+  std::vector<std::string_view> tok;
+  size_t line_no = 0;
+  const char* p = text.data();
+  const char* const end = p + text.size();
+  auto next_line = [&]() -> bool {
+    while (p < end) {
+      const char* eol = static_cast<const char*>(std::memchr(p, '\n', end - p));
+      if (!eol) eol = end;
+      ++line_no;
+      const char* hash = static_cast<const char*>(std::memchr(p, '#', eol - p));
+      split(p, hash ? hash : eol, tok);
+      p = eol + (eol < end ? 1 : 0);
+      if (!tok.empty()) return true;
+    }
+    tok.clear();
+    return false;
+  };
+  if (!next_line()) throw InputError("'" + path + "': empty file (expected an OFF mesh)");
+  // Header: OFF, COFF, NOFF, CNOFF, STOFF ... (prefix letters add per-vertex values), possibly
+  // followed by the counts on the same line; "OFF BINARY" is refused.
+  size_t extra_per_vertex = 0;
+  size_t counts_at = 0;
+  const std::string_view head = tok[0];
+  if (head.size() >= 3 && head.substr(head.size() - 3) == "OFF") {
+    const std::string_view prefix = head.substr(0, head.size() - 3);
+    for (char c : prefix) {
+      if (c == 'C') extra_per_vertex += 4;       // colour r g b a
+      else if (c == 'N') extra_per_vertex += 3;  // normal
+      else if (c == 'S' || c == 'T') extra_per_vertex += 2;  // texture coordinates (STOFF)
+      else
+        throw InputError(where(path, line_no) + ": unsupported OFF variant '" + std::string(head) +
+                         "' (expected OFF, COFF, NOFF or CNOFF)");
+    }
+    if (tok.size() > 1 && tok[1] == "BINARY")
+      throw InputError(where(path, line_no) +
+                       ": binary OFF is not supported (convert it to ASCII OFF, PLY or OBJ)");
+    counts_at = 1;  // "OFF #V #F #E" on one line
+    if (tok.size() == 1) {
+      if (!next_line())
+        throw InputError("'" + path + "': no counts line after the OFF header (file truncated?)");
+      counts_at = 0;
+    }
+  }
+  long counts[2] = {-1, -1};
+  if (tok.size() < counts_at + 2 || !parse_int(tok[counts_at], counts[0]) ||
+      !parse_int(tok[counts_at + 1], counts[1]) || counts[0] < 0 || counts[1] < 0)
+    throw InputError(where(path, line_no) +
+                     ": expected the counts line '#vertices #faces #edges' of an OFF file");
+  // Each vertex line takes at least 6 bytes ("0 0 0\n"), each face line 8 ("3 0 1 2\n"): a count
+  // the file cannot hold is refused before anything is allocated.
+  if (counts[0] > long(text.size() / 6) + 1 || counts[1] > long(text.size() / 8) + 1)
+    throw InputError(where(path, line_no) + ": the counts line declares " +
+                     std::to_string(counts[0]) + " vertices and " + std::to_string(counts[1]) +
+                     " faces, more than the file's " + std::to_string(text.size()) +
+                     " bytes can hold (wrong counts or truncated file)");
+  const long nv = counts[0], nf = counts[1];
+  const std::string declared = " (the counts line declares " + std::to_string(nv) +
+                               " vertices and " + std::to_string(nf) + " faces)";
+  ObjContents out;
+  out.V.resize(nv, 3);
+  for (long i = 0; i < nv; ++i) {
+    if (!next_line())
+      throw InputError("'" + path + "': the file ends after " + std::to_string(i) + " vertices" +
+                       declared);
+    if (tok.size() < 3)
+      throw InputError(where(path, line_no) + ": vertex " + std::to_string(i) +
+                       " needs 3 coordinates, found " + std::to_string(tok.size()) + declared);
+    for (int k = 0; k < 3; ++k) {
+      double v;
+      if (!parse_double(tok[k], v))
+        throw InputError(where(path, line_no) + ": '" + std::string(tok[k]) +
+                         "' is not a number (vertex " + std::to_string(i) + ")");
+      if (!std::isfinite(v))
+        throw InputError(where(path, line_no) + ": vertex " + std::to_string(i) +
+                         " has a NaN or infinite coordinate");
+      out.V(i, k) = v;
+    }
+    // The variant's extra values (colour, normal) and up to 4 colour values may follow.
+    if (tok.size() > 3 + extra_per_vertex + 4)
+      throw InputError(where(path, line_no) + ": vertex " + std::to_string(i) + " has " +
+                       std::to_string(tok.size()) + " values, expected 3" + declared);
+  }
+  out.polygons.reserve(nf);
+  for (long f = 0; f < nf; ++f) {
+    if (!next_line())
+      throw InputError("'" + path + "': the file ends after " + std::to_string(f) + " faces" +
+                       declared);
+    long k;
+    if (!parse_int(tok[0], k))
+      throw InputError(where(path, line_no) + ": face " + std::to_string(f) + " starts with '" +
+                       std::string(tok[0]) + "', expected its vertex count" + declared);
+    if (k < 3)
+      throw InputError(where(path, line_no) + ": face " + std::to_string(f) + " has " +
+                       std::to_string(k) + " vertices; a face needs at least 3");
+    if (long(tok.size()) < 1 + k)
+      throw InputError(where(path, line_no) + ": face " + std::to_string(f) + " declares " +
+                       std::to_string(k) + " vertices but lists " +
+                       std::to_string(tok.size() - 1) + " (file truncated?)");
+    // Up to 4 colour values may follow the indices (COFF face colours); more is an error.
+    if (long(tok.size()) > 1 + k + 4)
+      throw InputError(where(path, line_no) + ": face " + std::to_string(f) + " declares " +
+                       std::to_string(k) + " vertices but the line has " +
+                       std::to_string(tok.size() - 1) + " values");
+    std::vector<int> poly(k);
+    for (long j = 0; j < k; ++j) {
+      long v;
+      if (!parse_int(tok[1 + j], v))
+        throw InputError(where(path, line_no) + ": '" + std::string(tok[1 + j]) +
+                         "' is not a vertex index (face " + std::to_string(f) + ")");
+      if (v < 0 || v >= nv)
+        throw InputError(where(path, line_no) + ": face " + std::to_string(f) +
+                         " refers to vertex " + std::to_string(v) + ", expected 0.." +
+                         std::to_string(nv - 1) + " (0-based)");
+      poly[j] = int(v);
+    }
+    out.polygons.push_back(std::move(poly));
+    out.polygon_group.push_back(0);
+  }
+  if (next_line())
+    throw InputError(where(path, line_no) + ": unexpected data after the last face" + declared);
+  if (nf > 0) out.group_names.push_back("");
+  if (nv == 0) throw InputError("'" + path + "': no vertices (empty OFF mesh)");
+  return out;
+}
+
+static void write_off(const fs::path& path, const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F) {
+  write_atomically(path, [&](std::ostream& out) {
+    std::string buf(static_cast<size_t>(V.rows()) * 3 * 26 + static_cast<size_t>(F.rows()) * 3 * 13 +
+                        64, '\0');
+    char* q = buf.data();
+    char* const e = buf.data() + buf.size();
+    auto put = [&](std::string_view s) { q = std::copy(s.begin(), s.end(), q); };
+    put("OFF\n");
+    q = std::to_chars(q, e, V.rows()).ptr;
+    put(" ");
+    q = std::to_chars(q, e, F.rows()).ptr;
+    put(" 0\n");
+    for (Eigen::Index i = 0; i < V.rows(); ++i) {
+      for (int k = 0; k < 3; ++k) {
+        if (k) *q++ = ' ';
+        q = std::to_chars(q, e, V(i, k), std::chars_format::general, 9).ptr;
+      }
+      *q++ = '\n';
+    }
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+      *q++ = '3';
+      for (int k = 0; k < 3; ++k) {
+        *q++ = ' ';
+        q = std::to_chars(q, e, F(f, k)).ptr;
+      }
+      *q++ = '\n';
+    }
+    out.write(buf.data(), q - buf.data());
+  });
 }
 
 // ---- PLY ---------------------------------------------------------------------------------------
@@ -464,87 +628,6 @@ void write_obj(const fs::path& path, const Eigen::MatrixX3d& V, const Eigen::Mat
 
 }  // namespace
 
-// ---- OFF ---------------------------------------------------------------------------------------
-
-Mesh parse_off(std::string_view text, const std::string& path) {
-  // Lines without comments ('#' to the end of the line) and blank lines, with their numbers.
-  std::vector<std::string_view> tok;
-  size_t line_no = 0;
-  const char* p = text.data();
-  const char* end = p + text.size();
-  auto next_line = [&]() -> bool {   // the next non-blank line's tokens in `tok`
-    while (p < end) {
-      const char* eol = static_cast<const char*>(std::memchr(p, '\n', end - p));
-      if (!eol) eol = end;
-      const char* hash = static_cast<const char*>(std::memchr(p, '#', eol - p));
-      ++line_no;
-      split(p, hash ? hash : eol, tok);
-      p = eol + 1;
-      if (!tok.empty()) return true;
-    }
-    tok.clear();
-    return false;
-  };
-  if (!next_line()) throw InputError("'" + path + "': empty file (expected an OFF header)");
-  if (tok[0] != "OFF")
-    throw InputError(where(path, line_no) + ": expected the header 'OFF', found '" + std::string(tok[0]) +
-                     "' (only plain OFF is read: no COFF, NOFF, STOFF or binary OFF)");
-  if (tok.size() == 1 && !next_line())
-    throw InputError("'" + path + "': the counts line (vertices faces edges) is missing");
-  const size_t first = tok[0] == "OFF" ? 1 : 0;   // counts may follow 'OFF' on its line
-  if (tok.size() - first < 2 || tok.size() - first > 3)
-    throw InputError(where(path, line_no) + ": expected the counts 'vertices faces [edges]', found " +
-                     std::to_string(tok.size() - first) + " numbers");
-  long nv = 0, nf = 0, ne = 0;
-  if (!parse_int(tok[first], nv) || !parse_int(tok[first + 1], nf) ||
-      (tok.size() - first == 3 && !parse_int(tok[first + 2], ne)) || nv <= 0 || nf < 0 || ne < 0 ||
-      nv > 100000000 || nf > 200000000)
-    throw InputError(where(path, line_no) + ": the counts line must hold whole numbers (vertices ≥ 1, "
-                     "faces ≥ 0), found '" + std::string(tok[first]) + " " + std::string(tok[first + 1]) + "'");
-  Mesh m;
-  m.V.resize(nv, 3);
-  for (long i = 0; i < nv; ++i) {
-    if (!next_line())
-      throw InputError("'" + path + "': the file ends after " + std::to_string(i) + " of " + std::to_string(nv) +
-                       " vertices (file truncated?)");
-    if (tok.size() != 3)
-      throw InputError(where(path, line_no) + ": vertex " + std::to_string(i) + " needs 3 coordinates, found " +
-                       std::to_string(tok.size()));
-    for (int k = 0; k < 3; ++k) {
-      double v;
-      if (!parse_double(tok[static_cast<size_t>(k)], v))
-        throw InputError(where(path, line_no) + ": '" + std::string(tok[static_cast<size_t>(k)]) + "' is not a number");
-      m.V(i, k) = v;
-    }
-  }
-  m.F.resize(nf, 3);
-  for (long f = 0; f < nf; ++f) {
-    if (!next_line())
-      throw InputError("'" + path + "': the file ends after " + std::to_string(f) + " of " + std::to_string(nf) +
-                       " faces (file truncated?)");
-    long count = 0;
-    if (!parse_int(tok[0], count))
-      throw InputError(where(path, line_no) + ": '" + std::string(tok[0]) + "' is not a vertex count");
-    if (count != 3)
-      throw InputError(where(path, line_no) + ": face " + std::to_string(f) + " has " + std::to_string(count) +
-                       " vertices; only triangles are read");
-    if (tok.size() != 4)   // no per-face colours
-      throw InputError(where(path, line_no) + ": a triangle needs 3 vertex indices after its count, found " +
-                       std::to_string(tok.size() - 1) + " numbers");
-    for (int k = 0; k < 3; ++k) {
-      long idx;
-      if (!parse_int(tok[static_cast<size_t>(k) + 1], idx) || idx < 0 || idx >= nv)
-        throw InputError(where(path, line_no) + ": '" + std::string(tok[static_cast<size_t>(k) + 1]) +
-                         "' is not a vertex index in 0.." + std::to_string(nv - 1) + " (OFF faces are 0-based)");
-      m.F(f, k) = static_cast<int>(idx);
-    }
-  }
-  if (next_line())
-    throw InputError(where(path, line_no) + ": more data after the " + std::to_string(nv) + " vertices and " +
-                     std::to_string(nf) + " faces the counts line declares");
-  return m;
-}
-
 Mesh parse_mesh(const std::string& bytes, const std::string& format, const std::string& source) {
   Mesh m;
   if (format == "obj") {
@@ -556,9 +639,12 @@ Mesh parse_mesh(const std::string& bytes, const std::string& format, const std::
     m.V = std::move(ply.V);
     m.F = triangulate(ply.faces);
   } else if (format == "off") {
-    m = parse_off(bytes, source);
+    ObjContents off = parse_off(bytes, source);
+    m.V = std::move(off.V);
+    m.F = triangulate(off.polygons);
   } else {
-    throw InputError("'" + source + "': unknown mesh format '" + format + "' (expected obj, ply or off)");
+    throw InputError("'" + source + "': unknown mesh format '" + format +
+                     "' (expected obj, ply or off)");
   }
   if (m.F.rows() == 0) throw InputError("'" + source + "': the file has no faces");
   if (!m.V.allFinite())
@@ -596,23 +682,26 @@ void write_mesh(const fs::path& path, const Eigen::MatrixX3d& V, const Eigen::Ma
     write_obj(path, V, F);
   else if (ext == ".ply")
     write_ply(path, V, Eigen::MatrixX3d(), F, colors, ascii);
+  else if (ext == ".off")
+    write_off(path, V, F);
   else
     throw InputError("'" + path.string() + "': unknown mesh format '" + ext +
-                     "' (expected .obj or .ply)");
+                     "' (expected .obj, .ply or .off)");
 }
 
 PointCloud read_point_cloud(const fs::path& path) {
   const std::string ext = lower_ext(path);
   if (ext == ".ply") return parse_ply_point_cloud(read_text_file(path), path.string());
-  if (ext == ".obj") {
+  if (ext == ".obj" || ext == ".off") {
     PointCloud c;
-    c.P = read_obj_contents(path).V;
+    c.P = ext == ".obj" ? read_obj_contents(path).V
+                        : parse_off(read_text_file(path), path.string()).V;
     if (!c.P.allFinite())
       throw InputError("'" + path.string() + "': a point has a NaN or infinite coordinate");
     return c;
   }
   throw InputError("'" + path.string() + "': unknown point-cloud format '" + ext +
-                   "' (expected .ply)");
+                   "' (expected .ply, .obj or .off)");
 }
 
 void write_point_cloud(const fs::path& path, const PointCloud& cloud, bool ascii) {

@@ -1,4 +1,5 @@
-// Mesh and point-cloud files: OBJ and PLY (ASCII and binary little-endian); OFF read only.
+// Mesh and point-cloud files: OBJ, PLY (ASCII and binary little-endian) and OFF (ASCII,
+// core/io/off.h).
 //
 // Readers are strict: a malformed file throws InputError naming the file, the line (or
 // element) and what was wrong. Writers go through write_atomically, so a failed write never
@@ -31,17 +32,10 @@ ObjContents parse_obj(std::string_view text, const std::string& source);
 // Triangulates polygons as fans (a quad a b c d gives a b c and a c d).
 Eigen::MatrixX3i triangulate(const std::vector<std::vector<int>>& polygons);
 
-// Reads OBJ, PLY or OFF (by extension) as a triangle mesh; OBJ/PLY quads and polygons are
-// triangulated.
+// Reads OBJ, PLY or OFF (by extension) as a triangle mesh; quads and polygons are triangulated
+// (OFF: core/io/off.h).
 Mesh read_mesh(const std::filesystem::path& path);
-
-// Plain ASCII OFF (SCAPE, FAUST registrations): the line "OFF", a counts line "#V #F [#E]"
-// (it may also follow "OFF" on the same line), #V lines "x y z", #F lines "3 a b c" with 0-based
-// indices. Triangles only, no colours, '#' comments and blank lines skipped; anything else —
-// a polygon, an index out of range, a missing or extra line — throws InputError naming the file
-// and line. `source` names the input in errors.
-Mesh parse_off(std::string_view text, const std::string& source);
-// Writes OBJ or PLY (by extension). PLY is binary little-endian unless `ascii`.
+// Writes OBJ, PLY or OFF (by extension). PLY is binary little-endian unless `ascii`.
 // colors: #V by 3 in [0,1] (PLY only; ignored for OBJ), or empty.
 void write_mesh(const std::filesystem::path& path, const Eigen::MatrixX3d& V,
                 const Eigen::MatrixX3i& F, const Eigen::MatrixX3d& colors = {},

@@ -5,6 +5,7 @@
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
+#include "core/io/off.h"
 #include "core/io/npz.h"
 #include "support/fixtures.h"
 
@@ -95,6 +96,68 @@ TEST(MeshIO, BadFilesGiveOneLineErrorsNamingFileAndLine) {
             "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
             "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n");
   EXPECT_NE(error_of([&] { read_mesh(dir / "badface.ply"); }).find("vertex 9"), std::string::npos);
+}
+
+TEST(MeshIO, OffRoundTripAndVariants) {
+  fixtures::TempDir dir;
+  Mesh m = fixtures::uv_sphere(1.2345, 9, 17);
+  write_mesh(dir / "a.off", m);
+  EXPECT_EQ(read_text_file(dir / "a.off").rfind("OFF\n" + std::to_string(m.V.rows()) + " " +
+                                                    std::to_string(m.F.rows()) + " 0\n", 0),
+            0u);
+  Mesh r = read_mesh(dir / "a.off");
+  ASSERT_EQ(r.F, m.F);
+  EXPECT_LT((r.V - m.V).cwiseAbs().maxCoeff(), 1e-8);
+  // Counts on the header line, comments, blank lines, a quad (triangulated as a fan), COFF
+  // colours, upper-case extension.
+  write_raw(dir / "b.OFF",
+            "OFF 5 2 0\n# a comment\n\n0 0 0\n1 0 0\n1 1 0 # trailing comment\n0 1 0\n0 0 1\n"
+            "4 0 1 2 3\n3 0 1 4 255 0 0\n");
+  Mesh q = read_mesh(dir / "b.OFF");
+  EXPECT_EQ(q.V.rows(), 5);
+  ASSERT_EQ(q.F.rows(), 3);
+  EXPECT_EQ(q.F.row(1), Eigen::RowVector3i(0, 2, 3));
+  write_raw(dir / "c.off", "COFF\n3 1 0\n0 0 0 1 1 1 1\n1 0 0 1 1 1 1\n0 1 0 1 1 1 1\n3 0 1 2\n");
+  EXPECT_EQ(read_mesh(dir / "c.off").F.rows(), 1);
+  // A point cloud from an OFF: its vertices.
+  EXPECT_EQ(read_point_cloud(dir / "a.off").P.rows(), m.V.rows());
+}
+
+TEST(MeshIO, BadOffFilesNameTheLineAndTheProblem) {
+  fixtures::TempDir dir;
+  struct Case {
+    std::string name, text, expect;
+  };
+  const std::vector<Case> cases = {
+      {"few_vertices.off", "OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n",
+       "ends after 3 vertices (the counts line declares 4 vertices and 1 faces)"},
+      {"many_vertices.off", "OFF\n2 1 0\n0 0 0\n1 0 0\n0.5 1 0\n3 0 1 2\n",
+       "face 0 starts with '0.5', expected its vertex count"},
+      {"few_faces.off", "OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "ends after 1 faces"},
+      {"many_faces.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 2 1\n",
+       "line 7: unexpected data after the last face"},
+      {"segment.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n2 0 1\n",
+       "face 0 has 2 vertices; a face needs at least 3"},
+      {"short_face.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n4 0 1 2\n",
+       "declares 4 vertices but lists 3"},
+      {"range.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n",
+       "line 6: face 0 refers to vertex 3, expected 0..2"},
+      {"nan.off", "OFF\n3 1 0\n0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n",
+       "line 4: vertex 1 has a NaN or infinite coordinate"},
+      {"word.off", "OFF\n3 1 0\n0 0 0\n1 x 0\n0 1 0\n3 0 1 2\n", "'x' is not a number"},
+      {"counts.off", "OFF\nthree 1 0\n", "expected the counts line"},
+      {"huge.off", "OFF\n2000000000 1 0\n0 0 0\n", "more than the file's"},
+      {"binary.off", "OFF BINARY\n", "binary OFF is not supported"},
+      {"empty.off", "", "empty file"},
+      {"negative.off", "OFF\n-3 1 0\n", "expected the counts line"},
+  };
+  for (const auto& c : cases) {
+    write_raw(dir / c.name, c.text);
+    const std::string e = error_of([&] { read_mesh(dir / c.name); });
+    EXPECT_NE(e.find(c.name), std::string::npos) << c.name << ": " << e;
+    EXPECT_NE(e.find(c.expect), std::string::npos) << c.name << ": '" << e << "' lacks '"
+                                                   << c.expect << "'";
+  }
 }
 
 TEST(AtomicWrite, FailureLeavesNoFileUnderTheFinalName) {

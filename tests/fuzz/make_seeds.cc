@@ -41,6 +41,10 @@ int main(int argc, char** argv) {
   for (auto n : {"t.obj"}) put("fuzz_obj", n, std::string(std::istreambuf_iterator<char>(std::ifstream(tmp / n).rdbuf()), {}));
   put("fuzz_off", "tri.off", "OFF\n# c\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n");
   put("fuzz_obj", "quads.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\ng body\nf 1/1/1 2/2/2 3/3/3 4/4/4\nf -1 -2 -3\n");
+  write_mesh(tmp / "t.off", V, F);
+  put("fuzz_off", "t.off", std::string(std::istreambuf_iterator<char>(std::ifstream(tmp / "t.off").rdbuf()), {}));
+  put("fuzz_off", "variants.off", "COFF 5 2 0\n# c\n0 0 0 1 1 1 1\n1 0 0 1 1 1 1\n1 1 0 1 1 1 1\n"
+      "0 1 0 1 1 1 1\n0 0 1 1 1 1 1\n4 0 1 2 3\n3 0 1 4 255 0 0\n");
   for (auto n : {"t.ply", "a.ply", "p.ply"})
     put("fuzz_ply", n, std::string(std::istreambuf_iterator<char>(std::ifstream(tmp / n, std::ios::binary).rdbuf()), {}));
   Npz z;

@@ -77,6 +77,13 @@ inline void read_ply(const std::string& in) {
   parse_ply_point_cloud(in, "fuzz.ply");
 }
 
+// OFF as a mesh (polygons triangulated) and as a point cloud's vertices; what is read must be
+// finite with every index in range.
+inline void read_off(const std::string& in) {
+  const Mesh m = parse_mesh(in, "off", "fuzz.off");
+  check(m.V.allFinite() && m.F.rows() > 0 && m.F.minCoeff() >= 0 && m.F.maxCoeff() < m.V.rows());
+}
+
 inline void read_npz(const std::string& in) {
   Npz z = Npz::parse(in, "fuzz.npz");
   for (auto& k : z.keys()) {

@@ -14,15 +14,18 @@
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
 #include "core/landmarks.h"
-#include "core/makehuman.h"
+#include "core/up_axis.h"
 #include <nlohmann/json.hpp>
 #include "registration/detail_transfer.h"
+#include "registration/fit_check.h"
+#include "registration/local_fold_repair.h"
 #include "registration/mesh_scan.h"
 #include "core/io/pose_csv.h"
 #include "registration/register_scan.h"
 #include "tools/console.h"
 #include "tools/pipeline/batch_jobs.h"
 #include "tools/pipeline/folder_settings.h"
+#include "tools/pipeline/registration_setup.h"
 #include "tools/verb.h"
 
 namespace bodymodel {
@@ -32,7 +35,7 @@ namespace fs = std::filesystem;
 
 struct RegisterMeshArgs {
   std::vector<std::string> meshes;
-  std::string landmarks, out, schedule = "fast";
+  std::string landmarks, out, schedule = "fast", up = "y";
   double scale = 1.0;
   int jobs = 1, samples = MeshScanOptions{}.samples;
   int fast_steps = NonrigidOptions{}.fast_steps;
@@ -80,7 +83,7 @@ BODYMODEL_VERB(add_register_mesh_verb) {
       "Meshes already registered are skipped; a failed mesh is reported and skipped.\n"
       "Example (a sequence in metres):\n"
       "  bodymodel register-mesh frames/*.obj --landmarks lm.json --scale 1000 --out reg/");
-  cmd->add_option("meshes", a->meshes, "Scan meshes (OBJ/PLY), any topology")->required();
+  cmd->add_option("meshes", a->meshes, "Scan meshes (OBJ/PLY/OFF), any topology")->required();
   cmd->add_option("--landmarks", a->landmarks,
                   "JSON {name: vertex index (0-based, of the scan mesh) or [x, y, z]}; names as "
                   "in the template's landmark table (head_top, l_knee, ...)")
@@ -88,6 +91,10 @@ BODYMODEL_VERB(add_register_mesh_verb) {
   cmd->add_option("--out", a->out, "Output folder")->required();
   cmd->add_option("--scale", a->scale,
                   "Millimetres per mesh unit (1000 for meshes in metres)")
+      ->capture_default_str();
+  cmd->add_option("--up", a->up,
+                  "Axis the body stands along in the meshes (x, y, z, -x, -y, -z), rotated onto "
+                  "+y before registering (SCAPE: x); the outputs are in that frame, mm")
       ->capture_default_str();
   cmd->add_option("--schedule", a->schedule,
                   "Non-rigid stiffness schedule: 'paper' (1500 steps, §2.3) or 'fast'")
@@ -108,7 +115,8 @@ BODYMODEL_VERB(add_register_mesh_verb) {
   cmd->add_flag("--pose-only", a->pose_only, "Stop after the skeleton pose fit");
   cmd->add_flag("--keep-folds", a->keep_folds,
                 "Do not smooth away triangles the non-rigid fit folded over (where the template "
-                "is finer than the mesh: eyelids, armpits)");
+                "is finer than the mesh: eyelids, armpits), neither against the posed template "
+                "nor local folds (a triangle facing against its 2-ring, unlike at rest)");
   cmd->add_flag("--no-proportions", a->no_proportions,
                 "Keep the template's limb proportions (global scale only)");
   cmd->add_flag("--no-shape-fit", a->no_shape_fit,
@@ -129,12 +137,13 @@ BODYMODEL_VERB(add_register_mesh_verb) {
     if (a->jobs < 1) throw InputError("--jobs must be at least 1, got " + std::to_string(a->jobs));
     if (a->fast_steps < 1) throw InputError("--fast-steps must be at least 1");
     if (!(a->fast_k_end > 0)) throw InputError("--fast-stiffness-end must be positive");
+    const Eigen::Matrix3d up = up_axis_rotation(a->up, "--up");
     if (a->samples < 0) throw InputError("--samples must not be negative");
     const fs::path out = a->out;
     std::vector<std::string> stems;
     for (const auto& m : a->meshes) {
       if (!fs::is_regular_file(m))
-        throw InputError("'" + m + "': expected a mesh file (OBJ/PLY), it does not exist");
+        throw InputError("'" + m + "': expected a mesh file (OBJ/PLY/OFF), it does not exist");
       const std::string stem = fs::path(m).stem().string();
       if (std::find(stems.begin(), stems.end(), stem) != stems.end())
         throw InputError("'" + m + "': two meshes share the name '" + stem +
@@ -152,7 +161,7 @@ BODYMODEL_VERB(add_register_mesh_verb) {
         {"samples", a->samples},   {"detail", a->detail},
         {"pose_only", a->pose_only}, {"keep_folds", a->keep_folds},
         {"proportions", !a->no_proportions}, {"shape_fit", !a->no_shape_fit},
-        {"pose_iterations", a->pose_iterations}};
+        {"pose_iterations", a->pose_iterations}, {"up", a->up}};
     ResumableFolder folder(out, "register-mesh.json", settings, a->force,
                            outputs_named({"register-mesh.csv"}, {".ply", ".pose.csv", ".shape.json", ".register-mesh.csv",
                                                                  ".detail.npz"}));
@@ -169,17 +178,10 @@ BODYMODEL_VERB(add_register_mesh_verb) {
       return;
     }
 
-    MakeHuman mh = MakeHuman::load();
-    MakeHuman::Body body = mh.body(MacroSettings{});
-    RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, {}, {}};
-    if (!a->no_shape_fit) tpl.shape_space = mh;
-    RegistrationOptions options;
-    options.nonrigid.schedule =
-        a->schedule == "paper" ? NonrigidSchedule::paper : NonrigidSchedule::fast;
-    options.nonrigid.fast_steps = a->fast_steps;
-    options.nonrigid.fast_k_end = a->fast_k_end;
-    options.skip_nonrigid = a->pose_only;
-    options.fit_proportions = !a->no_proportions;
+    RegistrationSetup setup = makehuman_registration_setup(
+        {a->schedule, a->fast_steps, a->fast_k_end, a->pose_only, a->no_proportions, a->no_shape_fit});
+    const RegistrationTemplate& tpl = setup.tpl;
+    RegistrationOptions& options = setup.options;
     options.pose.max_icp_iterations = a->pose_iterations;
     // options.pose.parameters left empty: default_pose_parameters(), as `register`.
 
@@ -187,7 +189,7 @@ BODYMODEL_VERB(add_register_mesh_verb) {
       const std::string& path = a->meshes[k];
       const std::string& stem = stems[k];
       Mesh mesh = read_mesh(path);
-      mesh.V *= a->scale;
+      mesh.V = to_project_frame(mesh.V, a->scale, up);
       std::vector<Landmark> landmarks = read_mesh_landmarks(a->landmarks, body_landmarks(), mesh.V);
       MeshScanOptions so;
       so.samples = a->samples;
@@ -199,7 +201,17 @@ BODYMODEL_VERB(add_register_mesh_verb) {
         return true;
       };
       RegistrationResult r = register_scan(tpl, scan, landmarks, options, path, &s, report);
-      if (!a->keep_folds) unfold_triangles(r.V, r.pose.V, tpl.mesh.F);
+      if (!a->keep_folds) {
+        unfold_triangles(r.V, r.pose.V, tpl.mesh.F);
+        // Folds the posed template itself carries (its skinning creases) are not flipped
+        // against it: re-solve local folds from the rest template's shape too.
+        if (!a->pose_only) repair_local_folds(r.V, r.rest.V, tpl.mesh.F);
+      }
+      // Not a body (a sphere), or landmarks not its own: failed, nothing written.
+      if (!a->pose_only) {
+        const FitCheck fc = check_registration_fit(r.V, r.pose.V, r.rest.V, tpl.mesh.F, scan);
+        if (!fc.plausible) throw InputError(path + ": registration failed: " + fc.reason);
+      }
       const MeshScanDistance d = mesh_scan_distance(r.V, tpl.mesh.F, mesh, &r.pose.V);
       double detail_distance = -1;
       if (a->detail) {

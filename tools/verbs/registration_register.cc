@@ -20,10 +20,13 @@
 #include "core/makehuman.h"
 #include <nlohmann/json.hpp>
 #include "core/io/pose_csv.h"
+#include "registration/fit_check.h"
+#include "registration/local_fold_repair.h"
 #include "registration/register_scan.h"
 #include "tools/console.h"
 #include "tools/pipeline/batch_jobs.h"
 #include "tools/pipeline/folder_settings.h"
+#include "tools/pipeline/registration_setup.h"
 #include "tools/verb.h"
 
 namespace bodymodel {
@@ -40,7 +43,7 @@ struct RegisterArgs {
   double scan_unit_mm = 1.0;
   std::string start_from_truth;  // evaluation only: "", "mesh" or "pose"
   bool force = false, pose_only = false, no_proportions = false, no_shape_fit = false;
-  bool proportions_with_shape = false;
+  bool proportions_with_shape = false, repair_local_folds = false;
   std::string hand_stage = "on";  // finger curls and thumbs fitted after the body (hand stage)
 };
 
@@ -153,6 +156,12 @@ BODYMODEL_VERB(add_register_verb) {
                   "non-rigid fit from DB/truth/<id>.ply ('mesh': measures the non-rigid stage's "
                   "own drift) or from the template posed with DB/truth/<id>.pose.csv ('pose')")
       ->check(CLI::IsMember({"mesh", "pose"}));
+  cmd->add_flag("--repair-local-folds", a->repair_local_folds,
+                "After the fold repair against the posed template, also re-solve local folds "
+                "(a triangle facing against its 2-ring, unlike at rest: the posed template's own "
+                "skinning creases) from the rest template's shape (registration/"
+                "local_fold_repair.h; on for real bodies, off by default so the synthetic "
+                "database's figures stay as measured)");
   cmd->add_flag("--force", a->force,
                 "Register again scans that are already done; replace the results in OUT made with other settings "
                 "(without it such a folder is refused)");
@@ -192,7 +201,8 @@ BODYMODEL_VERB(add_register_verb) {
         {"scan_unit_mm", a->scan_unit_mm},     {"pose_only", a->pose_only},
         {"pose_joints", a->pose_joints},       {"hand_stage", a->hand_stage},
         {"shape_fit", !a->no_shape_fit},       {"proportions", !a->no_proportions},
-        {"proportions_with_shape", a->proportions_with_shape}, {"start_from_truth", a->start_from_truth}};
+        {"proportions_with_shape", a->proportions_with_shape}, {"start_from_truth", a->start_from_truth},
+        {"repair_local_folds", a->repair_local_folds}};
     ResumableFolder folder(out, "register.json", settings, a->force,
                            outputs_named({"registration.csv", "evaluation.csv"},
                                          {".ply", ".pose.csv", ".shape.json", ".summary.csv"}));
@@ -207,19 +217,11 @@ BODYMODEL_VERB(add_register_verb) {
       return;
     }
 
-    MakeHuman mh = MakeHuman::load();
-    MakeHuman::Body body = mh.body(MacroSettings{});
-    RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, {}, {}};
-    if (!a->no_shape_fit) tpl.shape_space = mh;
-    RegistrationOptions options;
-    options.nonrigid.schedule =
-        a->schedule == "paper" ? NonrigidSchedule::paper : NonrigidSchedule::fast;
-    options.nonrigid.fast_steps = a->fast_steps;
-    options.nonrigid.fast_k_end = a->fast_k_end;
+    RegistrationSetup setup = makehuman_registration_setup(
+        {a->schedule, a->fast_steps, a->fast_k_end, a->pose_only, a->no_proportions, a->no_shape_fit});
+    const RegistrationTemplate& tpl = setup.tpl;
+    RegistrationOptions& options = setup.options;
     options.nonrigid.normalization_length = a->transform_length;
-    options.skip_nonrigid = a->pose_only;
-    options.fit_proportions = !a->no_proportions;
-    options.fit_shape = !a->no_shape_fit;
     options.proportions_with_shape = a->proportions_with_shape;
     if (a->pose_joints == "bone") options.pose.parameters = bone_pose_parameters();
     if (a->pose_joints == "segment") options.pose.parameters = segment_pose_parameters();
@@ -266,6 +268,12 @@ BODYMODEL_VERB(add_register_verb) {
       }
       RegistrationResult r =
           register_scan(tpl, scan, landmarks, scan_options, scan_path.string(), &s, report);
+      if (a->repair_local_folds && !a->pose_only) repair_local_folds(r.V, r.rest.V, tpl.mesh.F);
+      // Not a body (a sphere), or landmarks not its own: failed, nothing written.
+      if (!a->pose_only) {
+        const FitCheck fc = check_registration_fit(r.V, r.pose.V, r.rest.V, tpl.mesh.F, scan);
+        if (!fc.plausible) throw InputError(scan_path.string() + ": registration failed: " + fc.reason);
+      }
       PoseRecord rec;
       rec.scale = r.pose.scale;
       rec.pose = r.pose.pose;

@@ -1,0 +1,194 @@
+// bodymodel scanify MESH... --out scan.ply|DB/ [--scanner pillars] [--noise-mm 1] [--holes on]
+//                          [--seed S] [--scale 1000] [--up x] [--landmarks LM.json]
+//
+// Runs the synthetic database's scanner simulation (tools/synth/scanify.h) on any mesh, so real
+// bodies (FAUST, SCAPE) can be registered the way scans are. One mesh and an --out ending in
+// .ply: that scan (and <out stem>.landmarks.json with --landmarks). Otherwise --out is a scan
+// database folder for `bodymodel register`: scans.csv, scans/<stem>.ply and
+// scans/<stem>.landmarks.json (empty {} without --landmarks).
+#include <fmt/format.h>
+
+#include <atomic>
+#include <filesystem>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include "core/error.h"
+#include "core/io/atomic_write.h"
+#include "core/io/mesh_io.h"
+#include "core/landmarks.h"
+#include "core/up_axis.h"
+#include "registration/mesh_scan.h"
+#include "tools/console.h"
+#include "tools/synth/scanify.h"
+#include "tools/verb.h"
+
+namespace bodymodel {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ScanifyArgs {
+  std::vector<std::string> meshes;
+  std::string out, scanner = "pillars", holes = "on", up = "y", landmarks, subject_regex;
+  double noise_mm = 1.0, scale = 1.0, landmark_noise_mm = 0.0;
+  unsigned seed = 1;
+  int points = ScannerOptions{}.min_points, jobs = 1;
+};
+
+}  // namespace
+
+BODYMODEL_VERB(add_scanify_verb) {
+  auto a = std::make_shared<ScanifyArgs>();
+  auto* cmd = app.add_subcommand(
+      "scanify",
+      "Scan-like input from any mesh: the synthetic database's scanner simulation (four\n"
+      "pillars; holes where no pillar sees the surface; Gaussian noise; normals estimated from\n"
+      "the noisy points) run on each mesh, in millimetres with +y up.\n"
+      "One mesh and --out X.ply: that scan (and X.landmarks.json with --landmarks). Otherwise\n"
+      "--out is a scan database for `bodymodel register`: OUT/scans.csv, OUT/scans/<stem>.ply,\n"
+      "OUT/scans/<stem>.landmarks.json (landmark positions from vertex indices of the mesh).\n"
+      "Example (FAUST, in metres):\n"
+      "  bodymodel scanify faust/*.off --scale 1000 --landmarks registration/landmarks/faust.json "
+      "--out faust-scans/");
+  cmd->add_option("meshes", a->meshes, "Meshes (OBJ/PLY/OFF)")->required();
+  cmd->add_option("--out", a->out, "Output scan (.ply, one mesh) or scan database folder")
+      ->required();
+  cmd->add_option("--scanner", a->scanner,
+                  "Scanner model: 'pillars' (four vertical pillars around the subject, as a body "
+                  "scanner; the synthetic database's)")
+      ->check(CLI::IsMember({"pillars"}))
+      ->capture_default_str();
+  cmd->add_option("--noise-mm", a->noise_mm, "Gaussian noise per coordinate (mm, σ)")
+      ->capture_default_str();
+  cmd->add_option("--holes", a->holes,
+                  "'on': only what a pillar sees (holes under the arms, between the legs, on top "
+                  "of the head); 'off': the whole surface")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  cmd->add_option("--seed", a->seed, "Random seed (each mesh's own seed mixes it with its name)")
+      ->capture_default_str();
+  cmd->add_option("--points", a->points, "Scan points per mesh (at least)")->capture_default_str();
+  cmd->add_option("--scale", a->scale, "Millimetres per mesh unit (1000 for metres)")
+      ->capture_default_str();
+  cmd->add_option("--up", a->up,
+                  "Axis the body stands along in the mesh (x, y, z, -x, -y, -z); rotated onto "
+                  "+y (SCAPE: x)")
+      ->capture_default_str();
+  cmd->add_option("--landmarks", a->landmarks,
+                  "JSON {name: vertex index (0-based, of the mesh) or [x, y, z]}, placed once and "
+                  "reused for every mesh of the topology (registration/landmarks/faust.json)");
+  cmd->add_option("--landmark-noise-mm", a->landmark_noise_mm,
+                  "Gaussian noise added to each landmark position (mm, σ per coordinate)")
+      ->capture_default_str();
+  cmd->add_option("--subject-regex", a->subject_regex,
+                  "Regular expression on a mesh's stem whose first group is the subject id "
+                  "written to scans.csv (default: the stem)");
+  cmd->add_option("--jobs", a->jobs, "Meshes scanned in parallel")->capture_default_str();
+  cmd->callback([a] {
+    if (!(a->noise_mm >= 0) || !std::isfinite(a->noise_mm))
+      throw InputError("--noise-mm must be 0 or more");
+    if (!(a->landmark_noise_mm >= 0) || !std::isfinite(a->landmark_noise_mm))
+      throw InputError("--landmark-noise-mm must be 0 or more");
+    if (!(a->scale > 0) || !std::isfinite(a->scale))
+      throw InputError("--scale must be a positive number of millimetres per mesh unit");
+    if (a->points < 100) throw InputError("--points must be at least 100");
+    if (a->jobs < 1) throw InputError("--jobs must be at least 1");
+    const Eigen::Matrix3d up = up_axis_rotation(a->up, "--up");
+    std::regex subject_re;
+    if (!a->subject_regex.empty()) {
+      try {
+        subject_re = std::regex(a->subject_regex);
+      } catch (const std::regex_error& e) {
+        throw InputError("--subject-regex '" + a->subject_regex + "': " + e.what());
+      }
+    }
+    std::string ext = fs::path(a->out).extension().string();
+    for (auto& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    const bool single = ext == ".ply";
+    if (single && a->meshes.size() != 1)
+      throw InputError("--out '" + a->out + "' is one scan file, but " +
+                       std::to_string(a->meshes.size()) +
+                       " meshes were given: give a folder to make a scan database");
+    std::vector<std::string> stems;
+    for (const auto& m : a->meshes) {
+      if (!fs::is_regular_file(m))
+        throw InputError("'" + m + "': expected a mesh file (OBJ/PLY/OFF), it does not exist");
+      const std::string stem = fs::path(m).stem().string();
+      if (std::find(stems.begin(), stems.end(), stem) != stems.end())
+        throw InputError("'" + m + "': two meshes share the name '" + stem + "'");
+      stems.push_back(stem);
+    }
+    if (!a->landmarks.empty() && !fs::is_regular_file(a->landmarks))
+      throw InputError("--landmarks '" + a->landmarks + "': file not found");
+    const fs::path out = a->out;
+    if (!single) ensure_directory(out / "scans");
+
+    ScanifyOptions options;
+    options.scanner.noise_sigma_mm = a->noise_mm;
+    options.scanner.min_points = a->points;
+    options.holes = a->holes == "on";
+    cli::ProgressBar bar(fmt::format("scanify {} meshes", a->meshes.size()));
+    std::mutex mutex;
+    std::atomic<int> done{0};
+    std::vector<std::string> rows(a->meshes.size()), failures;
+    tbb::task_arena arena(a->jobs);
+    arena.execute([&] {
+      tbb::parallel_for(size_t(0), a->meshes.size(), size_t(1), [&](size_t k) {
+        const std::string& path = a->meshes[k];
+        const std::string& stem = stems[k];
+        try {
+          Mesh mesh = read_mesh(path);
+          // Landmarks from the mesh's own vertices (or positions in its unit), then the frame.
+          std::vector<Landmark> landmarks;
+          if (!a->landmarks.empty())
+            landmarks = read_mesh_landmarks(a->landmarks, body_landmarks(), mesh.V);
+          mesh.V = to_project_frame(mesh.V, a->scale, up);
+          ScanifyOptions o = options;
+          o.seed = scan_seed(a->seed, stem);
+          const PointCloud scan = scanify_mesh(mesh, o, path);
+          nlohmann::ordered_json lm = nlohmann::ordered_json::object();
+          std::mt19937_64 rng(scan_seed(a->seed + 1, stem));
+          std::normal_distribution<double> ln(0.0, a->landmark_noise_mm);
+          for (const auto& l : landmarks) {
+            Eigen::Vector3d p = a->scale * (up * l.target);
+            if (a->landmark_noise_mm > 0) p += Eigen::Vector3d(ln(rng), ln(rng), ln(rng));
+            lm[l.name] = {p.x(), p.y(), p.z()};
+          }
+          const fs::path scan_path = single ? out : out / "scans" / (stem + ".ply");
+          const fs::path lm_path = scan_path.parent_path() / (scan_path.stem().string() + ".landmarks.json");
+          write_point_cloud(scan_path, scan);
+          if (!single || !landmarks.empty()) write_text_file(lm_path, lm.dump(1) + "\n");
+          std::string subject = stem;
+          std::smatch m;
+          if (!a->subject_regex.empty()) {
+            if (!std::regex_search(stem, m, subject_re) || m.size() < 2)
+              throw InputError("--subject-regex '" + a->subject_regex + "' does not match '" +
+                               stem + "' with a capture group");
+            subject = m[1].str();
+          }
+          rows[k] = fmt::format("{},{},{},{},{}\n", stem, subject, stem, scan.P.rows(), path);
+          std::lock_guard<std::mutex> lock(mutex);
+          bar.update(double(++done) / double(a->meshes.size()), stem);
+        } catch (const std::exception& e) {
+          std::lock_guard<std::mutex> lock(mutex);
+          failures.push_back(std::string(e.what()));
+        }
+      });
+    });
+    bar.finish(fmt::format("{} scanned, {} failed", done.load(), failures.size()));
+    if (!single) {
+      std::string csv = "scan_id,subject_id,pose,points,source\n";
+      for (const auto& r : rows) csv += r;
+      write_text_file(out / "scans.csv", csv);
+    }
+    if (!failures.empty())
+      throw InputError(fmt::format("{} of {} meshes failed; first: {}", failures.size(),
+                                   a->meshes.size(), failures.front()));
+  });
+}
+
+}  // namespace bodymodel
