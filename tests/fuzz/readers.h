@@ -67,11 +67,6 @@ inline void check_names_sanitise(const std::vector<std::string>& names) {
 
 inline void read_obj(const std::string& in) { parse_mesh(in, "obj", "fuzz.obj"); }
 
-inline void read_off(const std::string& in) {
-  const Mesh m = parse_mesh(in, "off", "fuzz.off");
-  check(m.V.allFinite() && (m.F.size() == 0 || (m.F.minCoeff() >= 0 && m.F.maxCoeff() < m.V.rows())));
-}
-
 inline void read_ply(const std::string& in) {
   allowing_rejection([&] { parse_mesh(in, "ply", "fuzz.ply"); });
   parse_ply_point_cloud(in, "fuzz.ply");
