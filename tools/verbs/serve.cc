@@ -24,6 +24,7 @@
 namespace bodymodel {
 namespace {
 namespace fs = std::filesystem;
+using cli::base64;
 using nlohmann::json;
 
 struct ServeArgs {
@@ -31,21 +32,6 @@ struct ServeArgs {
   int port = 8080, max_decodes = 2, threads = 8, timeout = 10;
   size_t max_body = 16 * 1024;
 };
-
-std::string base64(const void* data, size_t n) {
-  static const char* tab = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  const auto* p = static_cast<const unsigned char*>(data);
-  std::string s;
-  s.reserve((n + 2) / 3 * 4);
-  for (size_t i = 0; i < n; i += 3) {
-    unsigned v = p[i] << 16 | (i + 1 < n ? p[i + 1] << 8 : 0) | (i + 2 < n ? p[i + 2] : 0);
-    s += tab[v >> 18 & 63];
-    s += tab[v >> 12 & 63];
-    s += i + 1 < n ? tab[v >> 6 & 63] : '=';
-    s += i + 2 < n ? tab[v & 63] : '=';
-  }
-  return s;
-}
 
 // A request that cannot be served as asked: answered 400 with this message.
 struct BadRequest : std::runtime_error {

@@ -4,6 +4,7 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <string>
 
 namespace bodymodel::cli {
 const char* viewer_index_html();
@@ -19,5 +20,21 @@ inline std::filesystem::path default_three_js() {
 #else
   return {};
 #endif
+}
+// Base64 of raw bytes: the viewer and serve ship vertex arrays inside scripts (file:// pages
+// cannot fetch binary files).
+inline std::string base64(const void* data, size_t n) {
+  static const char* tab = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  const auto* p = static_cast<const unsigned char*>(data);
+  std::string s;
+  s.reserve((n + 2) / 3 * 4);
+  for (size_t i = 0; i < n; i += 3) {
+    unsigned v = p[i] << 16 | (i + 1 < n ? p[i + 1] << 8 : 0) | (i + 2 < n ? p[i + 2] : 0);
+    s += tab[v >> 18 & 63];
+    s += tab[v >> 12 & 63];
+    s += i + 1 < n ? tab[v >> 6 & 63] : '=';
+    s += i + 2 < n ? tab[v & 63] : '=';
+  }
+  return s;
 }
 }  // namespace bodymodel::cli
