@@ -5,6 +5,8 @@
 #include <fmt/format.h>
 
 #include <map>
+#include <optional>
+#include <nlohmann/json.hpp>
 #include <mutex>
 
 #include "core/error.h"
@@ -21,18 +23,50 @@ namespace {
 
 using namespace pybind11::literals;
 
-// MakeHuman's default body and its shape space, loaded once per process and flag set (≈ 0.5 s).
-const RegistrationSetup& setup(bool shape_fit) {
+// The template and options: the verbs' (MakeHuman's default body) or MakeHuman's body of the given
+// macro sliders. Kept for the next call (MakeHuman's data takes ≈ 0.5 s to load): the verbs' set-up
+// per shape_fit flag, and the last custom template.
+std::shared_ptr<const RegistrationSetup> setup(bool shape_fit, const pyb::handle& tmpl) {
   static std::mutex mutex;
-  static std::map<bool, std::unique_ptr<RegistrationSetup>> cache;
+  static std::map<std::string, std::shared_ptr<const RegistrationSetup>> cache;
+  std::string key = shape_fit ? "shape:" : "noshape:";
+  MacroSettings settings;
+  if (!tmpl.is_none()) {
+    if (!pyb::isinstance<pyb::dict>(tmpl))
+      throw InputError("template: expected None or a dict of MakeHuman macro sliders {gender: 0..1, ...}");
+    nlohmann::json j = nlohmann::json::object();
+    for (auto [k, v] : tmpl.cast<pyb::dict>()) {
+      const std::string name = pyb::str(k);
+      try {
+        j[name] = v.cast<double>();
+      } catch (const pyb::cast_error&) {
+        j[name] = std::string(pyb::repr(v));  // MacroSettings::from_json names it as not a number
+      }
+    }
+    settings = MacroSettings::from_json(j);
+    key += settings.to_json().dump();
+  }
   std::lock_guard lock(mutex);
-  auto& s = cache[shape_fit];
+  auto& s = cache[key];
   if (!s) {
     RegistrationFlags flags;
     flags.no_shape_fit = !shape_fit;
-    s = std::make_unique<RegistrationSetup>(makehuman_registration_setup(flags));
+    auto r = std::make_shared<RegistrationSetup>(makehuman_registration_setup(flags));
+    if (!tmpl.is_none()) {
+      // As makehuman_registration_setup, from another body of the same shape space.
+      std::optional<MakeHuman> loaded;  // without the shape fit the set-up keeps no MakeHuman
+      if (!r->tpl.shape_space) loaded = MakeHuman::load();
+      MakeHuman::Body body = (r->tpl.shape_space ? *r->tpl.shape_space : *loaded).body(settings);
+      r->tpl.mesh = body.mesh;
+      r->tpl.skeleton = body.skeleton;
+      r->tpl.weights = body.weights;
+      r->tpl.shape_start = settings;
+      for (auto it = cache.begin(); it != cache.end();)  // one custom template at a time
+        it = it->first.find('{') != std::string::npos && it->first != key ? cache.erase(it) : std::next(it);
+    }
+    s = std::move(r);
   }
-  return *s;
+  return s;
 }
 
 std::vector<Landmark> landmarks_from(const pyb::handle& h) {
@@ -51,6 +85,7 @@ std::vector<Landmark> landmarks_from(const pyb::handle& h) {
 }
 
 pyb::tuple register_one(const pyb::handle& points, const pyb::handle& normals, const pyb::handle& landmarks,
+                        const pyb::handle& tmpl,
                         const std::string& schedule, int fast_steps, double fast_k_end, double transform_length,
                         double scan_unit_mm, bool pose_only, const std::string& pose_joints, bool hand_stage,
                         bool proportions, bool shape_fit, bool proportions_with_shape, bool repair_folds,
@@ -76,7 +111,8 @@ pyb::tuple register_one(const pyb::handle& points, const pyb::handle& normals, c
   scan.P *= scan_unit_mm;
   for (auto& l : lm) l.target *= scan_unit_mm;
 
-  const RegistrationSetup& base = setup(shape_fit);
+  const std::shared_ptr<const RegistrationSetup> held = setup(shape_fit, tmpl);
+  const RegistrationSetup& base = *held;
   RegistrationOptions o = base.options;
   o.nonrigid.schedule = schedule == "paper" ? NonrigidSchedule::paper : NonrigidSchedule::fast;
   o.nonrigid.fast_steps = fast_steps;
@@ -156,12 +192,12 @@ pyb::tuple register_one(const pyb::handle& points, const pyb::handle& normals, c
 void bind_registration(pyb::module_& m) {
   const NonrigidOptions nr;
   m.def("register_scan", &register_one, "points"_a, "normals"_a = pyb::none(), pyb::kw_only(),
-        "landmarks"_a, "schedule"_a = "fast", "fast_steps"_a = nr.fast_steps, "fast_stiffness_end"_a = nr.fast_k_end,
+        "landmarks"_a, "template"_a = pyb::none(), "schedule"_a = "fast", "fast_steps"_a = nr.fast_steps, "fast_stiffness_end"_a = nr.fast_k_end,
         "transform_length"_a = nr.normalization_length, "scan_unit_mm"_a = 1.0, "pose_only"_a = false,
         "pose_joints"_a = "segment", "hand_stage"_a = true, "proportions"_a = true, "shape_fit"_a = true,
         "proportions_with_shape"_a = false, "repair_local_folds"_a = false, "what"_a = "scan",
         "progress"_a = pyb::none(),
-        R"(register_scan(points, normals=None, *, landmarks, schedule='fast', ..., progress=None) -> (V, summary)
+        R"(register_scan(points, normals=None, *, landmarks, template=None, schedule='fast', ..., progress=None) -> (V, summary)
 
 Registers the template (MakeHuman's default body, its skeleton and weights; MakeHuman's macro
 sliders as its shape space unless shape_fit=False) to one scan, as `bodymodel register` does for
@@ -170,6 +206,8 @@ fit of the macro sliders, then the non-rigid fit, the fold repair and the plausi
 points: (n, 3) scan points; normals: (n, 3) unit normals or None (estimated, unoriented);
 landmarks: {name: (x, y, z)} scan positions of the template's landmarks (head_top, l_knee, ...;
 the names of a database's <id>.landmarks.json); scan_unit_mm: mm per unit of points/landmarks.
+template: None (MakeHuman's default body, as the verb) or MakeHuman macro sliders for the start
+body, e.g. {'gender': 1.0, 'height': 0.7} (the others default; keys of `bodymodel makehuman-body`).
 Keywords match the verb's flags: schedule 'fast'|'paper', fast_steps, fast_stiffness_end,
 transform_length (mm), pose_only, pose_joints 'segment'|'bone'|'best', hand_stage,
 proportions, shape_fit, proportions_with_shape, repair_local_folds. `what` names the scan in

@@ -63,3 +63,15 @@ def test_register_scan_bad_input(db):
         bodymodel.register_scan(P, N, landmarks=lm, fast_steps=0)
     with pytest.raises(bodymodel.Cancelled):
         bodymodel.register_scan(P, N, landmarks=lm, progress=lambda f, w: False, **KW)
+
+
+def test_register_scan_template(db):
+    _, P, N, lm = scan_of(db)
+    # The default sliders are the verb's template: the same pose fit; a tall male start is another.
+    V0, s0 = bodymodel.register_scan(P, N, landmarks=lm, pose_only=True, **KW)
+    V1, s1 = bodymodel.register_scan(P, N, landmarks=lm, template={"gender": 0.5}, pose_only=True, **KW)
+    assert np.array_equal(V0, V1) and np.array_equal(s0["rest_template"], s1["rest_template"])
+    V2, s2 = bodymodel.register_scan(P, N, landmarks=lm, template={"gender": 1.0, "height": 0.9}, pose_only=True, **KW)
+    assert np.abs(s2["rest_template"] - s0["rest_template"]).max() > 10
+    with pytest.raises(bodymodel.InputError, match="hight"):
+        bodymodel.register_scan(P, N, landmarks=lm, template={"hight": 0.5}, **KW)
