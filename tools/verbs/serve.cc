@@ -153,9 +153,9 @@ class MorphService {
     } else {
       MorphOptions o;
       o.sex = sex;
-      // "quick" (the page's slider drags): one decode, no measured correction, so the body
-      // follows the slider at interactive rates; the measured labels shown are the drawn body's.
-      // Its measured labels are the cheap ones (height, volume, weight; no girths).
+      // "quick" (the page's slider drags): no measured correction, so the body follows the
+      // slider at interactive rates: the first-order preview once built, else one decode. The
+      // measured labels shown are the drawn body's cheap ones (height, volume, weight; no girths).
       const bool quick = flag(body, "quick", false);
       if (quick) o.max_iterations = 1;
       // Quick requests are drawn from the preview once it is built ("preview": false asks for
