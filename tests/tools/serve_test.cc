@@ -182,6 +182,14 @@ TEST(ServeApi, MorphsAndRefusesBadRequestsWithTheCliMessage) {
   const double h_mean = json::parse(mean_body->body)["measured"]["height_cm"].get<double>();
   const double h_quick = json::parse(q->body)["measured"]["height_cm"].get<double>();
   EXPECT_LT(std::abs(h_quick - 172), std::abs(h_mean - 172) + 1e-9) << "mean " << h_mean << ", quick " << h_quick;
+  // API answers are never compressed, whatever the client accepts (brotli took 1.2 s per body).
+  {
+    auto c = cli.Post("/api/body", httplib::Headers{{"Accept-Encoding", "gzip, deflate, br"}},
+                      R"({"quick": true})", "application/json");
+    ASSERT_TRUE(c);
+    EXPECT_EQ(c->status, 200);
+    EXPECT_FALSE(c->has_header("Content-Encoding")) << c->get_header_value("Content-Encoding");
+  }
   auto g1 = cli.Post("/api/body", R"({"seed": 3})", "application/json");
   auto g2 = cli.Post("/api/body", R"({"seed": 3})", "application/json");
   auto g3 = cli.Post("/api/body", R"({"seed": 4})", "application/json");
