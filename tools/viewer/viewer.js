@@ -183,6 +183,7 @@ function show(meshIndex) {  // -1: the skinned rig, -2: every static mesh side b
     statics.forEach((s, i) => all.union(s.box.clone().translate(new THREE.Vector3(layout[i], 0, 0))));
     frameObject(all);
   } else frameObject(statics[meshIndex].box);
+  if (rigs.length) el('rigControls').style.display = meshIndex === -1 ? '' : 'none';  // they act on the rig only
   updateLegend();
 }
 
