@@ -237,17 +237,22 @@ BODYMODEL_VERB(add_demo_verb) {
                                          "--out", p("animation/" + c), "--format", "none"},
                         {"character (MWE rig)"}});
     // The interactive viewer (offline three.js page) when three.js is installed (scripts/setup.sh):
-    // the character playing clip 12_03 with its MWE rig and SSD base, the sweeps' ends and a
-    // registration to orbit.
+    // the character playing clip 12_03 with its MWE rig and SSD base; to orbit, a registration
+    // coloured by its distance to the true body (the registration picture's 30 mm scale), the
+    // sweeps' ends and the crowd.
     const bool viewer = fs::is_regular_file(cli::default_three_js());
-    if (viewer)
-      stages.push_back({"interactive viewer",
-                        {"viewer", "--rig", p("character/rig.npz"), "--bvh", (cmu / "12_03.bvh").string(), "--frames", "60",
-                         "--every", "2", "--mesh", p("reg/" + reg_ids[0] + ".ply"), "--mesh", p("sweeps/height_155.obj"),
-                         "--mesh", p("sweeps/height_195.obj"), "--mesh", p("sweeps/weight_50.obj"), "--mesh",
-                         p("sweeps/weight_130.obj"), "--no-check", "--out", p("viewer"), "--force"},
+    if (viewer) {
+      std::vector<std::string> args = {"viewer", "--rig", p("character/rig.npz"), "--bvh", (cmu / "12_03.bvh").string(),
+                                       "--frames", "60", "--every", "2", "--error-mesh", p("reg/" + reg_ids[0] + ".ply"),
+                                       p("db/truth/" + reg_ids[0] + ".ply"), "--error-scale", "30"};
+      for (const char* s : {"height_155", "height_195", "weight_50", "weight_130"})
+        args.insert(args.end(), {"--mesh", p(fmt::format("sweeps/{}.obj", s))});
+      for (int i = 0; i < a->crowd; ++i) args.insert(args.end(), {"--mesh", p(fmt::format("crowd/char_{:03d}/body.obj", i))});
+      args.insert(args.end(), {"--no-check", "--out", p("viewer"), "--force"});
+      stages.push_back({"interactive viewer", args,
                         {"character (MWE rig)", "register scan " + reg_ids[0], "height sweep 155 cm", "height sweep 195 cm",
-                         "weight sweep 50 kg", "weight sweep 130 kg"}});
+                         "weight sweep 50 kg", "weight sweep 130 kg", fmt::format("crowd of {} characters", a->crowd)}});
+    }
     else
       cli::warn("three.js not found at " + cli::default_three_js().string() + ": the report gets no interactive viewer");
     ensure_directory(out / "sweeps");
@@ -369,7 +374,8 @@ BODYMODEL_VERB(add_demo_verb) {
     if (viewer && status["interactive viewer"] == 0)
       b += "<p><b><a href=\"viewer/index.html\">Interactive 3D viewer</a></b> (opens from the file system, no "
            "network): the character playing clip 12_03, skinned in a WebGL vertex shader with its MWE rig or its SSD "
-           "base, the per-vertex distance between them, and the registered scan and sweep ends to orbit.</p>\n";
+           "base, the per-vertex distance between them; to orbit, the registered scan coloured by its distance to the "
+           "true body, the sweeps' ends and the crowd (one by one or side by side).</p>\n";
     b += "<p>Largest edge-length ratio to rest over all frames (the issue's check: at most 3), its largest "
          "99th percentile over edges, the main bone at the worst edge, and flipped triangles (normal against the "
          "rotation of the triangle's main bone), for the MWE rig, its SSD base (MakeHuman's weights smoothed) and "
