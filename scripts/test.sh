@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The test command: installs what is missing, builds (Release, ./build), runs the whole suite.
 # Options: --sanitize   build in ./build-asan with AddressSanitizer + UndefinedBehaviorSanitizer
-#                       (g++, or clang++ with BODYMODEL_SANITIZE_CXX=clang++; -O2, line tables)
+#                       (g++, or clang++ with BODYMODEL_SANITIZE_CXX=clang++; -O1, line tables)
 #                       and run the reader and fast unit tests there (CTest labels "reader" and
 #                       "fast"); any sanitizer report fails its test. .ci/run runs both.
 set -euo pipefail
@@ -23,7 +23,7 @@ if [ "${1:-}" = "--sanitize" ]; then
     rm -rf "$build"
   fi
   config=(-DCMAKE_CXX_COMPILER="$cxx" -DCMAKE_BUILD_TYPE=RelWithDebInfo
-          "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG" -DBODYMODEL_SANITIZE=ON -DBODYMODEL_BENCH=OFF
+          "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG" -DBODYMODEL_SANITIZE=ON -DBODYMODEL_BENCH=OFF
           -DBODYMODEL_PYTHON=OFF)
   # halt_on_error: the first report fails the test (UBSan too: -fno-sanitize-recover).
   # Leak checking is off by default (LeakSanitizer cannot run under ptrace, as in some CI
