@@ -64,6 +64,41 @@ class BufferBuilder {
   tinygltf::Model* model_;
 };
 
+// The POSITION (scaled, with the bounds glTF requires) and unit NORMAL attributes of a
+// triangle primitive; a degenerate normal becomes any unit vector.
+void add_positions_and_normals(BufferBuilder& buf, tinygltf::Primitive& prim, const Eigen::MatrixX3d& V,
+                               const Eigen::MatrixX3d& N, double scale) {
+  const auto n = static_cast<size_t>(V.rows());
+  std::vector<float> pos(3 * n), nrm(3 * n);
+  std::vector<double> pmin(3, 1e300), pmax(3, -1e300);
+  for (size_t i = 0; i < n; ++i) {
+    Eigen::Vector3d nn = N.row(static_cast<Eigen::Index>(i)).transpose();
+    const double len = nn.norm();
+    nn = len > 1e-12 ? Eigen::Vector3d(nn / len) : Eigen::Vector3d(0, 1, 0);
+    for (int d = 0; d < 3; ++d) {
+      const float p = static_cast<float>(V(static_cast<Eigen::Index>(i), d) * scale);
+      pos[3 * i + d] = p;
+      pmin[d] = std::min(pmin[d], double(p));
+      pmax[d] = std::max(pmax[d], double(p));
+      nrm[3 * i + d] = static_cast<float>(nn(d));
+    }
+  }
+  prim.mode = TINYGLTF_MODE_TRIANGLES;
+  prim.attributes["POSITION"] = buf.accessor(pos.data(), pos.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                             TINYGLTF_TYPE_VEC3, n, TINYGLTF_TARGET_ARRAY_BUFFER, pmin, pmax);
+  prim.attributes["NORMAL"] = buf.accessor(nrm.data(), nrm.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                           TINYGLTF_TYPE_VEC3, n, TINYGLTF_TARGET_ARRAY_BUFFER);
+}
+
+// The triangles as one uint32 index accessor.
+void add_indices(BufferBuilder& buf, tinygltf::Primitive& prim, const Eigen::MatrixX3i& F) {
+  std::vector<uint32_t> idx(3 * static_cast<size_t>(F.rows()));
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) idx[3 * static_cast<size_t>(f) + k] = static_cast<uint32_t>(F(f, k));
+  prim.indices = buf.accessor(idx.data(), idx.size() * 4, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR,
+                              idx.size(), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+}
+
 // glTF quaternion [x y z w] of a rotation matrix, sign chosen so it is closest to `previous`.
 Eigen::Vector4d quaternion_xyzw(const Eigen::Matrix3d& R, const Eigen::Vector4d* previous) {
   Eigen::Quaterniond q(R);
@@ -164,24 +199,9 @@ std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i
   model.asset.generator = options.generator;
   BufferBuilder buf(&model);
 
-  // ---- mesh attributes ----
-  std::vector<float> pos(3 * static_cast<size_t>(n)), nrm(3 * static_cast<size_t>(n));
-  std::vector<double> pmin(3, 1e300), pmax(3, -1e300);
-  for (int i = 0; i < n; ++i) {
-    Eigen::Vector3d nn = N.row(i).transpose();
-    const double len = nn.norm();
-    nn = len > 1e-12 ? Eigen::Vector3d(nn / len) : Eigen::Vector3d(0, 1, 0);   // degenerate: any unit vector
-    for (int d = 0; d < 3; ++d) {
-      const float p = static_cast<float>(V(i, d) * s);
-      pos[3 * static_cast<size_t>(i) + d] = p;
-      pmin[d] = std::min(pmin[d], double(p));
-      pmax[d] = std::max(pmax[d], double(p));
-      nrm[3 * static_cast<size_t>(i) + d] = static_cast<float>(nn(d));
-    }
-  }
-  std::vector<uint32_t> idx(3 * static_cast<size_t>(F.rows()));
-  for (int f = 0; f < F.rows(); ++f)
-    for (int k = 0; k < 3; ++k) idx[3 * static_cast<size_t>(f) + k] = static_cast<uint32_t>(F(f, k));
+  // ---- mesh attributes (the buffer holds positions, normals, joints, weights, indices) ----
+  tinygltf::Primitive prim;
+  add_positions_and_normals(buf, prim, V, N, s);
 
   // ---- weights: top 4, renormalised ----
   const SkinWeights W4 = gltf_top4_weights(W);
@@ -216,12 +236,6 @@ std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i
     }
   }
 
-  tinygltf::Primitive prim;
-  prim.mode = TINYGLTF_MODE_TRIANGLES;
-  prim.attributes["POSITION"] = buf.accessor(pos.data(), pos.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT,
-                                             TINYGLTF_TYPE_VEC3, n, TINYGLTF_TARGET_ARRAY_BUFFER, pmin, pmax);
-  prim.attributes["NORMAL"] = buf.accessor(nrm.data(), nrm.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT,
-                                           TINYGLTF_TYPE_VEC3, n, TINYGLTF_TARGET_ARRAY_BUFFER);
   if (short_joints)
     prim.attributes["JOINTS_0"] = buf.accessor(j16.data(), j16.size() * 2, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
                                                TINYGLTF_TYPE_VEC4, n, TINYGLTF_TARGET_ARRAY_BUFFER);
@@ -230,8 +244,7 @@ std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i
                                                TINYGLTF_TYPE_VEC4, n, TINYGLTF_TARGET_ARRAY_BUFFER);
   prim.attributes["WEIGHTS_0"] = buf.accessor(w4.data(), w4.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT,
                                               TINYGLTF_TYPE_VEC4, n, TINYGLTF_TARGET_ARRAY_BUFFER);
-  prim.indices = buf.accessor(idx.data(), idx.size() * 4, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR,
-                              idx.size(), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+  add_indices(buf, prim, F);
   tinygltf::Mesh mesh;
   mesh.name = options.mesh_name;
   mesh.primitives.push_back(prim);
@@ -391,31 +404,9 @@ std::string static_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i&
   model.asset.version = "2.0";
   model.asset.generator = options.generator;
   BufferBuilder buf(&model);
-  std::vector<float> pos(3 * static_cast<size_t>(n)), nrm(3 * static_cast<size_t>(n));
-  std::vector<double> pmin(3, 1e300), pmax(3, -1e300);
-  for (int i = 0; i < n; ++i) {
-    Eigen::Vector3d nn = N.row(i).transpose();
-    const double len = nn.norm();
-    nn = len > 1e-12 ? Eigen::Vector3d(nn / len) : Eigen::Vector3d(0, 1, 0);  // degenerate: any unit vector
-    for (int d = 0; d < 3; ++d) {
-      const float p = static_cast<float>(V(i, d) * options.unit_scale);
-      pos[3 * static_cast<size_t>(i) + d] = p;
-      pmin[d] = std::min(pmin[d], double(p));
-      pmax[d] = std::max(pmax[d], double(p));
-      nrm[3 * static_cast<size_t>(i) + d] = static_cast<float>(nn(d));
-    }
-  }
-  std::vector<uint32_t> idx(3 * static_cast<size_t>(F.rows()));
-  for (int f = 0; f < F.rows(); ++f)
-    for (int k = 0; k < 3; ++k) idx[3 * static_cast<size_t>(f) + k] = static_cast<uint32_t>(F(f, k));
   tinygltf::Primitive prim;
-  prim.mode = TINYGLTF_MODE_TRIANGLES;
-  prim.attributes["POSITION"] = buf.accessor(pos.data(), pos.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3,
-                                             static_cast<size_t>(n), TINYGLTF_TARGET_ARRAY_BUFFER, pmin, pmax);
-  prim.attributes["NORMAL"] = buf.accessor(nrm.data(), nrm.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3,
-                                           static_cast<size_t>(n), TINYGLTF_TARGET_ARRAY_BUFFER);
-  prim.indices = buf.accessor(idx.data(), idx.size() * 4, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR,
-                              idx.size(), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+  add_positions_and_normals(buf, prim, V, N, options.unit_scale);
+  add_indices(buf, prim, F);
   tinygltf::Mesh mesh;
   mesh.name = options.mesh_name;
   mesh.primitives.push_back(prim);
