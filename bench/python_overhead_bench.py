@@ -4,8 +4,15 @@
     PYTHONPATH=build/python python3 bench/python_overhead_bench.py [--rig char/rig.npz] [--model model.npz]
 
 deform: Rig.deform(M) called from Python (numpy in, numpy out) against Rig.time_native(M), the
-same evaluate_rig looped in C++ (no conversions), rounds interleaved so load hits both alike.
-Without --rig, an MWE rig is fitted to a MakeHuman body posed by 8 bones (13 380 vertices).
+same evaluate_rig called in C++ (no conversions), frames alternated so load hits both alike.
+Without --rig, an MWE rig is fitted to a MakeHuman body posed by 8 bones (13 380 vertices). The
+demo character's rig (MWE, MakeHuman's 163 bones) is the one `bodymodel demo` writes to
+OUT/character/rig.npz; its stages alone:
+
+    bodymodel synth-db --subjects 24 --poses-per-subject 2 --seed 1 --out db
+    bodymodel build db/truth --db db --out model.npz
+    bodymodel character model.npz --where sex=male --where height_cm=185 --seed 3 --out character
+    PYTHONPATH=build/python python3 bench/python_overhead_bench.py --rig character/rig.npz --model model.npz
 morph: wall time of Model.morph from Python against the C++ morph's own clock (MorphSummary
 seconds, measured inside ShapeMorpher::morph_encoding, so the ratio is the cost of the arguments,
 the GIL and the returned arrays); needs --model.
@@ -59,16 +66,19 @@ def main():
         M = np.array([np.hstack([rot(rng.normal(size=3), 0.2), rng.normal(size=(3, 1))]) for _ in range(rig.bone_count)])
     else:
         rig, M = makehuman_mwe_rig()
+    # One frame each in turn: evaluate_rig runs on TBB, so on a shared machine a frame takes one or
+    # two cores' time depending on the other processes; alternating frame by frame exposes both
+    # sides to the same load. The minimum is the frame least disturbed by them.
     py, cc = [], []
-    for _ in range(a.rounds):
+    for _ in range(a.rounds * 10):
         t0 = time.perf_counter()
-        for _ in range(10):
-            rig.deform(M)
-        py.append((time.perf_counter() - t0) / 10)
-        cc.append(rig.time_native(M, 10))
+        rig.deform(M)
+        py.append(time.perf_counter() - t0)
+        cc.append(rig.time_native(M, 1))
     py_ms, cc_ms = 1e3 * np.median(py), 1e3 * np.median(cc)
-    print(f"deform ({rig.method}, {len(rig.rest)} vertices, {rig.bone_count} bones): python {py_ms:.3f} ms, "
-          f"C++ {cc_ms:.3f} ms per frame, ratio {py_ms / cc_ms:.3f}")
+    print(f"deform ({rig.method}, {len(rig.rest)} vertices, {rig.bone_count} bones, {len(py)} frames each): "
+          f"median python {py_ms:.3f} ms, C++ {cc_ms:.3f} ms per frame, ratio {py_ms / cc_ms:.3f}; "
+          f"minimum {1e3 * min(py):.3f} / {1e3 * min(cc):.3f} ms, ratio {min(py) / min(cc):.3f}")
     if a.model:
         model = bodymodel.Model.load(a.model)
         V0, _ = model.morph(None, height_cm="keep")

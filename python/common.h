@@ -46,5 +46,6 @@ ProgressCallback progress_callback(const pyb::object& cb);
 void bind_model(pyb::module_& m);
 void bind_skinning(pyb::module_& m);
 void bind_regression(pyb::module_& m);
+void bind_registration(pyb::module_& m);
 
 }  // namespace bodymodel::py

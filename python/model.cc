@@ -6,6 +6,8 @@
 
 #include "core/error.h"
 #include "model/body_model.h"
+#include "model/fit.h"
+#include "model/fit_labels.h"
 #include "model/generate_crowd.h"
 #include "model/model_file.h"
 #include "model/morph.h"
@@ -127,6 +129,74 @@ class PyModel {
                                    "the closest body)", missed, V.is_none() ? "the mean body" : "V", sum.iterations));
     }
     return pyb::make_tuple(to_array(Eigen::MatrixXd(out)), summary_dict(sum));
+  }
+
+  // As `bodymodel fit` (tools/verbs/model_fit.cc) on a mesh whose vertices are V: the same checks
+  // and messages (with "V" for the file name), the same fitter and options, the same labels.
+  pyb::tuple fit(const pyb::handle& V, int components, bool pose, int iterations, double prior, double scale,
+                 const std::string& sex, const pyb::object& progress) const {
+    if (components == 0 || components < -1)
+      throw InputError(fmt::format("--components must be ≥ 1 or -1, got {}", components));
+    if (scale < 0 || !std::isfinite(scale)) throw InputError("--scale must be positive (or 0: the model's)");
+    if (iterations < 0) throw InputError("--iterations must be ≥ 0");
+    if (sex != "female" && sex != "male" && sex != "unknown")
+      throw InputError("sex: expected 'female', 'male' or 'unknown', got '" + sex + "'");
+    const BodyModel& bm = *model_;
+    const bool full = pose || bm.metadata.value("shape_model", "") == "full";
+    const SubModel& sub = full ? bm.full : bm.shape;
+    if (components > sub.component_count())
+      throw InputError(fmt::format("--components {}: the {} model has {} components", components,
+                                   full ? "full" : "shape", sub.component_count()));
+    if (scale == 0) {
+      scale = 1;
+      if (bm.metadata.contains("source") && bm.metadata["source"].contains("mm_per_unit"))
+        scale = bm.metadata["source"]["mm_per_unit"].get<double>();
+    }
+    const Eigen::MatrixX3d Y = vertices(V, "V") * scale;
+    const Eigen::MatrixX3i F = bm.tmpl->faces();
+    bm.check_topology(Y, F, "V");
+    ModelFitOptions o;
+    o.components = components;
+    o.max_iterations = iterations;
+    o.prior_weight = prior;
+    ProgressCallback cb = progress_callback(progress);
+    ModelFit r;
+    std::vector<FitLabel> labels;
+    {
+      pyb::gil_scoped_release nogil;
+      // A fitter per call: its set-up is small next to the fit, and calls may run concurrently.
+      ModelFitter fitter(bm.tmpl, bm.mean, sub.pca);
+      r = fitter.fit(Y, o, cb);
+      labels = fit_labels(bm, sub, r.coefficients, Y, r.V, F,
+                          sex == "female" ? Sex::female : sex == "male" ? Sex::male : Sex::unknown);
+    }
+    const ModelFitSummary& s = r.summary;
+    pyb::dict d;
+    d["sub_model"] = full ? "full" : "shape";
+    d["components"] = s.components;
+    d["coefficients"] = to_array(r.coefficients);
+    d["input_mm_per_unit"] = scale;
+    d["vertex_error_mm"] = pyb::dict("mean"_a = s.mean_mm, "rms"_a = s.rms_mm, "p95"_a = s.p95_mm, "max"_a = s.max_mm);
+    d["vertex_error"] = to_array(r.vertex_error);
+    d["start_mean_vertex_error_mm"] = s.start_mean_mm;
+    d["iterations"] = s.iterations;
+    d["jacobians"] = s.jacobians;
+    d["decodes"] = s.evaluations;
+    d["converged"] = s.converged;
+    d["history_mean_vertex_error_mm"] = s.history_mean_mm;
+    d["seconds"] = s.seconds;
+    pyb::dict lab;
+    for (const FitLabel& l : labels) {
+      pyb::dict j;
+      j["unit"] = l.unit;
+      if (l.predicted) j["predicted"] = *l.predicted;
+      if (l.measured_input) j["measured_input"] = *l.measured_input;
+      if (l.measured_fitted) j["measured_fitted"] = *l.measured_fitted;
+      lab[pyb::str(l.name)] = j;
+    }
+    d["labels"] = lab;
+    d["report"] = s.report();
+    return pyb::make_tuple(to_array(Eigen::MatrixXd(r.V)), d);
   }
 
   pyb::list generate(int n, uint64_t seed, const pyb::handle& where, double spread, bool measure_girths,
@@ -252,6 +322,19 @@ mask: (m,) per-triangle weights in [0, 1] restricting the change. Returns the mo
 (n, 3), rigidly placed onto V, and a summary dict (iterations, converged, decodes, labels: per
 label target/start/achieved/satisfied, report: the CLI's table). A target the model cannot meet
 raises InputError, as the CLI fails, unless closest=True (the CLI's --closest).)")
+      .def("fit", &PyModel::fit, "V"_a, pyb::kw_only(), "components"_a = -1, "pose"_a = false, "iterations"_a = 20,
+           "prior"_a = 0.0, "scale"_a = 0.0, "sex"_a = "unknown", "progress"_a = pyb::none(),
+           R"(fit(V, *, components=-1, pose=False, iterations=20, prior=0.0, scale=0.0, sex='unknown', progress=None) -> (V', summary)
+
+Fits the model to a body V ((n, 3), the model's vertex order, e.g. a registered scan), as
+`bodymodel fit`: the first `components` coefficients (-1: all) and a rigid placement minimising
+the vertex error of the decoded body, by Levenberg-Marquardt through the decoder (docs/model.md).
+pose=True fits the full (pose and shape) model instead of the shape model. scale: millimetres
+per unit of V (0: the unit the model was built from). prior: weight (mm²) of a Gaussian prior on
+the coefficients. Returns the fitted vertices (n, 3), mm, placed on V, and a summary dict with
+the keys of the CLI's JSON: coefficients (K,), vertex_error_mm {mean, rms, p95, max},
+vertex_error (n,) mm, iterations, converged, labels {name: {unit, predicted, measured_input,
+measured_fitted}}, ... Runs with the GIL released; progress(fraction, what) per iteration.)")
       .def("generate", &PyModel::generate, "n"_a, "seed"_a = 1, pyb::kw_only(), "where"_a = pyb::none(),
            "spread"_a = 1.0, "measure_girths"_a = true, "progress"_a = pyb::none(),
            R"(generate(n, seed=1, *, where=None, spread=1.0, measure_girths=True, progress=None) -> list

@@ -456,4 +456,5 @@ One-off decode (builds a Decoder each call: for many decodes keep a Decoder).)")
   bind_model(m);
   bind_skinning(m);
   bind_regression(m);
+  bind_registration(m);
 }

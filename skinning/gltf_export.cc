@@ -374,6 +374,70 @@ std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i
   return bytes;
 }
 
+std::string static_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const Eigen::MatrixX3d& N_in,
+                              const GltfExportOptions& options) {
+  const int n = static_cast<int>(V.rows());
+  if (n == 0 || F.rows() == 0) throw InputError("glTF export: the mesh is empty (" + std::to_string(n) + " vertices, " +
+                                                std::to_string(F.rows()) + " triangles)");
+  if (!(options.unit_scale > 0) || !std::isfinite(options.unit_scale))
+    throw InputError("glTF export: unit_scale must be positive, found " + std::to_string(options.unit_scale));
+  check_finite(V, "the vertices");
+  if (F.minCoeff() < 0 || F.maxCoeff() >= n)
+    throw InputError("glTF export: face indices must be in [0, " + std::to_string(n) + "), found " +
+                     std::to_string(F.minCoeff()) + ".." + std::to_string(F.maxCoeff()));
+  Eigen::MatrixX3d N = N_in.size() == 0 ? vertex_normals(V, F) : N_in;
+  if (N.rows() != n)
+    throw InputError("glTF export: " + std::to_string(N.rows()) + " normals for " + std::to_string(n) + " vertices");
+  check_finite(N, "the normals");
+
+  tinygltf::Model model;
+  model.asset.version = "2.0";
+  model.asset.generator = options.generator;
+  BufferBuilder buf(&model);
+  std::vector<float> pos(3 * static_cast<size_t>(n)), nrm(3 * static_cast<size_t>(n));
+  std::vector<double> pmin(3, 1e300), pmax(3, -1e300);
+  for (int i = 0; i < n; ++i) {
+    Eigen::Vector3d nn = N.row(i).transpose();
+    const double len = nn.norm();
+    nn = len > 1e-12 ? Eigen::Vector3d(nn / len) : Eigen::Vector3d(0, 1, 0);  // degenerate: any unit vector
+    for (int d = 0; d < 3; ++d) {
+      const float p = static_cast<float>(V(i, d) * options.unit_scale);
+      pos[3 * static_cast<size_t>(i) + d] = p;
+      pmin[d] = std::min(pmin[d], double(p));
+      pmax[d] = std::max(pmax[d], double(p));
+      nrm[3 * static_cast<size_t>(i) + d] = static_cast<float>(nn(d));
+    }
+  }
+  std::vector<uint32_t> idx(3 * static_cast<size_t>(F.rows()));
+  for (int f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) idx[3 * static_cast<size_t>(f) + k] = static_cast<uint32_t>(F(f, k));
+  tinygltf::Primitive prim;
+  prim.mode = TINYGLTF_MODE_TRIANGLES;
+  prim.attributes["POSITION"] = buf.accessor(pos.data(), pos.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3,
+                                             static_cast<size_t>(n), TINYGLTF_TARGET_ARRAY_BUFFER, pmin, pmax);
+  prim.attributes["NORMAL"] = buf.accessor(nrm.data(), nrm.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3,
+                                           static_cast<size_t>(n), TINYGLTF_TARGET_ARRAY_BUFFER);
+  prim.indices = buf.accessor(idx.data(), idx.size() * 4, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR,
+                              idx.size(), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+  tinygltf::Mesh mesh;
+  mesh.name = options.mesh_name;
+  mesh.primitives.push_back(prim);
+  model.meshes.push_back(mesh);
+  tinygltf::Node node;
+  node.name = options.mesh_name;
+  node.mesh = 0;
+  model.nodes.push_back(node);
+  tinygltf::Scene scene;
+  scene.nodes.push_back(0);
+  model.scenes.push_back(scene);
+  model.defaultScene = 0;
+  std::ostringstream out;
+  tinygltf::TinyGLTF writer;
+  if (!writer.WriteGltfSceneToStream(&model, out, false, true))
+    throw NumericalError("glTF export: tinygltf could not serialise the mesh");
+  return out.str();
+}
+
 GltfExportSummary write_skinned_gltf(const std::filesystem::path& path, const Eigen::MatrixX3d& V,
                                      const Eigen::MatrixX3i& F, const Eigen::MatrixX3d& N, const Skeleton& skeleton,
                                      const SkinWeights& W, const GltfAnimation* animation,

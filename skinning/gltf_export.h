@@ -73,6 +73,13 @@ GltfExportSummary write_skinned_gltf(const std::filesystem::path& path, const Ei
                                      const GltfAnimation* animation = nullptr,
                                      const GltfExportOptions& options = {});
 
+// A plain (unskinned) mesh as .glb bytes: positions (scaled by options.unit_scale, float32),
+// unit normals (N, or area-weighted vertex normals when empty), uint32 triangle indices, one
+// node. Throws InputError as skinned_gltf_bytes does for the mesh.
+std::string static_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
+                              const Eigen::MatrixX3d& N = Eigen::MatrixX3d(),
+                              const GltfExportOptions& options = {});
+
 // The 4-influence weights the exporter stores (#V by #B, float32 values widened to double):
 // for tests and for comparing against the exported file.
 SkinWeights gltf_top4_weights(const SkinWeights& W);

@@ -1,7 +1,7 @@
 """Shared fixtures of the Python binding tests: the CLI they are compared with and small inputs.
 
 Run through CTest (tests/CMakeLists.txt sets PYTHONPATH to the build's python folder and
-BODYMODEL_EXE to the tool). Tests marked `slow` (a model built with the CLI) carry the CTest
+BODYMODEL_EXE to the tool). Tests marked `slow` (a model built or a scan registered with the CLI) carry the CTest
 label long; the rest are fast.
 """
 import os
@@ -16,7 +16,7 @@ import bodymodel
 
 
 def pytest_configure(config):
-    config.addinivalue_line("markers", "slow: builds a model with the CLI (CTest label long)")
+    config.addinivalue_line("markers", "slow: builds a model or registers a scan with the CLI (CTest label long)")
 
 
 @pytest.fixture(scope="session")

@@ -84,3 +84,65 @@ def test_example_height_sweep_runs(model_path, tmp_path):
     # Each step measures within the morph's tolerance of its target, the weight held within 0.5 kg.
     assert np.abs(rows[:, 1] - rows[:, 0]).max() <= 0.3
     assert np.ptp(rows[:, 2]) <= 0.5
+
+
+def test_fit_matches_the_cli(model, model_path, tmp_path, cli):
+    # A body the model can express (subject 2's coefficients), moved rigidly and perturbed, so the
+    # fit has a rigid placement and a residual to find.
+    V0 = model.decode(model.shape_mean + model.components @ model.coefficients[2])
+    c, s = np.cos(0.2), np.sin(0.2)
+    R = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    rng = np.random.default_rng(4)
+    Y = V0 @ R.T + [30.0, -10.0, 5.0] + rng.normal(scale=0.5, size=V0.shape)
+    body = tmp_path / "body.ply"
+    bodymodel.write_mesh(str(body), Y, model.faces)
+    Yb, _ = bodymodel.read_mesh(str(body))
+    cli(f"fit {model_path} --in {body} --components 3 --out {tmp_path / 'cli.ply'}")
+    seen = []
+    V, s = model.fit(Yb, components=3, progress=lambda f, w: seen.append(f))
+    bodymodel.write_mesh(str(tmp_path / "py.ply"), V, model.faces)
+    assert (tmp_path / "py.ply").read_bytes() == (tmp_path / "cli.ply").read_bytes()
+    j = json.loads((tmp_path / "cli.json").read_text())
+    assert s["components"] == j["components"] == 3 and s["sub_model"] == j["sub_model"] == "shape"
+    np.testing.assert_allclose(s["coefficients"], j["coefficients"], rtol=1e-9, atol=1e-9)
+    for k in ("mean", "rms", "p95", "max"):
+        assert s["vertex_error_mm"][k] == pytest.approx(j["vertex_error_mm"][k], rel=1e-9, abs=1e-9)
+    assert s["iterations"] == j["iterations"] and s["converged"] == j["converged"]
+    assert set(s["labels"]) == set(j["labels"])
+    for name, lab in j["labels"].items():
+        for k, v in lab.items():
+            if k != "unit":
+                assert s["labels"][name][k] == pytest.approx(v, rel=1e-9, abs=1e-9), (name, k)
+    # The fit recovers the body: its per-vertex error is about the 0.5 mm noise, far below the
+    # 30 mm offset and 0.2 rad rotation it had to undo.
+    assert s["vertex_error"].shape == (len(V),) and np.mean(np.linalg.norm(V - Yb, axis=1)) == \
+        pytest.approx(s["vertex_error_mm"]["mean"], rel=1e-6)
+    assert s["vertex_error_mm"]["mean"] < 2.0
+    assert seen and max(seen) <= 1.0
+    with pytest.raises(bodymodel.Cancelled):
+        model.fit(Yb, components=3, progress=lambda f, w: False)
+
+
+def test_fit_bad_input_raises_as_the_cli(model, model_path, tmp_path, cli):
+    V0 = model.decode(model.shape_mean)
+    # Too few vertices: the CLI's message about the model's template, with V for the file name.
+    small = tmp_path / "small.ply"
+    F = model.faces[np.all(model.faces < 100, axis=1)]
+    bodymodel.write_mesh(str(small), V0[:100], F)
+    msg = cli_error_line(cli(f"fit {model_path} --in {small} --out {tmp_path / 'x.ply'}", check=False))
+    with pytest.raises(bodymodel.InputError) as e:
+        model.fit(V0[:100])
+    assert str(e.value).startswith("V: 100 vertices")
+    assert str(e.value).split(" but ")[1] == msg.split(" but ")[1]
+    bad = V0.copy()
+    bad[7, 1] = np.nan
+    with pytest.raises(bodymodel.InputError, match="V: NaN at row 7"):
+        model.fit(bad)
+    with pytest.raises(bodymodel.InputError, match="expected an \\(n, 3\\) array"):
+        model.fit(V0[:, :2])
+    with pytest.raises(bodymodel.InputError) as e:
+        model.fit(V0, components=0)
+    assert str(e.value) == cli_error_line(
+        cli(f"fit {model_path} --in {tmp_path / 'small.ply'} --components 0 --out {tmp_path / 'x.ply'}", check=False))
+    with pytest.raises(bodymodel.InputError, match="--components 999: the shape model"):
+        model.fit(V0, components=999)

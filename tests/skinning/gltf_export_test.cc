@@ -251,6 +251,36 @@ TEST(GltfExport, BadInputIsRejectedWithAReason) {
 // The Khronos validator (npm gltf-validator) finds no errors in the exported file. Runs when
 // `node` can load the package (NODE_PATH, or BODYMODEL_GLTF_VALIDATOR = its node_modules folder;
 // scripts/test.sh installs it into build/npm and sets the latter); skipped otherwise.
+// The unskinned export (`bodymodel serve`'s glb download): positions in metres, normals and
+// triangles read back as written, no skin.
+TEST(GltfExport, StaticMeshReadsBackInMetresWithoutASkin) {
+  const Character c = make_character();
+  const tinygltf::Model m = load(static_gltf_bytes(c.V, c.F));
+  ASSERT_EQ(m.meshes.size(), 1u);
+  EXPECT_TRUE(m.skins.empty());
+  EXPECT_TRUE(m.animations.empty());
+  const auto& prim = m.meshes[0].primitives.at(0);
+  const auto& pa = m.accessors.at(static_cast<size_t>(prim.attributes.at("POSITION")));
+  ASSERT_EQ(static_cast<Eigen::Index>(pa.count), c.V.rows());
+  const float* P = data_of<float>(m, prim.attributes.at("POSITION"));
+  const float* N = data_of<float>(m, prim.attributes.at("NORMAL"));
+  double worst = 0, worst_unit = 0;
+  for (Eigen::Index v = 0; v < c.V.rows(); ++v) {
+    for (int d = 0; d < 3; ++d) worst = std::max(worst, std::abs(1000.0 * P[3 * v + d] - c.V(v, d)));
+    worst_unit = std::max(worst_unit, std::abs(std::hypot(double(N[3 * v]), double(N[3 * v + 1]), double(N[3 * v + 2])) - 1));
+  }
+  EXPECT_LT(worst, 1e-3);  // mm: float32 metres of values up to 530 mm
+  EXPECT_LT(worst_unit, 1e-6);
+  ASSERT_EQ(static_cast<Eigen::Index>(m.accessors.at(static_cast<size_t>(prim.indices)).count), 3 * c.F.rows());
+  const uint32_t* I = data_of<uint32_t>(m, prim.indices);
+  for (Eigen::Index f = 0; f < c.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) ASSERT_EQ(I[3 * f + k], static_cast<uint32_t>(c.F(f, k)));
+  EXPECT_THROW(static_gltf_bytes(Eigen::MatrixX3d(), c.F), InputError);
+  Eigen::MatrixX3i bad = c.F;
+  bad(0, 0) = static_cast<int>(c.V.rows());
+  EXPECT_THROW(static_gltf_bytes(c.V, bad), InputError);
+}
+
 TEST(GltfExport, KhronosValidatorReportsNoErrors) {
   const char* modules = std::getenv("BODYMODEL_GLTF_VALIDATOR");
   const char* node_path = std::getenv("NODE_PATH");

@@ -14,6 +14,8 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
+#include <cstring>
 #include <fstream>
 #include <random>
 #include <thread>
@@ -24,6 +26,10 @@
 #include "model/body_model.h"
 #include "model/model_file.h"
 #include "support/fixtures.h"
+#define TINYGLTF_NO_STB_IMAGE
+#define TINYGLTF_NO_STB_IMAGE_WRITE
+#define TINYGLTF_NO_EXTERNAL_IMAGE
+#include <tiny_gltf.h>  // declarations only: the implementation is in skinning/gltf_export.cc
 // Last: it pulls in <resolv.h>, whose _res macro breaks Eigen headers parsed after it.
 #include <httplib.h>
 
@@ -57,8 +63,11 @@ BodyModel shape_model(const MakeHuman& mh) {
   return build_body_model(in);
 }
 
-// One HTTP/1.1 POST over a plain socket (Connection: close); the status, or -1 when the
-// connection failed or closed before a status line (as for a refused oversized body).
+// One HTTP/1.1 POST over a plain socket (Connection: close); the status, -1 when the
+// connection closed before a status line (as for a refused oversized body), -2 when it could
+// not be made. The timeouts are long: with cpp-httplib's listen backlog of 5, a flood on a
+// loaded machine has connections wait for SYN retries (1, 3, 7, 15 s ...), which is slow but
+// not a failure of the server.
 int raw_post(int port, const std::string& body) {
   const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
   if (fd < 0) return -1;
@@ -66,13 +75,14 @@ int raw_post(int port, const std::string& body) {
   addr.sin_family = AF_INET;
   addr.sin_port = htons(static_cast<uint16_t>(port));
   addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  timeval tv{20, 0};
+  timeval tv{60, 0};
   ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
   ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
   std::string req = "POST /api/body HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nConnection: close\r\n"
                     "Content-Length: " + std::to_string(body.size()) + "\r\n\r\n" + body;
-  int status = -1;
+  int status = -2;
   if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0) {
+    status = -1;
     for (size_t sent = 0; sent < req.size();) {
       const ssize_t n = ::send(fd, req.data() + sent, req.size() - sent, MSG_NOSIGNAL);
       if (n <= 0) break;
@@ -85,6 +95,27 @@ int raw_post(int port, const std::string& body) {
   }
   ::close(fd);
   return status;
+}
+
+// The float32 positions of an answer (base64 in "positions").
+std::vector<float> positions_of(const json& body) {
+  static const std::string digits = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string bytes;
+  unsigned acc = 0;
+  int bits = 0;
+  for (char ch : body["positions"].get<std::string>()) {
+    const size_t d = digits.find(ch);
+    if (d == std::string::npos) continue;  // '=' padding
+    acc = (acc << 6) | static_cast<unsigned>(d);
+    bits += 6;
+    if (bits >= 8) {
+      bits -= 8;
+      bytes.push_back(static_cast<char>((acc >> bits) & 0xff));
+    }
+  }
+  std::vector<float> p(bytes.size() / 4);
+  std::memcpy(p.data(), bytes.data(), p.size() * 4);
+  return p;
 }
 
 long rss_kb(pid_t pid) {
@@ -151,6 +182,14 @@ TEST(ServeApi, MorphsAndRefusesBadRequestsWithTheCliMessage) {
   const double h_mean = json::parse(mean_body->body)["measured"]["height_cm"].get<double>();
   const double h_quick = json::parse(q->body)["measured"]["height_cm"].get<double>();
   EXPECT_LT(std::abs(h_quick - 172), std::abs(h_mean - 172) + 1e-9) << "mean " << h_mean << ", quick " << h_quick;
+  // API answers are never compressed, whatever the client accepts (brotli took 1.2 s per body).
+  {
+    auto c = cli.Post("/api/body", httplib::Headers{{"Accept-Encoding", "gzip, deflate, br"}},
+                      R"({"quick": true})", "application/json");
+    ASSERT_TRUE(c);
+    EXPECT_EQ(c->status, 200);
+    EXPECT_FALSE(c->has_header("Content-Encoding")) << c->get_header_value("Content-Encoding");
+  }
   auto g1 = cli.Post("/api/body", R"({"seed": 3})", "application/json");
   auto g2 = cli.Post("/api/body", R"({"seed": 3})", "application/json");
   auto g3 = cli.Post("/api/body", R"({"seed": 4})", "application/json");
@@ -158,6 +197,73 @@ TEST(ServeApi, MorphsAndRefusesBadRequestsWithTheCliMessage) {
   ASSERT_EQ(g1->status, 200) << g1->body;
   EXPECT_EQ(json::parse(g1->body)["positions"], json::parse(g2->body)["positions"]) << "same seed, same body";
   EXPECT_NE(json::parse(g1->body)["positions"], json::parse(g3->body)["positions"]);
+
+  // The drag preview: once built (2 decodes per component, in the background), quick requests
+  // are drawn from it; it stays close to the exact one-decode body (largest vertex distance
+  // under 2 % of the body's height; bench/serve_roundtrip.py measures it on the demo model).
+  bool preview = false;
+  for (int i = 0; i < 600 && !preview; ++i) {
+    auto p = cli.Post("/api/body", R"({"quick": true})", "application/json");
+    ASSERT_TRUE(p);
+    preview = json::parse(p->body).value("preview", false);
+    if (!preview) std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  ASSERT_TRUE(preview) << "the preview was not built in 120 s";
+  for (const char* labels : {R"({"height_cm": 160})", R"({"height_cm": 185})", R"({"weight_kg": 55})", R"({"weight_kg": 95})"}) {
+    auto pv = cli.Post("/api/body", std::string(R"({"quick": true, "labels": )") + labels + "}", "application/json");
+    auto ex = cli.Post("/api/body", std::string(R"({"quick": true, "preview": false, "labels": )") + labels + "}",
+                       "application/json");
+    ASSERT_TRUE(pv && ex);
+    ASSERT_EQ(pv->status, 200) << pv->body;
+    ASSERT_EQ(ex->status, 200) << ex->body;
+    const json jp = json::parse(pv->body), je = json::parse(ex->body);
+    EXPECT_TRUE(jp["preview"].get<bool>());
+    EXPECT_FALSE(je["preview"].get<bool>());
+    const auto P = positions_of(jp), E = positions_of(je);
+    ASSERT_EQ(P.size(), E.size());
+    double worst = 0, lo = 1e300, hi = -1e300;
+    for (size_t i = 0; i + 2 < P.size(); i += 3) {
+      worst = std::max(worst, std::hypot(double(P[i] - E[i]), double(P[i + 1] - E[i + 1]), double(P[i + 2] - E[i + 2])));
+      lo = std::min(lo, double(E[i + 1]));
+      hi = std::max(hi, double(E[i + 1]));
+    }
+    std::printf("preview %s: largest vertex distance to the exact decode %.2f mm (%.2f %% of the height)\n", labels, worst,
+                100 * worst / (hi - lo));
+    EXPECT_GT(worst, 0) << "the preview is an approximation, not the decode";
+    EXPECT_LT(worst, 0.02 * (hi - lo)) << labels;
+  }
+  // glb download: a glTF 2.0 binary whose positions (metres) are the morph's (mm) to float precision.
+  {
+    const std::string req = R"({"labels": {"weight_kg": 70}})";
+    auto glb = cli.Post("/api/body.glb", req, "application/json");
+    auto ref = cli.Post("/api/body", req, "application/json");
+    ASSERT_TRUE(glb && ref);
+    ASSERT_EQ(glb->status, 200);
+    ASSERT_GE(glb->body.size(), 12u);
+    uint32_t header[3];
+    std::memcpy(header, glb->body.data(), 12);
+    EXPECT_EQ(header[0], 0x46546C67u) << "magic 'glTF'";
+    EXPECT_EQ(header[1], 2u) << "version";
+    EXPECT_EQ(header[2], glb->body.size()) << "length";
+    tinygltf::Model g;
+    tinygltf::TinyGLTF loader;
+    std::string err, warn;
+    ASSERT_TRUE(loader.LoadBinaryFromMemory(&g, &err, &warn, reinterpret_cast<const unsigned char*>(glb->body.data()),
+                                            static_cast<unsigned>(glb->body.size()))) << err;
+    ASSERT_EQ(g.meshes.size(), 1u);
+    const tinygltf::Primitive& prim = g.meshes[0].primitives.at(0);
+    const tinygltf::Accessor& acc = g.accessors.at(static_cast<size_t>(prim.attributes.at("POSITION")));
+    EXPECT_EQ(static_cast<long>(acc.count), m["vertex_count"].get<long>());
+    EXPECT_EQ(static_cast<long>(g.accessors.at(static_cast<size_t>(prim.indices)).count), 3 * mh.body_faces().rows());
+    const tinygltf::BufferView& view = g.bufferViews.at(static_cast<size_t>(acc.bufferView));
+    const auto* gp = reinterpret_cast<const float*>(g.buffers.at(0).data.data() + view.byteOffset + acc.byteOffset);
+    const auto R = positions_of(json::parse(ref->body));
+    ASSERT_EQ(R.size(), 3 * acc.count);
+    double worst = 0;
+    for (size_t i = 0; i < R.size(); ++i) worst = std::max(worst, std::abs(1000.0 * gp[i] - R[i]));
+    EXPECT_LT(worst, 1e-3) << "mm (float32 of metres: ~1e-4 mm)";
+  }
+
   auto obj = cli.Post("/api/body.obj", R"({"labels": {"weight_kg": 70}})", "application/json");
   ASSERT_TRUE(obj);
   EXPECT_EQ(obj->status, 200);
@@ -177,6 +283,7 @@ TEST(ServeApi, MorphsAndRefusesBadRequestsWithTheCliMessage) {
   bad(R"({"labels": {"shoe_size": 40}})", "shoe_size");
   bad(R"({"seed": -1})", "'seed' must be a non-negative integer");
   bad(R"([1, 2])", "JSON object");
+  bad(R"({"quick": "yes"})", "'quick' must be true or false");
   auto big = cli.Post("/api/body", std::string(100000, ' '), "application/json");
   ASSERT_TRUE(big);
   EXPECT_EQ(big->status, 413);
@@ -197,7 +304,7 @@ TEST(ServeApi, MorphsAndRefusesBadRequestsWithTheCliMessage) {
       }
       const int st = raw_post(port, t % 3 == 1 ? "{not json" : R"({"labels": {"weight_kg": -1e9}})");
       if (st == 400) ++answered_400;
-      else std::printf("flood request %d: status %d\n", t, st);
+      else std::printf("flood request %d: status %d%s\n", t, st, st == -2 ? " (no connection)" : "");
     });
   for (auto& t : flood) t.join();
   const long rss1 = rss_kb(pid);

@@ -147,6 +147,38 @@ async function main() {
                `${worst.toExponential(3)} (${(worst / check.height).toExponential(3)} of the body height; bound 1e-4)`);
     if (!(worst <= tol)) fails.push(`${check.rigs[ri].name}: shader positions differ from C++ by ${worst} > ${tol}`);
   }
+  // 5. Error colours: a mesh given with --error-mesh is drawn with the colour map (blue where it
+  // matches its reference, red where it is ≥ the scale away) and the legend shows; the rig
+  // without its error map is drawn in unsaturated grey.
+  const hues = (buf) => {
+    let n = 0, blue = 0, red = 0, saturated = 0;
+    for (let i = 0; i < buf.length; i += 4) {
+      const r = buf[i], g = buf[i + 1], b2 = buf[i + 2];
+      if (r >= 245 && g >= 245 && b2 >= 245) continue;
+      ++n;
+      const mx = Math.max(r, g, b2), mn = Math.min(r, g, b2);
+      if (mx > 0 && (mx - mn) / mx > 0.3) ++saturated;
+      if (b2 > r + 60 && b2 >= g) ++blue;
+      if (r > g + 60 && r > b2 + 60) ++red;
+    }
+    return { n, blue, red, saturated };
+  };
+  const grey = hues(px);
+  lines.push(`rig without error map: ${grey.saturated} of ${grey.n} body pixels saturated`);
+  if (grey.saturated > 0.01 * grey.n) fails.push('the rig without its error map is drawn in colour');
+  const meshes = await evaluate('viewerApi.meshes()');
+  const ei = meshes.findIndex((x) => x.errors);
+  if (ei < 0) fails.push('no mesh with errors in the viewer data');
+  else {
+    const legend = await evaluate(`viewerApi.show(${ei})`);
+    const shown = await evaluate("getComputedStyle(document.getElementById('legend')).display");
+    const h = hues(Buffer.from(await evaluate('viewerApi.pixels()'), 'base64'));
+    lines.push(`error mesh '${meshes[ei].name}': ${h.n} body pixels, ${(100 * h.blue / h.n).toFixed(1)} % blue, ` +
+               `${(100 * h.red / h.n).toFixed(1)} % red; legend ${shown}`);
+    if (!legend || shown === 'none') fails.push('the legend is not shown with the error mesh');
+    if (h.n < 1000) fails.push('the error mesh is not drawn');
+    if (h.blue < 0.05 * h.n || h.red < 0.05 * h.n) fails.push('the error colours (blue to red) do not both appear');
+  }
   return [fails.length ? 1 : 0, [...lines, ...fails.map((f) => 'FAIL: ' + f)]];
 }
 main().then(([code, lines]) => finish(code, lines), (e) => finish(1, ['FAIL: ' + e.stack]));

@@ -2,7 +2,7 @@
 // body (ssd, as, mwe), opened in headless Chromium (tests/tools/viewer_browser.js). Checks that
 // the body is drawn where the C++ evaluator puts it, that the clip plays, and that the vertex
 // shader's positions (transform feedback) match evaluate_rig to 1e-4 of the body height on 3
-// frames. Skipped, saying why, when chromium or node is missing (scripts/setup.sh installs them).
+// frames, and that a mesh given with --error-mesh is drawn in the colour map with its legend. Skipped, saying why, when chromium or node is missing (scripts/setup.sh installs them).
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -11,6 +11,7 @@
 
 #include "core/data_path.h"
 #include "core/io/atomic_write.h"
+#include "core/io/mesh_io.h"
 #include "core/makehuman.h"
 #include "skinning/rig_io.h"
 #include "skinning/skinning_rig.h"
@@ -54,11 +55,18 @@ TEST(ViewerBrowser, ShaderMatchesTheCppEvaluatorAndDrawsTheBody) {
   save_rig(tmp / "ssd.npz", lbs, body.mesh.F, {}, &body.skeleton);
   save_rig(tmp / "as.npz", as, body.mesh.F, {}, &body.skeleton);
   save_rig(tmp / "mwe.npz", mwe, body.mesh.F, {}, &body.skeleton);
+  // An error mesh: the body sheared forwards by 0 (feet) to 40 mm (head), so its distance to
+  // the body spans the colour map (scale 30 mm): blue at the feet, red at the head.
+  Eigen::MatrixX3d sheared = body.mesh.V;
+  const double y0 = sheared.col(1).minCoeff(), y1 = sheared.col(1).maxCoeff();
+  for (int v = 0; v < sheared.rows(); ++v) sheared(v, 2) += 40 * (sheared(v, 1) - y0) / (y1 - y0);
+  write_mesh(tmp / "body.obj", body.mesh.V, body.mesh.F);
+  write_mesh(tmp / "sheared.obj", sheared, body.mesh.F);
   const fs::path bvh = data_file("makehuman/motion/cmu/12_03.bvh");
   const fs::path out = tmp / "viewer";
   auto r = run_cli("viewer --rig " + (tmp / "ssd.npz").string() + " --rig " + (tmp / "as.npz").string() + " --rig " +
-                   (tmp / "mwe.npz").string() + " --bvh " + bvh.string() + " --frames 24 --every 4 --check-frames 0,11,23 --out " +
-                   out.string());
+                   (tmp / "mwe.npz").string() + " --bvh " + bvh.string() + " --frames 24 --every 4 --check-frames 0,11,23 --error-mesh " +
+                   (tmp / "sheared.obj").string() + " " + (tmp / "body.obj").string() + " --out " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   for (const char* f : {"index.html", "viewer.js", "viewer_data.js", "three.min.js", "check.json"})
     EXPECT_TRUE(fs::exists(out / f)) << f;

@@ -8,7 +8,7 @@
 #include "core/io/mesh_io.h"
 #include "core/measure.h"
 #include "model/fit.h"
-#include "model/morph.h"
+#include "model/fit_labels.h"
 #include "tools/verb.h"
 #include "tools/verbs/model_common.h"
 
@@ -24,8 +24,6 @@ struct FitArgs {
   double prior = 0;
   std::string sex = "unknown";
 };
-
-double json_number(double v) { return std::isfinite(v) ? v : 0.0; }
 
 }  // namespace
 
@@ -94,36 +92,15 @@ BODYMODEL_VERB(add_model_fit_verb) {
     write_mesh(a->out, fit.V, mesh.F);
 
     // Labels: predicted (regression on all components, the unfitted ones 0) and measured.
-    Eigen::VectorXd c = Eigen::VectorXd::Zero(sub.component_count());
-    c.head(fit.coefficients.size()) = fit.coefficients;
-    const Eigen::VectorXd predicted = sub.regression.predict(c);
-    MeasureOptions mo;
-    const std::string up = model->metadata.contains("source") ? model->metadata["source"].value("up_axis", "y") : "y";
-    mo.up_axis = up == "x" ? 0 : up == "z" ? 2 : 1;
     const Sex sex = a->sex == "female" ? Sex::female : a->sex == "male" ? Sex::male : Sex::unknown;
-    auto measure = [&](const Eigen::MatrixX3d& V) -> std::optional<BodyMeasurements> {
-      try {
-        return measure_body(V, mesh.F, sex, mo);
-      } catch (const InputError&) {
-        return std::nullopt;
-      }
-    };
-    const auto m_in = measure(Y), m_fit = measure(fit.V);
     nlohmann::json labels = nlohmann::json::object();
-    for (int i = 0; i < sub.regression.label_count(); ++i) {
-      const LabelInfo& L = sub.regression.labels[i];
-      nlohmann::json j = {{"unit", L.unit}, {"predicted", json_number(predicted(i))}};
-      if (m_in && measured_label(L.name, *m_in)) j["measured_input"] = *measured_label(L.name, *m_in);
-      if (m_fit && measured_label(L.name, *m_fit)) j["measured_fitted"] = *measured_label(L.name, *m_fit);
-      labels[L.name] = j;
+    for (const FitLabel& l : fit_labels(*model, sub, fit.coefficients, Y, fit.V, mesh.F, sex)) {
+      nlohmann::json j = {{"unit", l.unit}};
+      if (l.predicted) j["predicted"] = *l.predicted;
+      if (l.measured_input) j["measured_input"] = *l.measured_input;
+      if (l.measured_fitted) j["measured_fitted"] = *l.measured_fitted;
+      labels[l.name] = j;
     }
-    for (const char* name : {"height_cm", "weight_kg", "volume_l", "chest_cm", "waist_cm", "hips_cm", "neck_cm"})
-      if (!labels.contains(name)) {
-        nlohmann::json j = {{"unit", name == std::string("volume_l") ? "L" : name == std::string("weight_kg") ? "kg" : "cm"}};
-        if (m_in && measured_label(name, *m_in)) j["measured_input"] = *measured_label(name, *m_in);
-        if (m_fit && measured_label(name, *m_fit)) j["measured_fitted"] = *measured_label(name, *m_fit);
-        if (j.size() > 1) labels[name] = j;
-      }
     nlohmann::json out = {
         {"model", a->model},
         {"input", a->in},

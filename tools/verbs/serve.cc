@@ -1,6 +1,6 @@
 // `bodymodel serve model.npz`: live morphing in the browser. A small HTTP/JSON API (cpp-httplib)
 // around one ShapeMorpher, and a page with a slider per label, a seed box for generate, the
-// measured labels and an OBJ download. Loopback by default; request bodies are capped, reads
+// measured labels and OBJ / glb downloads. Loopback by default; request bodies are capped, reads
 // and writes time out, and at most --max-decodes morphs run at once (others get 503 at once, so
 // a flood cannot queue unbounded work or memory).
 #include <fmt/format.h>
@@ -10,10 +10,14 @@
 #include <chrono>
 #include <csignal>
 #include <memory>
+#include <mutex>
+#include <thread>
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "model/morph.h"
+#include "model/shape_preview.h"
+#include "skinning/gltf_export.h"
 #include "tools/console.h"
 #include "tools/verb.h"
 #include "tools/verbs/model_common.h"
@@ -31,7 +35,12 @@ struct ServeArgs {
   std::string model, host = "127.0.0.1", three;
   int port = 8080, max_decodes = 2, threads = 8, timeout = 10;
   size_t max_body = 16 * 1024;
+  bool preview = true;
 };
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
 
 // A request that cannot be served as asked: answered 400 with this message.
 struct BadRequest : std::runtime_error {
@@ -40,8 +49,25 @@ struct BadRequest : std::runtime_error {
 
 class MorphService {
  public:
-  MorphService(std::shared_ptr<const BodyModel> model, int max_decodes)
-      : model_(std::move(model)), morpher_(model_), max_decodes_(max_decodes) {}
+  MorphService(std::shared_ptr<const BodyModel> model, int max_decodes, bool preview)
+      : model_(std::move(model)), morpher_(model_), max_decodes_(max_decodes),
+        x0_(Eigen::VectorXd::Zero(model_->tmpl->encoding_size())), c0_(model_->shape.pca.project(x0_)) {
+    // The drag preview (2·K decodes) is built behind the server's back: until it is ready,
+    // quick requests decode once.
+    if (preview)
+      preview_thread_ = std::thread([this] {
+        try {
+          auto p = std::make_shared<const ShapePreview>(morpher_, x0_, &stop_);
+          if (p->ready()) std::atomic_store(&preview_, p);
+        } catch (const std::exception& e) {
+          cli::warn(std::string("no drag preview: ") + e.what());
+        }
+      });
+  }
+  ~MorphService() {
+    stop_ = true;
+    if (preview_thread_.joinable()) preview_thread_.join();
+  }
 
   const BodyModel& model() const { return *model_; }
 
@@ -87,6 +113,12 @@ class MorphService {
     Eigen::MatrixX3d V;
     BodyMeasurements measured;
     double seconds = 0;
+    bool preview = false;  // V is ShapePreview's first-order approximation, not a decode
+    // Where the time went (ms): the last decode's stages (DecodeTiming; the last of this
+    // request's decodes unless another request decoded meanwhile), the decodes, measuring.
+    DecodeTiming last_decode;
+    int decodes = 0;
+    double decode_ms = 0, measure_ms = 0;
   };
 
   // Morph of the mean body to the labels, or (with "seed") a generated body meeting them.
@@ -121,14 +153,27 @@ class MorphService {
     } else {
       MorphOptions o;
       o.sex = sex;
-      // "quick" (the page's slider drags): one decode, no measured correction, so the body
-      // follows the slider at interactive rates; the measured labels shown are the drawn body's.
-      // Its measured labels are the cheap ones (height, volume, weight; no girths).
-      const bool quick = body.contains("quick") && body["quick"].is_boolean() && body["quick"].get<bool>();
+      // "quick" (the page's slider drags): no measured correction, so the body follows the
+      // slider at interactive rates: the first-order preview once built, else one decode. The
+      // measured labels shown are the drawn body's cheap ones (height, volume, weight; no girths).
+      const bool quick = flag(body, "quick", false);
       if (quick) o.max_iterations = 1;
-      const Eigen::VectorXd x0 = Eigen::VectorXd::Zero(model_->tmpl->encoding_size());
-      b.V = cond.empty() ? morpher_.decode(x0) : morpher_.morph_encoding(x0, cond, o, nullptr);
+      // Quick requests are drawn from the preview once it is built ("preview": false asks for
+      // the one decode, e.g. to compare).
+      const auto preview = quick && flag(body, "preview", true) ? std::atomic_load(&preview_) : nullptr;
+      MorphSummary summary;
+      if (preview) {
+        b.V = (*preview)(ShapePreview::first_change(model_->shape, cond, c0_));
+        b.preview = true;
+      } else {
+        b.V = cond.empty() ? morpher_.decode(x0_) : morpher_.morph_encoding(x0_, cond, o, &summary, nullptr, &c0_);
+        b.decodes = cond.empty() ? 1 : summary.decodes;
+        b.last_decode = morpher_.decoder().last_timing();
+      }
+      b.decode_ms = ms_since(t0);
+      const auto t1 = std::chrono::steady_clock::now();
       b.measured = quick ? measure_height_and_weight(b.V, model_->tmpl->faces()) : morpher_.measure(b.V, sex);
+      b.measure_ms = ms_since(t1);
     }
     b.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return b;
@@ -139,7 +184,13 @@ class MorphService {
     p.reserve(static_cast<size_t>(b.V.size()));
     for (int v = 0; v < b.V.rows(); ++v)
       for (int k = 0; k < 3; ++k) p.push_back(static_cast<float>(b.V(v, k)));
-    json j = {{"positions", base64(p.data(), p.size() * 4)}, {"seconds", b.seconds}};
+    json j = {{"positions", base64(p.data(), p.size() * 4)}, {"seconds", b.seconds}, {"preview", b.preview}};
+    const DecodeTiming& t = b.last_decode;
+    j["timing"] = {{"decodes", b.decodes},        {"morph_ms", b.decode_ms},
+                   {"measure_ms", b.measure_ms},  {"last_decode_ms", t.total_ms},
+                   {"assemble_ms", t.assemble_ms}, {"rotation_solve_ms", t.rotation_solve_ms},
+                   {"rotation_path", t.rotation_path}, {"orthonormalise_ms", t.orthonormalise_ms},
+                   {"poisson_ms", t.poisson_ms}, {"finish_ms", t.finish_ms}};
     for (auto& l : model_->shape.regression.labels)
       if (auto m = measured_label(l.name, b.measured); m && std::isfinite(*m)) j["measured"][l.name] = *m;
     return j;
@@ -153,11 +204,24 @@ class MorphService {
     return s;
   }
 
+  // glTF binary (metres, as glTF requires; the skinning export's writer without a skin).
+  std::string glb(const Body& b) const { return static_gltf_bytes(b.V, model_->tmpl->faces()); }
+
  private:
+  static bool flag(const json& body, const char* name, bool fallback) {
+    if (!body.contains(name)) return fallback;
+    if (!body[name].is_boolean()) throw BadRequest(fmt::format("'{}' must be true or false", name));
+    return body[name].get<bool>();
+  }
+
   std::shared_ptr<const BodyModel> model_;
   ShapeMorpher morpher_;
   int max_decodes_;
   std::atomic<int> running_{0};
+  const Eigen::VectorXd x0_, c0_;  // the mean body's encoding values and coefficients (once)
+  std::shared_ptr<const ShapePreview> preview_;  // set once by preview_thread_ (atomic_load/store)
+  std::atomic<bool> stop_{false};
+  std::thread preview_thread_;
 };
 
 void error_reply(httplib::Response& res, int status, const std::string& message) {
@@ -199,7 +263,7 @@ void run_serve(const ServeArgs& a) {
     throw InputError("three.js not found at '" + three.string() +
                      "' (scripts/setup.sh installs it into the build folder; or give --three FILE / BODYMODEL_THREE)");
   const std::string three_js = read_text_file(three);
-  auto service = std::make_shared<MorphService>(model, a.max_decodes);
+  auto service = std::make_shared<MorphService>(model, a.max_decodes, a.preview);
   const std::string describe = service->describe().dump();
 
   httplib::Server svr;
@@ -209,6 +273,18 @@ void run_serve(const ServeArgs& a) {
   svr.set_keep_alive_max_count(20);
   const int threads = a.threads;
   svr.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<size_t>(threads)); };
+  // cpp-httplib compresses what the client accepts compressed; Debian's build has brotli, at a
+  // quality that took 1.2 s for one 214 KB body answer on loopback (11 ms plain, 34 ms gzip): the
+  // browser's round trip was all compression. API answers (base64 floats, 28 % smaller gzipped)
+  // go plain; the page and three.js at most gzip.
+  svr.set_pre_routing_handler([](const httplib::Request& req, httplib::Response&) {
+    auto& r = const_cast<httplib::Request&>(req);  // the server's own, non-const request object
+    const bool gzip = req.path.rfind("/api/", 0) != 0 &&
+                      req.get_header_value("Accept-Encoding").find("gzip") != std::string::npos;
+    r.headers.erase("Accept-Encoding");
+    if (gzip) r.headers.emplace("Accept-Encoding", "gzip");
+    return httplib::Server::HandlerResponse::Unhandled;
+  });
   svr.Get("/", [](const httplib::Request&, httplib::Response& res) { res.set_content(cli::serve_html(), "text/html"); });
   svr.Get("/three.min.js", [&three_js](const httplib::Request&, httplib::Response& res) {
     res.set_content(three_js, "text/javascript");
@@ -223,6 +299,12 @@ void run_serve(const ServeArgs& a) {
     handle(req, res, [&](const json& body) {
       res.set_header("Content-Disposition", "attachment; filename=\"body.obj\"");
       res.set_content(service->obj(service->make(body)), "model/obj");
+    });
+  });
+  svr.Post("/api/body.glb", [service](const httplib::Request& req, httplib::Response& res) {
+    handle(req, res, [&](const json& body) {
+      res.set_header("Content-Disposition", "attachment; filename=\"body.glb\"");
+      res.set_content(service->glb(service->make(body)), "model/gltf-binary");
     });
   });
   if (!svr.bind_to_port(a.host, a.port))
@@ -245,12 +327,14 @@ BODYMODEL_VERB(add_serve_verb) {
   auto* cmd = app.add_subcommand(
       "serve",
       "Live morphing in the browser: serves a page with a slider per label of the model, a seed box\n"
-      "for generate, the measured labels and an OBJ download, and its JSON API:\n"
+      "for generate, the measured labels and OBJ / glb downloads, and its JSON API:\n"
       "  GET /api/model         labels (name, unit, min, max, mean) and the faces\n"
       "  POST /api/body         {\"labels\": {LABEL: VALUE, ...}} morphs the mean body, {\"seed\": N, ...}\n"
-      "                         generates one, \"quick\": true = one decode (no measured correction);\n"
-      "                         answers positions (base64 float32) and the measured labels\n"
-      "  POST /api/body.obj     the same body as an OBJ file\n"
+      "                         generates one, \"quick\": true = no measured correction: the\n"
+      "                         first-order preview once built (\"preview\": false = one decode);\n"
+      "                         answers positions (base64 float32), the measured labels, timing\n"
+      "  POST /api/body.obj     the same body as an OBJ file (mm)\n"
+      "  POST /api/body.glb     the same body as a glTF binary (metres)\n"
       "Bad JSON or values far outside the data: 400 with the message. Loopback unless --host.");
   cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`)")->required();
   cmd->add_option("--port", a->port, "TCP port")->capture_default_str()->check(CLI::Range(1, 65535));
@@ -262,6 +346,9 @@ BODYMODEL_VERB(add_serve_verb) {
       ->capture_default_str()->check(CLI::Range(size_t{64}, size_t{1} << 20));
   cmd->add_option("--timeout", a->timeout, "Read/write timeout per connection (s)")
       ->capture_default_str()->check(CLI::Range(1, 600));
+  cmd->add_flag("!--no-preview", a->preview,
+                "Decode every slider move (default: after a start-up of 2 decodes per model component, drags are\n"
+                "drawn from a first-order preview, and decoded exactly when the slider is released)");
   cmd->add_option("--three", a->three, "three.min.js to serve (default: the build folder's npm install)");
   cmd->callback([a] { run_serve(*a); });
 }

@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <memory>
 
 #include "core/data_path.h"
@@ -32,6 +33,11 @@ namespace {
 
 struct ViewerArgs {
   std::vector<std::string> rigs, meshes;
+  // (mesh, reference): the mesh coloured by its per-vertex distance to the reference (same
+  // vertices in the same order), e.g. a registration against the true body.
+  std::vector<std::pair<std::string, std::string>> error_meshes;
+  std::vector<std::string> error_mesh_args;  // as given: MESH REFERENCE MESH REFERENCE ...
+  double error_scale = 30;  // mm at the red end of the colour map
   std::string bvh, out, three;
   int frames = 48, every = 2, first = 0;
   std::vector<int> check_frames = {0, 1, 2};
@@ -63,7 +69,9 @@ struct NamedRig {
 
 
 void run_viewer(const ViewerArgs& a) {
-  if (a.rigs.empty() && a.meshes.empty()) throw InputError("give at least one --rig or --mesh");
+  if (a.rigs.empty() && a.meshes.empty() && a.error_meshes.empty())
+    throw InputError("give at least one --rig, --mesh or --error-mesh");
+  if (!(a.error_scale > 0)) throw InputError(fmt::format("--error-scale must be positive, found {}", a.error_scale));
   if (!a.rigs.empty() && a.bvh.empty()) throw InputError("--rig needs --bvh (the clip to play)");
   if (a.frames < 1) throw InputError(fmt::format("--frames must be at least 1, found {}", a.frames));
   std::vector<NamedRig> rigs;
@@ -146,8 +154,17 @@ void run_viewer(const ViewerArgs& a) {
       d["rigs"].push_back({{"name", r.name}, {"method", skinning_method_name(r.rig.method)},
                            {"K", r.rig.max_influences()}, {"texels", b64(rig_texels(r.rig))}});
   }
-  for (const auto& path : a.meshes) {
-    const Mesh m = read_mesh(path);
+  // Static meshes, named by file (with the folder when two files share a name, as the
+  // crowd's char_NNN/body.obj do).
+  std::vector<std::string> paths = a.meshes;
+  for (auto& [m, r] : a.error_meshes) paths.push_back(m);
+  std::map<std::string, int> seen;
+  for (auto& p : paths) ++seen[fs::path(p).filename().string()];
+  auto name_of = [&](const std::string& p) {
+    const fs::path f(p);
+    return seen[f.filename().string()] > 1 ? (f.parent_path().filename() / f.filename()).string() : f.filename().string();
+  };
+  auto add_mesh = [&](const std::string& path, const Mesh& m, nlohmann::json extra) {
     std::vector<float> V;
     std::vector<uint32_t> f;
     for (int v = 0; v < m.V.rows(); ++v)
@@ -155,8 +172,23 @@ void run_viewer(const ViewerArgs& a) {
     for (int i = 0; i < m.F.rows(); ++i)
       for (int k = 0; k < 3; ++k) f.push_back(static_cast<uint32_t>(m.F(i, k)));
     if (f.empty()) throw InputError("'" + path + "' has no faces (the viewer draws triangles)");
-    d["meshes"].push_back({{"name", fs::path(path).filename().string()}, {"positions", b64(V)}, {"faces", b64(f)}});
+    extra["name"] = name_of(path);
+    extra["positions"] = b64(V);
+    extra["faces"] = b64(f);
+    d["meshes"].push_back(extra);
+  };
+  for (const auto& path : a.meshes) add_mesh(path, read_mesh(path), nlohmann::json::object());
+  for (const auto& [path, ref] : a.error_meshes) {
+    const Mesh m = read_mesh(path), r = read_mesh(ref);
+    if (m.V.rows() != r.V.rows())
+      throw InputError(fmt::format("--error-mesh: '{}' has {} vertices, its reference '{}' {} (the error is per vertex)", path,
+                                   m.V.rows(), ref, r.V.rows()));
+    const Eigen::VectorXd e = (m.V - r.V).rowwise().norm();
+    std::vector<float> ef(e.data(), e.data() + e.size());
+    add_mesh(path, m, {{"errors", b64(ef)}, {"reference", fs::path(ref).filename().string()},
+                       {"error_mean", e.mean()}, {"error_max", e.maxCoeff()}});
   }
+  d["error_scale"] = a.error_scale;
 
   // check.json: the C++ (double precision) evaluator's positions on the check frames.
   nlohmann::json check;
@@ -194,7 +226,8 @@ void run_viewer(const ViewerArgs& a) {
   fs::copy_file(three, out / "three.min.js", ec);
   if (ec) throw InputError("cannot copy '" + three.string() + "': " + ec.message());
   out.commit();
-  fmt::print("viewer: {} rig(s), {} frame(s), {} mesh(es) → {}\n", rigs.size(), frames.size(), a.meshes.size(),
+  fmt::print("viewer: {} rig(s), {} frame(s), {} mesh(es) → {}\n", rigs.size(), frames.size(),
+             a.meshes.size() + a.error_meshes.size(),
              (fs::path(a.out) / "index.html").string());
 }
 
@@ -207,9 +240,16 @@ BODYMODEL_VERB(add_viewer_verb) {
       "An offline interactive 3D viewer folder (OUT/index.html opens from the file system): orbit\n"
       "meshes, play a BVH clip on rigs skinned in a WebGL vertex shader (ssd, as, mwe; a character\n"
       "rig brings its MWE rig and its SSD base), switch methods and show the per-vertex distance\n"
-      "to a reference rig. OUT/check.json: the C++ evaluator's positions on --check-frames.");
+      "to a reference rig; meshes coloured by their distance to a reference. OUT/check.json: the C++ evaluator's positions on --check-frames.");
   cmd->add_option("--rig", a->rigs, "Skinning rig (.npz from skin fit or character), repeatable");
   cmd->add_option("--mesh", a->meshes, "Static mesh to orbit (OBJ, PLY, OFF), repeatable");
+  cmd->add_option("--error-mesh", a->error_mesh_args,
+                  "MESH REFERENCE: MESH coloured by its per-vertex distance to REFERENCE (same vertex order,\n"
+                  "e.g. a registration and the true body), with a legend; repeatable")
+      ->expected(2)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  cmd->add_option("--error-scale", a->error_scale, "Distance (mm) at the red end of the colour map")
+      ->capture_default_str();
   cmd->add_option("--bvh", a->bvh, "Clip played on the rigs (CMU clips are retargeted)");
   cmd->add_option("--frames", a->frames, "Clip frames stored")->capture_default_str();
   cmd->add_option("--every", a->every, "Keep every n-th clip frame")->capture_default_str();
@@ -221,7 +261,14 @@ BODYMODEL_VERB(add_viewer_verb) {
   cmd->add_option("--three", a->three, "three.min.js to copy (default: the build folder's npm install)");
   cmd->add_option("--out", a->out, "Output folder (must not exist unless --force)")->required();
   cmd->add_flag("--force", a->force, "Replace an existing output folder");
-  cmd->callback([a] { run_viewer(*a); });
+  cmd->callback([a] {
+    if (a->error_mesh_args.size() % 2)
+      throw InputError(fmt::format("--error-mesh takes two files each time (MESH REFERENCE); {} given",
+                                   a->error_mesh_args.size()));
+    for (size_t i = 0; i + 1 < a->error_mesh_args.size(); i += 2)
+      a->error_meshes.emplace_back(a->error_mesh_args[i], a->error_mesh_args[i + 1]);
+    run_viewer(*a);
+  });
 }
 
 }  // namespace bodymodel::cli

@@ -49,7 +49,7 @@ function texData(data) {  // RGBA float rows of TEX_W texels
 }
 
 const state = { ready: false, frame: 0, playing: true, framesDrawn: 0, rig: 0, reference: 0, errorMap: false,
-                errScale: 20, mesh: -1 };
+                errScale: D.error_scale || 20, mesh: -1, legend: false };
 window.viewerState = state;
 
 const canvas = document.getElementById('view');
@@ -97,11 +97,13 @@ void main() {
   vec3 base = vErr < 0.0 ? vec3(0.78, 0.72, 0.66) : ramp(clamp(vErr / uErrScale, 0.0, 1.0));
   color = vec4(base * l, 1.0);
 }`;
+// Static meshes: err = the vertex's distance to the mesh's reference (mm), −1 = no error map.
 const STATIC_VERT = `
 precision highp float;
 uniform mat4 modelViewMatrix; uniform mat4 projectionMatrix;
-in vec3 position; out vec3 vView; out float vErr;
-void main() { vec4 mv = modelViewMatrix * vec4(position, 1.0); vView = mv.xyz; vErr = -1.0; gl_Position = projectionMatrix * mv; }`;
+in vec3 position; in float err; out vec3 vView; out float vErr;
+void main() { vec4 mv = modelViewMatrix * vec4(position, 1.0); vView = mv.xyz; vErr = err; gl_Position = projectionMatrix * mv; }`;
+const staticScale = { value: state.errScale };  // one uniform shared by every static mesh
 
 let skinned = null;
 if (rigs.length) {
@@ -122,15 +124,25 @@ const statics = (D.meshes || []).map((s) => {
   const g = new THREE.BufferGeometry();
   g.setAttribute('position', new THREE.BufferAttribute(f32(s.positions), 3));
   g.setIndex(new THREE.BufferAttribute(u32(s.faces), 1));
+  const n = g.getAttribute('position').count;
+  g.setAttribute('err', new THREE.BufferAttribute(s.errors ? f32(s.errors) : new Float32Array(n).fill(-1), 1));
   g.computeBoundingBox();
   const m = new THREE.RawShaderMaterial({ glslVersion: THREE.GLSL3, vertexShader: STATIC_VERT, fragmentShader: FRAG,
-                                          side: THREE.DoubleSide, uniforms: { uErrScale: { value: 1 } } });
+                                          side: THREE.DoubleSide, uniforms: { uErrScale: staticScale } });
   const mesh = new THREE.Mesh(g, m);
   mesh.visible = false;
   scene.add(mesh);
-  return { name: s.name, mesh };
+  return { name: s.errors ? s.name + ' (error vs ' + s.reference + ')' : s.name, mesh, box: g.boundingBox,
+           errors: !!s.errors, mean: s.error_mean, max: s.error_max, reference: s.reference };
 });
+// "All meshes side by side" (e.g. the crowd): laid out along x with a gap of a tenth of the widest.
+const layout = (() => {
+  const widest = Math.max(0, ...statics.map((s) => s.box.max.x - s.box.min.x));
+  let x = 0;
+  return statics.map((s) => { const dx = x - s.box.min.x; x += s.box.max.x - s.box.min.x + 0.1 * widest; return dx; });
+})();
 
+const el = (id) => document.getElementById(id);
 // Orbit: drag turns, wheel zooms, around the centre of what is shown.
 const orbit = { az: 0.4, el: 0.15, dist: 1, target: new THREE.Vector3() };
 function frameObject(box) {
@@ -157,32 +169,60 @@ canvas.addEventListener('pointermove', (e) => {
 });
 canvas.addEventListener('wheel', (e) => { e.preventDefault(); orbit.dist *= Math.exp(e.deltaY * 0.001); }, { passive: false });
 
-function show(meshIndex) {  // -1: the skinned rig
+function show(meshIndex) {  // -1: the skinned rig, -2: every static mesh side by side
   state.mesh = meshIndex;
-  if (skinned) skinned.visible = meshIndex < 0;
-  statics.forEach((s, i) => { s.mesh.visible = i === meshIndex; });
-  if (meshIndex < 0) {
+  if (skinned) skinned.visible = meshIndex === -1;
+  statics.forEach((s, i) => {
+    s.mesh.visible = meshIndex === -2 || i === meshIndex;
+    s.mesh.position.x = meshIndex === -2 ? layout[i] : 0;
+  });
+  if (meshIndex === -1) {
     const g = skinned.geometry; g.computeBoundingBox(); frameObject(g.boundingBox);
-  } else frameObject(statics[meshIndex].mesh.geometry.boundingBox);
+  } else if (meshIndex === -2) {
+    const all = new THREE.Box3();
+    statics.forEach((s, i) => all.union(s.box.clone().translate(new THREE.Vector3(layout[i], 0, 0))));
+    frameObject(all);
+  } else frameObject(statics[meshIndex].box);
+  if (rigs.length) el('rigControls').style.display = meshIndex === -1 ? '' : 'none';  // they act on the rig only
+  updateLegend();
+}
+
+// The colour map's legend, shown whenever something drawn is coloured by an error.
+const rampCss = (t) => [1.5 - Math.abs(4 * t - 3), 1.5 - Math.abs(4 * t - 2), 1.5 - Math.abs(4 * t - 1)]
+  .map((c) => Math.round(255 * Math.max(0, Math.min(1, c))));
+el('legendBar').style.background = 'linear-gradient(to right, ' +
+  Array.from({ length: 9 }, (_, i) => `rgb(${rampCss(i / 8).join(',')})`).join(', ') + ')';
+function updateLegend() {
+  const s = state.mesh >= 0 ? statics[state.mesh] : null;
+  const on = (state.mesh === -1 && state.errorMap) || (s && s.errors) || (state.mesh === -2 && statics.some((x) => x.errors));
+  state.legend = !!on;
+  el('legend').style.display = on ? 'block' : 'none';
+  el('legendTitle').textContent = state.mesh === -1 ? 'vertex distance to ' + rigs[state.reference].name + ' (mm)'
+    : s && s.errors ? `vertex distance to ${s.reference}: mean ${s.mean.toFixed(1)}, max ${s.max.toFixed(1)} mm`
+    : 'vertex distance to the reference (mm)';
+  el('legendMax').textContent = '≥ ' + state.errScale + ' mm';
 }
 
 // Controls.
-const el = (id) => document.getElementById(id);
 const objSel = el('object');
 if (skinned) objSel.add(new Option('animated rig (' + D.clip + ')', '-1'));
 statics.forEach((s, i) => objSel.add(new Option(s.name, String(i))));
+if (statics.length > 1) objSel.add(new Option('all meshes side by side', '-2'));
 objSel.onchange = () => show(Number(objSel.value));
 for (const id of ['method', 'reference']) rigs.forEach((r, i) => el(id).add(new Option(r.name, String(i))));
 el('reference').value = String(Math.max(0, rigs.findIndex((r) => r.method === 2)));
 function applyRig() {
+  state.errScale = Number(el('scale').value); staticScale.value = state.errScale;
+  el('scaleText').textContent = state.errScale + ' mm';
+  updateLegend();
   if (!skinned) return;
   const u = skinned.material.uniforms, r = rigs[Number(el('method').value)], q = rigs[Number(el('reference').value)];
   state.rig = Number(el('method').value); state.reference = Number(el('reference').value);
   u.uRig.value = r.tex; u.uK.value = r.K; u.uMethod.value = r.method;
   u.uRef.value = q.tex; u.uRefK.value = q.K; u.uRefMethod.value = q.method;
   state.errorMap = el('error').checked; u.uErrorMap.value = state.errorMap ? 1 : 0;
-  state.errScale = Number(el('scale').value); u.uErrScale.value = state.errScale;
-  el('scaleText').textContent = state.errScale + ' mm';
+  u.uErrScale.value = state.errScale;
+  updateLegend();
 }
 for (const id of ['method', 'reference', 'error', 'scale']) el(id).oninput = applyRig;
 el('play').onclick = () => { state.playing = !state.playing; el('play').textContent = state.playing ? 'pause' : 'play'; };
@@ -260,6 +300,8 @@ void main() { outPos = skin(uRig, uK, uMethod, gl_VertexID, position); gl_Positi
 // Hooks for tests/viewer/browser_test.js.
 window.viewerApi = {
   rigs: () => rigs.map((r) => r.name),
+  meshes: () => statics.map((s) => ({ name: s.name, errors: s.errors })),
+  show: (i) => { objSel.value = String(i); show(i); draw(); return state.legend; },
   readback: (ri, frame) => Array.from(readback(ri, frame)),
   // Stop at a frame and draw it now; returns the view-projection matrix (column-major) and size.
   freeze: (frame) => {
@@ -277,11 +319,17 @@ window.viewerApi = {
   },
 };
 
+el('scale').max = String(Math.max(100, state.errScale));
+el('scale').value = String(state.errScale);
 show(skinned ? -1 : 0);
-// A view can be linked: index.html?rig=0&reference=1&error=1&frame=12 (frame given: paused there).
+// A view can be linked: index.html?rig=0&reference=1&error=1&frame=12 (frame given: paused there),
+// index.html?mesh=2 (a static mesh; -2: all side by side).
 const q = new URLSearchParams(location.search);
 for (const id of ['rig', 'reference']) if (q.has(id) && rigs[Number(q.get(id))]) el(id === 'rig' ? 'method' : id).value = q.get(id);
 if (q.get('error') === '1') el('error').checked = true;
+if (q.has('mesh') && (statics[Number(q.get('mesh'))] || (q.get('mesh') === '-2' && statics.length > 1))) {
+  objSel.value = q.get('mesh'); show(Number(q.get('mesh')));
+}
 applyRig();
 if (skinned && q.has('frame')) {
   state.playing = false; el('play').textContent = 'play';
