@@ -180,16 +180,30 @@ BODYMODEL_VERB(add_demo_verb) {
     auto p = [&](const fs::path& x) { return (out / x).string(); };
     const std::vector<std::string> reg_ids = {"s000_p0", "s001_p1"};
     const std::vector<std::string> clips = {"02_02", "03_03", "12_03"};
+    // Sweeps from the model's mean body ("the typical such person", the likely change): women of
+    // 40 at 165 cm from 50 to 130 kg (NHANES women: weight p5-p95 about 50-120 kg) and men of 40
+    // at BMI 25 from 155 to 195 cm.
     const std::vector<int> heights = {155, 165, 175, 185, 195};
-    const std::vector<int> weights = {50, 65, 80, 95, 110};
+    const std::vector<int> weights = {50, 70, 90, 110, 130};
     struct Stage {
       std::string name;
       std::vector<std::string> args;
       std::vector<std::string> needs;  // stage names whose success this one needs
     };
     std::vector<Stage> stages;
-    stages.push_back({"synthetic scan database", {"synth-db", "--subjects", "24", "--poses-per-subject", "2", "--seed",
-                                                  "1", "--out", p("db"), "--force"}, {}});
+    // The subjects are NHANES adults drawn by survey weight, each body fitted to the person's
+    // recorded measurements (synth-db --population): a model of real-looking people. Without the
+    // survey file the uniform MakeHuman sliders (BMI 15-25, not real adults) with a warning.
+    std::vector<std::string> db_args = {"synth-db", "--subjects", "24", "--poses-per-subject", "2", "--seed", "1",
+                                        "--out", p("db"), "--force"};
+    const fs::path population = data_file("anthropometry") / "nhanes_2017_2020_bmx_demo.csv";
+    if (fs::is_regular_file(population)) {
+      db_args.insert(db_args.begin() + 1, {"--population", population.string()});
+    } else {
+      cli::warn("population file not found at " + population.string() +
+                ": the demo's subjects are uniform MakeHuman sliders, not real adults");
+    }
+    stages.push_back({"synthetic scan database", db_args, {}});
     for (auto& id : reg_ids)
       stages.push_back({"register scan " + id, {"register", p("db"), "--out", p("reg"), "--scan", id, "--jobs", "1"},
                         {"synthetic scan database"}});
@@ -201,13 +215,15 @@ BODYMODEL_VERB(add_demo_verb) {
                       {"build model"}});
     for (int h : heights)
       stages.push_back({fmt::format("height sweep {} cm", h),
-                        {"morph", p("model.npz"), "--in", p("db/truth/s000_p0.ply"), "--set", fmt::format("height_cm={}", h),
-                         "--keep", "weight_kg", "--sex", "female", "--closest", "--out", p(fmt::format("sweeps/height_{}.obj", h))},
+                        {"morph", p("model.npz"), "--set", "sex=male", "--set", "age_years=40", "--set",
+                         fmt::format("height_cm={}", h), "--set", fmt::format("weight_kg={:.1f}", 25.0 * h * h / 1e4),
+                         "--closest", "--out", p(fmt::format("sweeps/height_{}.obj", h))},
                         {"build model"}});
     for (int w : weights)
       stages.push_back({fmt::format("weight sweep {} kg", w),
-                        {"morph", p("model.npz"), "--in", p("db/truth/s000_p0.ply"), "--set", fmt::format("weight_kg={}", w),
-                         "--keep", "height_cm", "--sex", "female", "--closest", "--out", p(fmt::format("sweeps/weight_{}.obj", w))},
+                        {"morph", p("model.npz"), "--set", "sex=female", "--set", "age_years=40", "--set", "height_cm=165",
+                         "--set", fmt::format("weight_kg={}", w), "--closest", "--out",
+                         p(fmt::format("sweeps/weight_{}.obj", w))},
                         {"build model"}});
     stages.push_back({fmt::format("crowd of {} characters", a->crowd),
                       {"crowd", p("model.npz"), "--count", std::to_string(a->crowd), "--quick", "--bvh",
@@ -229,13 +245,13 @@ BODYMODEL_VERB(add_demo_verb) {
       std::vector<std::string> args = {"viewer", "--rig", p("character/rig.npz"), "--bvh", (cmu / "12_03.bvh").string(),
                                        "--frames", "60", "--every", "2", "--error-mesh", p("reg/" + reg_ids[0] + ".ply"),
                                        p("db/truth/" + reg_ids[0] + ".ply"), "--error-scale", "30"};
-      for (const char* s : {"height_155", "height_195", "weight_50", "weight_110"})
+      for (const char* s : {"height_155", "height_195", "weight_50", "weight_130"})
         args.insert(args.end(), {"--mesh", p(fmt::format("sweeps/{}.obj", s))});
       for (int i = 0; i < a->crowd; ++i) args.insert(args.end(), {"--mesh", p(fmt::format("crowd/char_{:03d}/body.obj", i))});
       args.insert(args.end(), {"--no-check", "--out", p("viewer"), "--force"});
       stages.push_back({"interactive viewer", args,
                         {"character (MWE rig)", "register scan " + reg_ids[0], "height sweep 155 cm", "height sweep 195 cm",
-                         "weight sweep 50 kg", "weight sweep 110 kg", fmt::format("crowd of {} characters", a->crowd)}});
+                         "weight sweep 50 kg", "weight sweep 130 kg", fmt::format("crowd of {} characters", a->crowd)}});
     }
     else
       cli::warn("three.js not found at " + cli::default_three_js().string() + ": the report gets no interactive viewer");
@@ -329,9 +345,11 @@ BODYMODEL_VERB(add_demo_verb) {
     b += "<h2>2. Semantic morphs</h2>\n";
     b += "<div class=\"pair\">\n";
     b += html_figure(pic / "height_sweep.png", "pictures/height_sweep.png",
-                     "Height sweep 155, 165, 175, 185, 195 cm at constant weight (subject s000).");
+                     "Height sweep 155, 165, 175, 185, 195 cm at BMI 25: men of 40, the model's typical body "
+                     "for each (morph from the mean).");
     b += html_figure(pic / "weight_sweep.png", "pictures/weight_sweep.png",
-                     "Weight sweep 50, 65, 80, 95, 110 kg at constant height (subject s000).");
+                     "Weight sweep 50, 70, 90, 110, 130 kg at 165 cm: women of 40, the model's typical body for "
+                     "each (morph from the mean).");
     b += "</div>\n";
     b += "<h2>3. Regressors (cross-validated RMSE)</h2>\n";
     b += html_table_from_csv(out / "regressors" / "regressors.csv", "regressors/regressors.csv");
