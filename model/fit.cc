@@ -68,6 +68,8 @@ using Clock = std::chrono::steady_clock;
 void ModelFitOptions::validate() const {
   if (components == 0 || components < -1)
     throw InputError(fmt::format("fit: components must be ≥ 1 or −1 (all), got {}", components));
+  if (continuation_iterations < 0)
+    throw InputError(fmt::format("fit: continuation_iterations must be ≥ 0, got {}", continuation_iterations));
   if (max_iterations < 0) throw InputError(fmt::format("fit: max_iterations must be ≥ 0, got {}", max_iterations));
   if (!(relative_tolerance >= 0) || !(step_tolerance_mm >= 0))
     throw InputError("fit: tolerances must be ≥ 0");
@@ -78,8 +80,9 @@ void ModelFitOptions::validate() const {
 std::string ModelFitSummary::report() const {
   return fmt::format(
       "{} components: mean vertex error {:.3f} (start {:.3f}), RMS {:.3f}, p95 {:.3f}, max {:.3f}; {} "
-      "iterations, {} Jacobians, {} decodes, {:.2f} s{}",
-      components, mean_mm, start_mean_mm, rms_mm, p95_mm, max_mm, iterations, jacobians, evaluations, seconds,
+      "iterations, {} Jacobians ({:.2f} s), {} decodes ({:.2f} s), {:.2f} s{}",
+      components, mean_mm, start_mean_mm, rms_mm, p95_mm, max_mm, iterations, jacobians, jacobian_seconds,
+      evaluations, decode_seconds, seconds,
       converged ? "" : " (iteration limit)");
 }
 
@@ -353,7 +356,9 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
   Workspace ws;
   auto evaluate_at = [&](const Eigen::VectorXd& cc) {
     Eval e;
+    const auto t0 = Clock::now();
     e.raw = solve(ws, cc);
+    out.summary.decode_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
     e.rigid = fit_rigid_motion(e.raw, Y);
     e.placed = apply(e.rigid, e.raw);
     e.cost = (e.placed - Y).squaredNorm() +
@@ -384,7 +389,9 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
           cur = evaluate_at(c);
           factor_is_current = true;
         }
+        const auto t0 = Clock::now();
         jacobian(ws, Kc, Jraw);
+        out.summary.jacobian_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
         ++out.summary.jacobians;
         age = 0;
       } else {
@@ -455,7 +462,7 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
   bool converged = o.max_iterations == 0;
   int budget = o.max_iterations;
   if (o.continuation_components > 0 && o.continuation_components < K && budget > 0) {
-    run(o.continuation_components, o.continuation_tolerance, budget);
+    run(o.continuation_components, o.continuation_tolerance, std::min(budget, o.continuation_iterations));
     budget -= out.summary.iterations;
   }
   if (budget > 0) converged = run(K, o.relative_tolerance, budget);

@@ -63,6 +63,9 @@ struct ModelFitOptions {
   // iterations a far start needs are cheap; the final answer is the K-component fit's.
   int continuation_components = 16;
   double continuation_tolerance = 1e-2;
+  // At most this many of max_iterations go to the continuation stage: on FAUST it otherwise
+  // crawled for 12 of 20 iterations at ≈ 1 % per step while every decode costs as much as at K.
+  int continuation_iterations = 4;
   void validate() const;  // InputError naming the field
 };
 
@@ -75,6 +78,9 @@ struct ModelFitSummary {
   double start_mean_mm = 0;       // mean vertex error at the start (projection or mean body)
   double mean_mm = 0, rms_mm = 0, p95_mm = 0, max_mm = 0;  // final vertex error (target units)
   double seconds = 0;
+  // Wall seconds in decodes (factorisation of the rotation system + solves) and in Jacobians:
+  // where a fit's time goes (docs/model.md §5.6).
+  double decode_seconds = 0, jacobian_seconds = 0;
   std::vector<double> history_mean_mm;  // mean vertex error after each iteration (start first)
   std::string report() const;     // one line
 };

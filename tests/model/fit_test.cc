@@ -78,6 +78,9 @@ TEST(ModelFit, RejectsBadInput) {
     EXPECT_NE(std::string(e.what()).find("components requested, the model has"), std::string::npos) << e.what();
   }
   EXPECT_THROW(fitter.fit(V.topRows(100)), InputError);
+  ModelFitOptions bad_coarse;
+  bad_coarse.continuation_iterations = -1;
+  EXPECT_THROW(fitter.fit(V, bad_coarse), InputError);
 }
 
 }  // namespace

@@ -21,6 +21,7 @@ struct FitArgs {
   bool pose = false;
   double scale = 0;  // 0 = the model's
   int iterations = 20;
+  int coarse_iterations = 4;
   double prior = 0;
   std::string sex = "unknown";
 };
@@ -51,6 +52,9 @@ BODYMODEL_VERB(add_model_fit_verb) {
                   "Millimetres per unit of --in (0: the unit the model was built from, e.g. 1000 for FAUST)")
       ->capture_default_str();
   cmd->add_option("--iterations", a->iterations, "Maximum Levenberg-Marquardt iterations")->capture_default_str();
+  cmd->add_option("--coarse-iterations", a->coarse_iterations,
+                  "At most this many of --iterations fit only the leading 16 components first (0: none)")
+      ->capture_default_str();
   cmd->add_option("--prior", a->prior,
                   "Weight (mm²) of a Gaussian prior on the coefficients (0: the plain best fit)")
       ->capture_default_str();
@@ -62,6 +66,7 @@ BODYMODEL_VERB(add_model_fit_verb) {
       throw InputError(fmt::format("--components must be ≥ 1 or -1, got {}", a->components));
     if (a->scale < 0 || !std::isfinite(a->scale)) throw InputError("--scale must be positive (or 0: the model's)");
     if (a->iterations < 0) throw InputError("--iterations must be ≥ 0");
+    if (a->coarse_iterations < 0) throw InputError("--coarse-iterations must be ≥ 0");
     auto model = std::make_shared<const BodyModel>(model_cli::load_model_for_cli(a->model));
     const bool full = a->pose || model->metadata.value("shape_model", "") == "full";
     const SubModel& sub = full ? model->full : model->shape;
@@ -85,6 +90,7 @@ BODYMODEL_VERB(add_model_fit_verb) {
     ModelFitOptions o;
     o.components = a->components;
     o.max_iterations = a->iterations;
+    o.continuation_iterations = a->coarse_iterations;
     o.prior_weight = a->prior;
     cli::ProgressBar bar("fit");
     ModelFit fit = fitter.fit(Y, o, bar.callback());
