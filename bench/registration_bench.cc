@@ -41,7 +41,7 @@ const Case& the_case() {
     Case c;
     MakeHuman mh = MakeHuman::load();
     MakeHuman::Body t = mh.body(MacroSettings{});
-    c.tpl = {t.mesh, t.skeleton, t.weights};
+    c.tpl = {t.mesh, t.skeleton, t.weights, {}, {}};
     MacroSettings s;
     s.gender = 0.8;
     s.weight = 0.7;
