@@ -14,9 +14,60 @@ std::string CrossValidationResult::brief() const {
   if (candidates.empty()) return skinning_model_name(model) + ": nothing to cross-validate";
   std::ostringstream s;
   s << skinning_model_name(model) << ": " << candidates.size() << " setting(s) over " << folds << " fold(s) ("
-    << held_out_examples << " held-out examples), chosen " << chosen_setting << " (held-out mean " << chosen_error
-    << "); " << seconds << " s";
+    << held_out_examples << " held-out examples), " << cv_rule_name(rule) << " chose " << chosen_setting
+    << " (held-out mean " << chosen_error << ")";
+  if (chosen_setting != minimum_setting) s << ", smallest " << minimum_setting << " (" << minimum_error << ")";
+  s << "; " << seconds << " s";
   return s.str();
+}
+
+std::string cv_rule_name(CvRule r) {
+  return r == CvRule::minimum ? "min" : r == CvRule::one_se ? "one-se" : "one-se-unpaired";
+}
+
+CvRule parse_cv_rule(const std::string& s) {
+  if (s == "min") return CvRule::minimum;
+  if (s == "one-se") return CvRule::one_se;
+  if (s == "one-se-unpaired") return CvRule::one_se_unpaired;
+  throw InputError("--cv-rule: expected min, one-se or one-se-unpaired, found '" + s + "'");
+}
+
+namespace {
+// Sample standard deviation / √n of v (0 for fewer than two values or a non-finite one).
+double standard_error_of_mean(const std::vector<double>& v) {
+  const size_t n = v.size();
+  if (n < 2) return 0;
+  double mean = 0;
+  for (double x : v) mean += x;
+  mean /= double(n);
+  double ss = 0;
+  for (double x : v) ss += (x - mean) * (x - mean);
+  const double se = std::sqrt(ss / double(n - 1) / double(n));
+  return std::isfinite(se) ? se : 0;
+}
+}  // namespace
+
+size_t select_candidate(std::vector<CvCandidate>& c, CvRule rule) {
+  size_t best = c.size();
+  for (size_t k = 0; k < c.size(); ++k)
+    if (std::isfinite(c[k].error) && (best == c.size() || c[k].error < c[best].error)) best = k;
+  if (best == c.size()) throw InputError("cross-validation: no candidate setting gave a finite held-out error");
+  for (auto& k : c) {
+    k.standard_error = standard_error_of_mean(k.example_errors);
+    std::vector<double> d(k.example_errors.size());
+    const bool paired = k.example_errors.size() == c[best].example_errors.size();
+    for (size_t i = 0; paired && i < d.size(); ++i) d[i] = k.example_errors[i] - c[best].example_errors[i];
+    k.paired_standard_error = paired ? standard_error_of_mean(d) : 0;
+  }
+  if (rule == CvRule::minimum) return best;
+  size_t chosen = best;
+  for (size_t k = 0; k < c.size(); ++k) {
+    if (!std::isfinite(c[k].error)) continue;
+    const double se = rule == CvRule::one_se ? c[k].paired_standard_error : c[best].standard_error;
+    if (c[k].structure == c[best].structure && c[k].error <= c[best].error + se && c[chosen].strength < c[k].strength)
+      chosen = k;
+  }
+  return chosen;
 }
 
 std::vector<std::vector<int>> cv_folds(int count, const SkinCrossValidationOptions& o) {
@@ -59,29 +110,29 @@ CrossValidator::CrossValidator(const SkinningExamples& ex, const LbsFitOptions& 
       }
     fold_lbs_.push_back(fit_lbs(sub, {}, lbs));
     fold_train_.push_back(std::move(sub));
-    const int stride = std::max(1, o.vertex_stride);
-    held_out_vertices_ += static_cast<long long>(held.size()) * ((ex.vertex_count() + stride - 1) / stride);
   }
 }
 
-double CrossValidator::held_out_error(const FittedModel& m, int fold) const {
-  double sum = 0;
+std::vector<double> CrossValidator::held_out_errors(const FittedModel& m, int fold) const {
+  std::vector<double> out;
   const Eigen::Index stride = std::max(1, options_.vertex_stride), n = ex_.vertex_count();
   const Eigen::Index count = (n + stride - 1) / stride;
   for (int p : folds_[static_cast<size_t>(fold)]) {
     const Eigen::MatrixX3d X = m.pose(ex_.transforms[static_cast<size_t>(p)]);
-    if (!X.allFinite()) return std::numeric_limits<double>::infinity();
+    if (!X.allFinite()) {
+      out.push_back(std::numeric_limits<double>::infinity());
+      continue;
+    }
     Eigen::MatrixX3d Xs(count, 3), Ys(count, 3);
     for (Eigen::Index r = 0; r < count; ++r) {
       Xs.row(r) = X.row(r * stride);
       Ys.row(r) = ex_.poses[static_cast<size_t>(p)].row(r * stride);
     }
-    if (!surfaces_.empty())
-      sum += surfaces_[static_cast<size_t>(p)]->distances(Xs).sum();
-    else
-      sum += (Xs - Ys).rowwise().norm().sum();
+    const double sum = !surfaces_.empty() ? surfaces_[static_cast<size_t>(p)]->distances(Xs).sum()
+                                          : (Xs - Ys).rowwise().norm().sum();
+    out.push_back(sum / double(count));
   }
-  return sum;
+  return out;
 }
 
 namespace {
@@ -114,14 +165,22 @@ CrossValidationResult CrossValidator::select(SkinningModel model, const ModelFit
   // Candidate settings (MWE: everything but the ridge scale, which is solved as a path).
   std::vector<CvCandidate> cands;
   std::vector<std::vector<double>> paths;   // MWE: the scales of each candidate group
-  auto add = [&](const std::string& s, const ModelFitOptions& o) { cands.push_back({s, 0.0, o}); };
+  auto add = [&](const std::string& s, const ModelFitOptions& o, std::vector<double> strength,
+                 std::vector<double> structure = {}) {
+    CvCandidate c;
+    c.setting = s;
+    c.options = o;
+    c.strength = std::move(strength);
+    c.structure = std::move(structure);
+    cands.push_back(std::move(c));
+  };
   const SkinCrossValidationOptions& c = options_;
   switch (model) {
     case SkinningModel::as:
       for (double l : or_first(c.as_ridges, start.animation_space.ridge)) {
         ModelFitOptions o = start;
         o.animation_space.ridge = l;
-        add("λ " + g(l), o);
+        add("λ " + g(l), o, {l});
       }
       break;
     case SkinningModel::mwe:
@@ -137,7 +196,8 @@ CrossValidationResult CrossValidator::select(SkinningModel model, const ModelFit
             for (double s : or_first(c.mwe_scales, start.mwe.ridge_scale)) {
               o.mwe.ridge_scale = s;
               add("base " + base + ", s " + g(s) + ", influences " + (d ? std::to_string(d) : std::string("all")) +
-                      ", components " + (comp ? std::to_string(comp) : std::string("all")), o);
+                      ", components " + (comp ? std::to_string(comp) : std::string("all")),
+                  o, {s, d ? -double(d) : -1e9}, {double(static_cast<int>(b)), double(comp)});
             }
           }
       break;
@@ -147,7 +207,7 @@ CrossValidationResult CrossValidator::select(SkinningModel model, const ModelFit
           ModelFitOptions o = start;
           o.pose_space.kernel_width = w;
           o.pose_space.rbf_ridge = l;
-          add("width " + g(w) + ", RBF λ " + g(l), o);
+          add("width " + g(w) + ", RBF λ " + g(l), o, {l}, {w});
         }
       break;
     case SkinningModel::eigenskin:
@@ -156,7 +216,7 @@ CrossValidationResult CrossValidator::select(SkinningModel model, const ModelFit
         o.pose_space.eigenskin_modes = m;
         add("modes " + std::to_string(m) + " (width " + g(start.pose_space.kernel_width) + ", RBF λ " +
                 g(start.pose_space.rbf_ridge) + ")",
-            o);
+            o, {-double(m)});
       }
       break;
     case SkinningModel::quadratic:
@@ -165,7 +225,7 @@ CrossValidationResult CrossValidator::select(SkinningModel model, const ModelFit
         o.pose_space.quadratic_ridge = q;
         add("quadratic ridge " + g(q) + " (width " + g(start.pose_space.kernel_width) + ", RBF λ " +
                 g(start.pose_space.rbf_ridge) + ")",
-            o);
+            o, {q});
       }
       break;
     default: break;
@@ -186,7 +246,10 @@ CrossValidationResult CrossValidator::select(SkinningModel model, const ModelFit
                         "cross-validating mwe (fold " + std::to_string(f + 1) + ")");
         const std::vector<FittedModel> path =
             fit_mwe_models(fold_train_[f], fold_lbs_[f], cands[k].options.mwe, scales);
-        for (size_t j = 0; j < path.size(); ++j) cands[k + j].error += held_out_error(path[j], static_cast<int>(f));
+        for (size_t j = 0; j < path.size(); ++j) {
+          const std::vector<double> e = held_out_errors(path[j], static_cast<int>(f));
+          cands[k + j].example_errors.insert(cands[k + j].example_errors.end(), e.begin(), e.end());
+        }
         k = e;
       }
     } else {
@@ -194,15 +257,23 @@ CrossValidationResult CrossValidator::select(SkinningModel model, const ModelFit
         report_progress(progress, (f + double(k) / cands.size()) / F,
                         "cross-validating " + skinning_model_name(model) + " (fold " + std::to_string(f + 1) + ")");
         const FittedModel m = fit_model(model, fold_train_[f], fold_lbs_[f], cands[k].options);
-        cands[k].error += held_out_error(m, static_cast<int>(f));
+        const std::vector<double> e = held_out_errors(m, static_cast<int>(f));
+        cands[k].example_errors.insert(cands[k].example_errors.end(), e.begin(), e.end());
       }
     }
   }
-  size_t best = 0;
-  for (size_t k = 0; k < cands.size(); ++k) {
-    cands[k].error /= double(std::max<long long>(held_out_vertices_, 1));
-    if (cands[k].error < cands[best].error) best = k;
+  // Every held-out example has the same number of sampled vertices: the mean over all held-out
+  // vertices is the mean of the examples' means.
+  for (auto& k : cands) {
+    k.error = 0;
+    for (double e : k.example_errors) k.error += e;
+    k.error /= double(std::max<size_t>(k.example_errors.size(), 1));
   }
+  const size_t minimum = select_candidate(cands, CvRule::minimum);
+  const size_t best = select_candidate(cands, options_.rule);
+  r.rule = options_.rule;
+  r.minimum_setting = cands[minimum].setting;
+  r.minimum_error = cands[minimum].error;
   r.chosen = cands[best].options;
   r.chosen_setting = cands[best].setting;
   r.chosen_error = cands[best].error;

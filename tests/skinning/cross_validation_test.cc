@@ -2,6 +2,8 @@
 // over an Animation Space base.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <limits>
 #include <random>
 
 #include "core/error.h"
@@ -105,10 +107,79 @@ TEST(CrossValidation, ChoosesStrongRegularisationForNoiseAndWeakForSignal) {
   EXPECT_EQ(rc.candidates.size(), 4u);
   EXPECT_LE(rc.chosen.animation_space.ridge, 1e-3) << rc.brief();
   EXPECT_GE(rn.chosen.animation_space.ridge, 1.0) << rn.brief();
-  // The chosen setting has the smallest held-out error of the table.
-  for (const auto& c : rn.candidates) EXPECT_GE(c.error, rn.chosen_error);
+  // The reported minimum is the table's smallest held-out error; the one-SE rule kept a setting no
+  // weaker than it, within one paired standard error of it.
+  for (const auto& c : rn.candidates) EXPECT_GE(c.error, rn.minimum_error);
+  for (const auto& c : rn.candidates)
+    if (c.setting == rn.chosen_setting) {
+      EXPECT_LE(rn.chosen_error, rn.minimum_error + c.paired_standard_error);
+      for (const auto& m : rn.candidates)
+        if (m.setting == rn.minimum_setting) EXPECT_GE(c.strength, m.strength);
+    }
   // Nothing to choose for SSD.
   EXPECT_TRUE(CrossValidator(clean, lo, o).select(SkinningModel::ssd, start).candidates.empty());
+}
+
+// A hand-made cross-validation table: five ridges (strength = λ) measured on the same four
+// held-out examples. The smallest mean is λ 1e-2 (0.100); λ 1e-1 is 0.0025 above it with paired
+// differences {0.002, 0.003, 0.002, 0.003} (paired SE 0.00029: outside); λ 1 is 0.0005 above with
+// differences {−0.001, 0.002, −0.001, 0.002} (paired SE 0.00087: inside); λ 10 is 0.02 above.
+// The examples differ from each other by about ±0.05, so the unpaired SE of the minimum (0.026)
+// takes in every candidate and the unpaired rule falls back to the strongest ridge.
+std::vector<CvCandidate> hand_made_table() {
+  const std::vector<double> base = {0.05, 0.15, 0.06, 0.14};   // mean 0.10
+  auto cand = [&](double l, std::vector<double> delta) {
+    CvCandidate c;
+    c.setting = "λ " + std::to_string(l);
+    c.strength = {l};
+    for (size_t i = 0; i < base.size(); ++i) c.example_errors.push_back(base[i] + delta[i]);
+    for (double e : c.example_errors) c.error += e / double(base.size());
+    return c;
+  };
+  return {cand(1e-3, {0.01, 0.01, 0.012, 0.008}), cand(1e-2, {0, 0, 0, 0}), cand(1e-1, {0.002, 0.003, 0.002, 0.003}),
+          cand(1, {-0.001, 0.002, -0.001, 0.002}), cand(10, {0.02, 0.02, 0.02, 0.02})};
+}
+
+TEST(CrossValidation, OneStandardErrorRuleKeepsTheMostRegularisedCandidateWithinOneSE) {
+  std::vector<CvCandidate> t = hand_made_table();
+  EXPECT_EQ(select_candidate(t, CvRule::minimum), 1u);
+  // Paired: λ 1 (index 3) is the strongest within one SE of the minimum; λ 1e-1 is not within,
+  // which shows the rule does not simply take every candidate up to the strongest one inside.
+  EXPECT_EQ(select_candidate(t, CvRule::one_se), 3u);
+  EXPECT_NEAR(t[3].paired_standard_error, 0.0017320508 / 2, 1e-9);   // sd {−.001,.002,−.001,.002} / √4
+  EXPECT_NEAR(t[2].paired_standard_error, 0.00057735027 / 2, 1e-9);
+  EXPECT_DOUBLE_EQ(t[1].paired_standard_error, 0.0);
+  EXPECT_GT(t[2].error - t[1].error, t[2].paired_standard_error);
+  EXPECT_LE(t[3].error - t[1].error, t[3].paired_standard_error);
+  // Unpaired: the pose-to-pose spread (SE 0.026) covers λ 10 too.
+  EXPECT_EQ(select_candidate(t, CvRule::one_se_unpaired), 4u);
+  EXPECT_NEAR(t[1].standard_error, 0.026140645, 1e-8);
+  // Order of the table does not matter: strength decides, not position.
+  std::reverse(t.begin(), t.end());
+  EXPECT_EQ(t[select_candidate(t, CvRule::one_se)].strength, std::vector<double>{1.0});
+  // A lexicographic strength (MWE: s first, then fewer influences): at equal s the second key decides.
+  std::vector<CvCandidate> m = hand_made_table();
+  m[3].strength = {1, -4};
+  m.push_back(m[3]);
+  m.back().strength = {1, -2};
+  EXPECT_EQ(select_candidate(m, CvRule::one_se), 5u);
+  // Another structure (e.g. MWE over SSD instead of AS) is never a fallback, however strong.
+  m.push_back(m[1]);
+  m.back().strength = {1e6};
+  m.back().structure = {1};
+  EXPECT_EQ(select_candidate(m, CvRule::one_se), 5u);
+  EXPECT_EQ(select_candidate(m, CvRule::one_se_unpaired), 4u);
+  m.pop_back();
+  // A candidate whose fit failed (infinite error) is never kept, even as the strongest.
+  m[4].error = std::numeric_limits<double>::infinity();
+  m[4].strength = {1e9};
+  EXPECT_EQ(select_candidate(m, CvRule::one_se_unpaired), 5u);
+}
+
+TEST(CrossValidation, RuleNames) {
+  for (CvRule r : {CvRule::minimum, CvRule::one_se, CvRule::one_se_unpaired})
+    EXPECT_EQ(parse_cv_rule(cv_rule_name(r)), r);
+  EXPECT_THROW(parse_cv_rule("1se"), InputError);
 }
 
 TEST(CrossValidation, TooFewExamplesForAFoldIsAClearError) {

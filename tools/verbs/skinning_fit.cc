@@ -16,7 +16,8 @@ namespace bodymodel::cli {
 namespace {
 
 struct FitArgs {
-  std::string rest, poses, transforms, method = "mwe", out = "rig.npz", cv = "folds:5";
+  std::string rest, poses, transforms, method = "mwe", out = "rig.npz", cv = "folds:5",
+              cv_rule = "min";
   int bones = 0, max_influences = 4;
   double as_ridge = AnimationSpaceFitOptions{}.ridge, mwe_s = MweFitOptions{}.ridge_scale;
   int mwe_components = MweFitOptions{}.components;
@@ -67,6 +68,7 @@ void run_fit(const FitArgs& a) {
   } else {
     throw InputError("--cv: expected none, folds:K or last:N, found '" + a.cv + "'");
   }
+  cv.rule = parse_cv_rule(a.cv_rule);
   const Mesh rest = read_mesh(a.rest);
   const MeshSequence seq = read_mesh_sequence(a.poses);
   for (size_t p = 0; p < seq.frames.size(); ++p)
@@ -175,6 +177,10 @@ BODYMODEL_VERB(add_skin_fit_verb) {
   cmd->add_option("--bones", a->bones, "Recover this many bones from the poses instead (no skeleton)");
   cmd->add_option("--method", a->method, "ssd, dqs, as, mwe, psd, eigenskin or quadratic")->capture_default_str();
   cmd->add_option("--cv", a->cv, "Cross-validation over the poses: folds:K (interleaved), last:N or none")
+      ->capture_default_str();
+  cmd->add_option("--cv-rule", a->cv_rule,
+                  "Which cross-validated setting is kept: one-se (the most regularised within one paired standard "
+                  "error of the smallest held-out mean), min (the smallest), one-se-unpaired")
       ->capture_default_str();
   cmd->add_option("--max-influences", a->max_influences, "Influence bones per vertex");
   cmd->add_option("--as-ridge", a->as_ridge, "Animation Space ridge λ (relative; with --cv none)");
