@@ -145,11 +145,18 @@ RecoveredBones recover_bones(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3
   for (; it < options.kmeans_iterations; ++it) {
     report_progress(progress, 0.1 + 0.5 * it / std::max(1, options.kmeans_iterations), "clustering rotations");
     std::atomic<int> changed{0};
-    tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, nf, 256), [&](const auto& r) {
+    // ‖x − c‖² = ‖x‖² − 2 x·c + ‖c‖², and ‖x‖² is the same for every centre: the assignment is one
+    // matrix product per block of triangles (it was 46 % of a Vlasic jumping fit done row by row).
+    const Eigen::RowVectorXd cn = centers.rowwise().squaredNorm().transpose();
+    tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, nf, 512), [&](const auto& r) {
       int ch = 0;
-      for (Eigen::Index f = r.begin(); f < r.end(); ++f) {
+      const Eigen::Index m = r.end() - r.begin();
+      Eigen::MatrixXd G(m, Bn);
+      G.noalias() = X.middleRows(r.begin(), m) * centers.transpose();
+      for (Eigen::Index k = 0; k < m; ++k) {
         Eigen::Index best;
-        (centers.rowwise() - X.row(f)).rowwise().squaredNorm().minCoeff(&best);
+        (cn - 2.0 * G.row(k)).minCoeff(&best);
+        const Eigen::Index f = r.begin() + k;
         if (label(f) != best) ++ch, label(f) = static_cast<int>(best);
       }
       changed += ch;

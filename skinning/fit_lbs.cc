@@ -184,9 +184,14 @@ SkinningRig fit_lbs(const SkinningExamples& ex, const Eigen::MatrixXi& influence
             const double w = ex.pose_weight(p);
             const auto& T = ex.transforms[static_cast<size_t>(p)];
             for (Eigen::Index k = 0; k < m; ++k) Y.col(k) = w * (T[static_cast<size_t>(bones[static_cast<size_t>(k)])] * v);
-            H.noalias() += Y.transpose() * Y;
+            // The upper triangle only, by hand: at most 32 × 32 with depth 3, where Eigen's GEMM path
+            // (packing, blocking) cost as much as the rest of the fit.
+            for (Eigen::Index l = 0; l < m; ++l)
+              for (Eigen::Index k = 0; k <= l; ++k) H(k, l) += Y.col(k).dot(Y.col(l));
             g.noalias() += Y.transpose() * (w * ex.poses[static_cast<size_t>(p)].row(i).transpose());
           }
+          for (Eigen::Index l = 0; l < m; ++l)
+            for (Eigen::Index k = l + 1; k < m; ++k) H(k, l) = H(l, k);
           const double omega2 = options.sum_to_one_weight * options.sum_to_one_weight * std::max(H.trace() / m, 1e-300);
           H.array() += omega2;
           g.array() += omega2;

@@ -95,16 +95,21 @@ PreparedSequence prepare_skinning_sequence(const std::vector<Eigen::MatrixX3d>& 
   lo.max_influences = options.max_influences;
   lo.require_rigid = given.empty() ? true : lo.require_rigid;
   out.lbs = fit_lbs(ex, {}, lo, &out.lbs_summary);
+  out.alternation_rms.push_back(out.lbs_summary.rms_residual);
   if (given.empty()) {
     for (int a = 0; a < options.alternations; ++a) {
       tbb::parallel_for(0, static_cast<int>(train.size()), [&](int p) {
         ex.transforms[static_cast<size_t>(p)] = fit_transforms_with_fixed_weights(
             out.lbs, ex.poses[static_cast<size_t>(p)], ex.transforms[static_cast<size_t>(p)],
-            options.transform_iterations);
+            options.alternation_transform_iterations > 0 ? options.alternation_transform_iterations
+                                                         : options.transform_iterations);
       });
       // Influence sets are chosen afresh every round: keeping the first round's costs 20 % of
       // unseen E_RMS on the horse (bones that take over vertices late must be able to).
       out.lbs = fit_lbs(ex, {}, lo, &out.lbs_summary);
+      const double before = out.alternation_rms.back(), after = out.lbs_summary.rms_residual;
+      out.alternation_rms.push_back(after);
+      if (before - after < options.alternation_tolerance * before) break;
     }
   }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -273,6 +278,7 @@ SequenceEvaluation evaluate_skinning_sequence(const std::vector<Eigen::MatrixX3d
   out.diagonal = bounding_box_diagonal(frames[0]);
   out.recovery = prep.recovery;
   out.lbs_summary = prep.lbs_summary;
+  out.alternation_rms = prep.alternation_rms;
   out.prepare_seconds = prep.seconds;
   out.prepare_cpu_seconds = prep.cpu_seconds;
   out.recovery_cpu_seconds = prep.recovery_cpu_seconds;

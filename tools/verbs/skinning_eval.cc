@@ -1,6 +1,7 @@
 // `bodymodel skin eval SEQUENCE/ | FILES...`: Jacka et al. 2007's comparison of every skinning
 // method on a mesh sequence or an unordered set of poses (docs/skinning.md; issue 26).
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <fstream>
 #include <memory>
@@ -20,9 +21,11 @@ namespace {
 struct EvalArgs {
   std::vector<std::string> inputs;
   std::string list, out = "report", methods = "ssd,dqs,as,mwe,psd,eigenskin,quadratic", train, test, rest;
-  std::string cv = "auto";
+  std::string cv = "auto", cv_rule = "min";
   int train_every = 0, train_count = 0, bones = 24, max_influences = SequenceEvaluationOptions{}.max_influences, alternations = SequenceEvaluationOptions{}.alternations;
   int transform_iterations = SequenceEvaluationOptions{}.transform_iterations;
+  double alternation_tolerance = SequenceEvaluationOptions{}.alternation_tolerance;
+  int alternation_transform_iterations = SequenceEvaluationOptions{}.alternation_transform_iterations;
   double train_fraction = 0;
   bool leave_one_out = false, per_frame_faces = false, save_posed = false;
   double as_ridge = AnimationSpaceFitOptions{}.ridge;
@@ -117,9 +120,10 @@ SkinCrossValidationOptions parse_cv(const std::string& s, bool future_split) {
 
 std::string cv_text(const SkinCrossValidationOptions& o) {
   if (o.scheme == CvScheme::none) return "none (settings as given)";
-  if (o.scheme == CvScheme::interleaved) return fmt::format("{}-fold interleaved over the training frames", o.folds);
-  return o.held_out > 0 ? fmt::format("the last {} training frames held back", o.held_out)
-                        : std::string("the last third of the training frames held back");
+  const std::string rule = fmt::format(", rule {}", cv_rule_name(o.rule));
+  if (o.scheme == CvScheme::interleaved) return fmt::format("{}-fold interleaved over the training frames{}", o.folds, rule);
+  return (o.held_out > 0 ? fmt::format("the last {} training frames held back", o.held_out)
+                         : std::string("the last third of the training frames held back")) + rule;
 }
 
 void run_eval(const EvalArgs& a) {
@@ -132,6 +136,8 @@ void run_eval(const EvalArgs& a) {
   opt.recovery.seed = a.seed;
   opt.max_influences = a.max_influences;
   opt.alternations = a.alternations;
+  opt.alternation_tolerance = a.alternation_tolerance;
+  opt.alternation_transform_iterations = a.alternation_transform_iterations;
   opt.transform_iterations = a.transform_iterations;
   opt.fit.animation_space.ridge = a.as_ridge;
   opt.fit.mwe.ridge_scale = a.mwe_s;
@@ -238,6 +244,7 @@ void run_eval(const EvalArgs& a) {
     future = future && any_unseen && a.test.empty();
   }
   opt.cv = parse_cv(a.cv, future);
+  opt.cv.rule = parse_cv_rule(a.cv_rule);
 
   for (const auto& fold : folds) check_evaluation_request(nf, fold, opt);
   ensure_directory(a.out);
@@ -259,7 +266,8 @@ void run_eval(const EvalArgs& a) {
   std::vector<double> fit_cpu(M, 0.0);
   SequenceEvaluation last;
   double seconds = 0, prep_cpu = 0;
-  std::string cv_csv = "fold,method,setting,held_out_mean_error,chosen\n";
+  std::string cv_csv =
+      "fold,method,setting,held_out_mean_error,standard_error,paired_standard_error,held_out_examples,chosen,chosen_by\n";
   for (size_t fold = 0; fold < folds.size(); ++fold) {
     auto cb = bar.callback();
     ProgressCallback sub = [&](double f, std::string_view w) { return cb((fold + f) / folds.size(), w); };
@@ -273,9 +281,21 @@ void run_eval(const EvalArgs& a) {
     }
     for (size_t m = 0; m < M; ++m) {
       fit_cpu[m] += last.fits[m].cpu_seconds;
-      for (const auto& c : last.fits[m].cv.candidates)
-        cv_csv += fmt::format("{},{},\"{}\",{:.8g},{}\n", fold, skinning_model_name(opt.methods[m]), c.setting, c.error,
-                              c.setting == last.fits[m].cv.chosen_setting ? 1 : 0);
+      // chosen_by: the rules that would keep this candidate (the choice of the others can be read
+      // off without a rerun; only the rule in force shapes the fitted models, though).
+      std::vector<CvCandidate> cands = last.fits[m].cv.candidates;
+      std::vector<std::string> by(cands.size());
+      if (!cands.empty())
+        for (CvRule r : {CvRule::minimum, CvRule::one_se, CvRule::one_se_unpaired}) {
+          std::string& b = by[select_candidate(cands, r)];
+          b += (b.empty() ? "" : " ") + cv_rule_name(r);
+        }
+      for (size_t k = 0; k < cands.size(); ++k) {
+        const CvCandidate& c = cands[k];
+        cv_csv += fmt::format("{},{},\"{}\",{:.8g},{:.4g},{:.4g},{},{},{}\n", fold, skinning_model_name(opt.methods[m]),
+                              c.setting, c.error, c.standard_error, c.paired_standard_error, c.example_errors.size(),
+                              c.setting == last.fits[m].cv.chosen_setting ? 1 : 0, by[k]);
+      }
     }
     std::set<int> tset(folds[fold].begin(), folds[fold].end());
     for (size_t m = 0; m < M; ++m) {
@@ -326,9 +346,11 @@ void run_eval(const EvalArgs& a) {
                       both.mean_geometric(), both.max_geometric, both.mean_normal_deg(), both.max_normal);
   }
   md += fmt::format("\nFits (last fold): {}; {}. CPU: bone recovery {:.2f} s, SSD and alternation {:.2f} s, "
-                    "unseen-frame bone maps {:.2f} s.\n", last.recovery.brief(), last.lbs_summary.brief(),
-                    last.recovery_cpu_seconds, last.prepare_cpu_seconds - last.recovery_cpu_seconds,
-                    last.unseen_cpu_seconds);
+                    "unseen-frame bone maps {:.2f} s. Alternation: {} round(s), training residual RMS {}.\n",
+                    last.recovery.brief(), last.lbs_summary.brief(), last.recovery_cpu_seconds,
+                    last.prepare_cpu_seconds - last.recovery_cpu_seconds, last.unseen_cpu_seconds,
+                    last.alternation_rms.empty() ? 0 : last.alternation_rms.size() - 1,
+                    fmt::join(last.alternation_rms, " → "));
   for (const auto& f : last.fits) {
     md += "- " + f.brief;
     if (!f.cv.candidates.empty()) md += "; cross-validation: " + f.cv.brief();
@@ -395,13 +417,23 @@ BODYMODEL_VERB(add_skin_eval_verb) {
   cmd->add_option("--rest", a->rest, "Frame used as the rest pose, a training frame (default: the first training frame)");
   cmd->add_option("--bones", a->bones, "Bones to recover (rigid sections)")->capture_default_str();
   cmd->add_option("--max-influences", a->max_influences, "Influence bones per vertex")->capture_default_str();
-  cmd->add_option("--alternations", a->alternations, "SSD weight / bone transform alternation rounds")->capture_default_str();
+  cmd->add_option("--alternations", a->alternations, "SSD weight / bone transform alternation rounds (at most)")->capture_default_str();
+  cmd->add_option("--alternation-transform-iterations", a->alternation_transform_iterations,
+                  "Bone-by-bone passes of the transform fit inside each alternation round (0 = --transform-iterations)")
+      ->capture_default_str();
+  cmd->add_option("--alternation-tolerance", a->alternation_tolerance,
+                  "Stop alternating once a round lowers the training residual RMS by less than this fraction (0 = never)")
+      ->capture_default_str();
   cmd->add_option("--transform-iterations", a->transform_iterations,
                   "Bone-by-bone passes of each fixed-weight bone transform fit (training alternation and unseen frames)")
       ->capture_default_str();
   cmd->add_option("--cv", a->cv,
                   "Cross-validation on the training frames: auto (last third held back when the unseen frames all follow "
                   "the training frames, else 5 interleaved folds), none, folds:K, last:N")
+      ->capture_default_str();
+  cmd->add_option("--cv-rule", a->cv_rule,
+                  "Which cross-validated setting is kept: one-se (the most regularised within one paired standard "
+                  "error of the smallest held-out mean), min (the smallest), one-se-unpaired")
       ->capture_default_str();
   cmd->add_option("--as-ridge", a->as_ridge, "Animation Space ridge λ (relative; used as given with --cv none)");
   cmd->add_option("--mwe-s", a->mwe_s, "MWE ridge scale s, relative to the diagonal (λ_h = s·d⁴/σ²(c_h); with --cv none)");
