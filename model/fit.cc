@@ -161,7 +161,6 @@ struct ModelFitter::Impl {
   std::vector<double> diag_count; // per unknown: I × (number of slots touching it)
   SparseMatrixd pattern;          // 3n × 3n, lower triangle
   std::vector<char> referenced;   // #V: vertex used by a triangle
-  std::vector<Eigen::Matrix3d> identity;  // #F identities (stretch argument of solve_positions)
 
   // Per-evaluation state.
   struct State {
@@ -172,6 +171,12 @@ struct ModelFitter::Impl {
 
 // Per-fit workspace: the rotation-system solver (analysed once: the pattern never changes) and
 // the state of the last evaluation, whose factorisation the solver holds.
+// A slot's right-hand-side term of the Jacobian: three 3×3 matrices, one per basis value of
+// the slot, stored as v[(3a + c)·3 + e] = entry (a, c) of the e-th.
+struct JacobianTerm {
+  double v[27];
+};
+
 struct ModelFitter::Workspace {
   bool reference = false;  // CHOLMOD (chol) instead of the block factorisation (factor)
   std::unique_ptr<Cholesky> chol;
@@ -179,6 +184,7 @@ struct ModelFitter::Workspace {
   Impl::State state;       // of the last solve(): its factorisation is in chol / factor
   Eigen::VectorXd x;       // its encoding values
   std::vector<Eigen::Matrix3d> diag, off;  // the block system's values (kept: no re-allocation)
+  std::vector<JacobianTerm> at_f, at_g;     // the Jacobian's per-slot terms (jacobian())
 };
 
 ModelFitter::ModelFitter(std::shared_ptr<const EncodingTemplate> tmpl, std::shared_ptr<const EncodingMean> mean,
@@ -282,7 +288,6 @@ ModelFitter::ModelFitter(std::shared_ptr<const EncodingTemplate> tmpl, std::shar
   m.referenced.assign(m.nv, 0);
   for (int f = 0; f < m.nf; ++f)
     for (int k = 0; k < 3; ++k) m.referenced[F(f, k)] = 1;
-  m.identity.assign(m.nf, Eigen::Matrix3d::Identity());
   (void)F;
 }
 
@@ -412,7 +417,7 @@ void ModelFitter::jacobian(Workspace& ws, int K, Eigen::MatrixXd& Jout) const {
   // (dX_block(p, j): the 3×3 block of unknown p for coefficient k0 + j): the polar factor's
   // derivative for all kc in one pass over the triangles, then one Poisson solve each.
   auto positions_columns = [&](int k0, int kc, const auto& dX_block) {
-    std::vector<std::vector<Eigen::Matrix3d>> dU(kc, std::vector<Eigen::Matrix3d>(m.nf));
+    std::vector<Eigen::Matrix3d> dU(static_cast<size_t>(kc) * m.nf);  // coefficient j's at j·#F + f
     for (int f = 0; f < m.nf; ++f) {
       const int p = m.unknown[f];
       const Eigen::Matrix3d& R = st.R[f];
@@ -427,27 +432,25 @@ void ModelFitter::jacobian(Workspace& ws, int K, Eigen::MatrixXd& Jout) const {
           const Eigen::Vector3d nu = st.Pinv[f] * w;
           for (int c = 0; c < 3; ++c) dU_local.col(c) += nu.cross(st.S[f].col(c));
         }
-        dU[j][f] = R * dU_local;
+        dU[static_cast<size_t>(j) * m.nf + f] = R * dU_local;
       }
     }
-    for (int j = 0; j < kc; ++j) {
-      Eigen::MatrixX3d dV = decoder_.solve_positions(dU[j], m.identity);
-      for (int v = 0; v < m.nv; ++v) {
-        if (!m.referenced[v]) dV.row(v).setZero();
-        J->block<3, 1>(3 * v, k0 + j) = dV.row(v).transpose();
-      }
-    }
+    const Eigen::MatrixXd dV = decoder_.solve_positions_many(dU, kc);  // one pass through the factor
+    for (int j = 0; j < kc; ++j)
+      for (int v = 0; v < m.nv; ++v)
+        J->block<3, 1>(3 * v, k0 + j) =
+            m.referenced[v] ? Eigen::Vector3d(dV.block<1, 3>(v, 3 * j).transpose()) : Eigen::Vector3d::Zero();
   };
 
   if (!ws.reference && m.block) {
     // dR̂ = R̂ [J_r b]× is linear in the basis segment b of the slot, so each slot's two
     // right-hand-side terms are 3×3 matrices per component of b, computed once per Jacobian:
     //   f rows: dR̂ X_g = Σ_e b_e R̂ [J_r e_e]× X_g,   g rows: dR̂ᵀ X_f = −Σ_e b_e [J_r e_e]× R̂ᵀ X_f.
-    // Stored per slot as v[(3a + c)·3 + e] = entry (a, c) of the e-th matrix.
-    struct Term {
-      double v[27];
-    };
-    std::vector<Term> at_f(m.slots.size()), at_g(m.slots.size());
+    // Kept in the workspace (≈ 18 MB for FAUST: re-allocating them per Jacobian page-faults).
+    std::vector<JacobianTerm>& at_f = ws.at_f;
+    std::vector<JacobianTerm>& at_g = ws.at_g;
+    at_f.resize(m.slots.size());
+    at_g.resize(m.slots.size());
     tbb::parallel_for(0, static_cast<int>(m.slots.size()), [&](int i) {
       const auto& s = m.slots[i];
       const Eigen::Matrix3d& Rs = st.slot_R[3 * s.f + s.k];
@@ -586,7 +589,7 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
   auto run = [&](int Kc, double tolerance, int max_iterations) {
     double mu = 1e-4;
     const int P = Kc + 6;
-    Eigen::MatrixXd Jraw;
+    Eigen::MatrixXd Jraw, Jt(3 * m.nv, P);  // allocated once per stage (10 MB each: page faults)
     // Steps since Jraw was computed (−1: none yet, or it must be recomputed).
     int age = -1;
     for (int it = 0; it < max_iterations; ++it) {
@@ -609,7 +612,6 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
       Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P, P);
       Eigen::VectorXd g;
       {
-        Eigen::MatrixXd Jt(3 * m.nv, P);
         tbb::parallel_for(0, m.nv, [&](int v) {
           Jt.block(3 * v, 0, 3, Kc) = Q * Jraw.block(3 * v, 0, 3, Kc);
           const Eigen::Vector3d p = (cur.placed.row(v) - centroid).transpose();
