@@ -14,7 +14,7 @@
 // smallest mean (Breiman et al. 1984, Hastie et al. "Elements of Statistical Learning" §7.10): when
 // candidates differ by less than the noise of the estimate, the simpler model is the safer bet.
 // Measured on the horse, Vlasic crane and jumping and SCAPE it is not (docs/skinning.md): with
-// 6–40 held-out poses it pulls Animation Space towards the SSD prior, 4–7 % worse on unseen poses
+// 6–40 held-out poses it pulls Animation Space towards the SSD prior, 2–7 % worse on unseen poses
 // of the horse and crane, and does not make MWE generalise better than its base on SCAPE.
 // Every candidate is measured on the same held-out examples, so the standard error is the paired
 // one, of the per-example differences to the best candidate (sd/√n); the unpaired one
