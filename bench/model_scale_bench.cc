@@ -14,7 +14,9 @@
 //    from subjects 0–5 (60 meshes, --full-variance 1). Baseline in the same process: the
 //    projection of the mesh's encoding (the fit's start). Counters: fit wall and process-CPU
 //    seconds, mean vertex error of fit and projection (mm), iterations, wall ratio fit /
-//    projection. Needs $BODYMODEL_DATA/faust-registrations.
+//    projection; and the same fit through ModelFitOptions::reference_solver (CHOLMOD, the
+//    solver before the block one): wall and CPU ratios fit / reference and its error.
+//    Needs $BODYMODEL_DATA/faust-registrations.
 #include <benchmark/benchmark.h>
 #include <fmt/format.h>
 #include <fcntl.h>
@@ -182,6 +184,18 @@ void BM_FitFaust(benchmark::State& state) {
     state.counters["jacobian_s"] = f.summary.jacobian_seconds;
     state.counters["components"] = K;
     state.counters["wall_ratio_fit_over_projection"] = wall / std::max(projection_wall, 1e-9);
+    // The same fit through the CHOLMOD reference path (the solver before the block one):
+    // ratios < 1 = the block solver's gain; the errors should agree to rounding.
+    ModelFitOptions ro;
+    ro.reference_solver = true;
+    const double rc0 = process_cpu_seconds();
+    t0 = std::chrono::steady_clock::now();
+    const ModelFit r = fitter.fit(Y, ro);
+    const double reference_wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    state.counters["reference_fit_mean_mm"] = r.summary.mean_mm;
+    state.counters["wall_ratio_fit_over_reference"] = wall / std::max(reference_wall, 1e-9);
+    state.counters["cpu_ratio_fit_over_reference"] =
+        state.counters["fit_cpu_s"] / std::max(process_cpu_seconds() - rc0, 1e-9);
   }
 }
 BENCHMARK(BM_FitFaust)->Arg(60)->Arg(63)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();

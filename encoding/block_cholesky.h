@@ -45,6 +45,12 @@ class BlockCholesky3 {
                  Factor& factor) const;
   // Solves A X = B in place; B is 3n by any number of columns.
   void solve(const Factor& factor, Eigen::MatrixXd& B) const;
+  // The same for kPanel right-hand sides already in the solver's layout, for callers that
+  // assemble them there (the model fit's Jacobian: no copies in and out): z is row-major
+  // 3n by kPanel, its block row i (rows 3i..3i+2) holding block permutation()[i] of B.
+  static constexpr int kPanel = 12;
+  void solve_panel(const Factor& factor, double* z) const;
+  const std::vector<int>& permutation() const { return perm_; }  // [solver order] = block
 
   int block_count() const { return n_; }
   // Number of 3×3 blocks stored in L (lower triangle of the panels, explicit zeros included).

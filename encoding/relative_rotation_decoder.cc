@@ -569,6 +569,82 @@ Eigen::MatrixX3d RelativeRotationDecoder::solve_positions(const std::vector<Eige
   return X;
 }
 
+namespace {
+
+// L Lᵀ z = z in place for a row-major panel z (n by w) through Eigen's simplicial factor L
+// (compressed columns, the diagonal first in each): every entry of L is read once for all w
+// columns, where Eigen's own sparse triangular solve walks L once per column. W = w when known
+// at compile time (the inner loops then vectorise fully), else 0.
+template <int W>
+void llt_solve_panel(const SparseMatrixd& L, double* z, int w_runtime) {
+  const int w = W > 0 ? W : w_runtime;
+  const int n = static_cast<int>(L.cols());
+  const int* outer = L.outerIndexPtr();
+  const int* inner = L.innerIndexPtr();
+  const double* value = L.valuePtr();
+  for (int j = 0; j < n; ++j) {
+    double* xj = z + static_cast<size_t>(j) * w;
+    const double d = 1.0 / value[outer[j]];
+    for (int c = 0; c < w; ++c) xj[c] *= d;
+    for (int p = outer[j] + 1; p < outer[j + 1]; ++p) {
+      double* xi = z + static_cast<size_t>(inner[p]) * w;
+      const double l = value[p];
+      for (int c = 0; c < w; ++c) xi[c] -= l * xj[c];
+    }
+  }
+  for (int j = n - 1; j >= 0; --j) {
+    double* xj = z + static_cast<size_t>(j) * w;
+    for (int p = outer[j] + 1; p < outer[j + 1]; ++p) {
+      const double* xi = z + static_cast<size_t>(inner[p]) * w;
+      const double l = value[p];
+      for (int c = 0; c < w; ++c) xj[c] -= l * xi[c];
+    }
+    const double d = 1.0 / value[outer[j]];
+    for (int c = 0; c < w; ++c) xj[c] *= d;
+  }
+}
+
+}  // namespace
+
+Eigen::MatrixXd RelativeRotationDecoder::solve_positions_many(const std::vector<Eigen::Matrix3d>& U,
+                                                              int fields) const {
+  const Impl& m = *impl_;
+  if (fields < 1 || U.size() != static_cast<size_t>(fields) * m.nf)
+    throw InputError("decoder: expected " + std::to_string(m.nf) + " gradients per field");
+  const std::shared_ptr<const PoissonFactor> factor =
+      options_.reuse_factorisations ? m.free_poisson : m.build_poisson(Eigen::VectorXi(), Eigen::VectorXd());
+  const int w = 3 * fields;
+  Eigen::MatrixXd B(3 * m.nf, w);
+  parallel_range(m.nf, [&](int f) {
+    for (int j = 0; j < fields; ++j) {
+      const Eigen::Matrix3d& u = U[static_cast<size_t>(j) * m.nf + f];
+      for (int d = 0; d < 3; ++d)
+        for (int col = 0; col < 3; ++col) B(d * m.nf + f, 3 * j + col) = u(col, d);
+    }
+  });
+  Eigen::MatrixXd rhs = m.D * B;
+  const Eigen::MatrixX3d& Vrest = tmpl_->rest_vertices();
+  for (int v = 0; v < m.nv; ++v)
+    if (factor->pinned[v])
+      for (int j = 0; j < fields; ++j)
+        rhs.block<1, 3>(v, 3 * j) = m.vertex_component[v] < 0 ? Eigen::RowVector3d(Vrest.row(v))
+                                                                 : Eigen::RowVector3d::Zero();
+  const SparseMatrixd& L = factor->solver.matrixL().nestedExpression();
+  for (int j = 0; j < L.cols(); ++j)  // the layout llt_solve_panel relies on
+    if (L.outerIndexPtr()[j] == L.outerIndexPtr()[j + 1] || L.innerIndexPtr()[L.outerIndexPtr()[j]] != j)
+      return factor->solver.solve(rhs);
+  // Row-major panel in the factor's order: row i = row P⁻¹(i) of rhs.
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> z =
+      factor->solver.permutationP() * rhs;
+  if (w == 12)
+    llt_solve_panel<12>(L, z.data(), w);
+  else
+    llt_solve_panel<0>(L, z.data(), w);
+  Eigen::MatrixXd X = factor->solver.permutationPinv() * z;
+  if (!X.allFinite()) throw NumericalError("Poisson system: the solve produced NaN");
+  return X;
+}
+
 Eigen::MatrixX3d RelativeRotationDecoder::positions(const std::vector<Eigen::Matrix3d>& R,
                                                     const std::vector<Eigen::Matrix3d>& S,
                                                     const PositionConstraints* c,

@@ -151,6 +151,12 @@ class RelativeRotationDecoder {
                                    const std::vector<Eigen::Matrix3d>& S,
                                    const PositionConstraints* constraints = nullptr) const;
 
+  //   The unconstrained Poisson stage for `fields` target-gradient fields at once (the model
+  //   fit's Jacobian columns): U holds fields × #F matrices U_f = R_f S_f, field j's at
+  //   j·#F + f; returns #V by 3·fields positions (field j in columns 3j … 3j+2), as
+  //   solve_positions(U_j, identities) would, in one pass through the factor.
+  Eigen::MatrixXd solve_positions_many(const std::vector<Eigen::Matrix3d>& U, int fields) const;
+
   // Timing of the most recent call to finish (any thread).
   DecodeTiming last_timing() const;
   const EncodingTemplate& encoding_template() const { return *tmpl_; }

@@ -6,11 +6,16 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <numeric>
 #include <tbb/parallel_for.h>
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 
 #include "core/error.h"
+#include "encoding/block_cholesky.h"
 #include "encoding/deformation_gradient.h"
 #include "model/format.h"
 
@@ -25,10 +30,6 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& w) {
   Eigen::Matrix3d S;
   S << 0, -w(2), w(1), w(2), 0, -w(0), -w(1), w(0), 0;
   return S;
-}
-
-Eigen::Vector3d axial(const Eigen::Matrix3d& W) {  // of a skew-symmetric W (twice its skew part's)
-  return Eigen::Vector3d(W(2, 1), W(0, 2), W(1, 0));
 }
 
 // Right Jacobian of SO(3): exp(φ + ε) ≈ exp(φ) exp([J_r(φ) ε]×).
@@ -60,6 +61,53 @@ double percentile(std::vector<double> v, double p) {  // numpy's default (linear
   const size_t hi = std::min(lo + 1, v.size() - 1);
   return v[lo] + (pos - static_cast<double>(lo)) * (v[hi] - v[lo]);
 }
+
+// One unknown's block row of the Jacobian's right-hand-side panel (3 rows × 12: column 4c + j
+// is column c of coefficient j): Z += Σ_t Σ_e b_t,e,j M_t,e over `count` terms, M_t the 27
+// numbers v[(3a + c)·3 + e], b_t,e,j = basis[j][off_t + e].
+void assemble_panel_row_portable(double* Z, int count, const double* const* M, const int* off,
+                                 const double* const* basis) {
+  for (int t = 0; t < count; ++t) {
+    double b[3][4];
+    for (int e = 0; e < 3; ++e)
+      for (int j = 0; j < 4; ++j) b[e][j] = basis[j][off[t] + e];
+    for (int ac = 0; ac < 9; ++ac) {
+      double* out = Z + (ac / 3) * 12 + (ac % 3) * 4;
+      const double* m = M[t] + 3 * ac;
+      for (int j = 0; j < 4; ++j) out[j] += m[0] * b[0][j] + m[1] * b[1][j] + m[2] * b[2][j];
+    }
+  }
+}
+#if defined(__x86_64__) && defined(__GNUC__)
+#define BODYMODEL_FIT_AVX2 1
+// The same with the four coefficients in one register: 27 fused multiply-adds per term.
+__attribute__((target("avx2,fma"))) void assemble_panel_row_avx2(double* Z, int count, const double* const* M,
+                                                                 const int* off, const double* const* basis) {
+  __m256d acc[9];
+  for (int ac = 0; ac < 9; ++ac) acc[ac] = _mm256_loadu_pd(Z + (ac / 3) * 12 + (ac % 3) * 4);
+  for (int t = 0; t < count; ++t) {
+    const int o = off[t];
+    const __m256d b0 = _mm256_set_pd(basis[3][o], basis[2][o], basis[1][o], basis[0][o]);
+    const __m256d b1 = _mm256_set_pd(basis[3][o + 1], basis[2][o + 1], basis[1][o + 1], basis[0][o + 1]);
+    const __m256d b2 = _mm256_set_pd(basis[3][o + 2], basis[2][o + 2], basis[1][o + 2], basis[0][o + 2]);
+    const double* m = M[t];
+    for (int ac = 0; ac < 9; ++ac) {
+      acc[ac] = _mm256_fmadd_pd(_mm256_set1_pd(m[3 * ac]), b0, acc[ac]);
+      acc[ac] = _mm256_fmadd_pd(_mm256_set1_pd(m[3 * ac + 1]), b1, acc[ac]);
+      acc[ac] = _mm256_fmadd_pd(_mm256_set1_pd(m[3 * ac + 2]), b2, acc[ac]);
+    }
+  }
+  for (int ac = 0; ac < 9; ++ac) _mm256_storeu_pd(Z + (ac / 3) * 12 + (ac % 3) * 4, acc[ac]);
+}
+#endif
+using AssembleKernel = void (*)(double*, int, const double* const*, const int*, const double* const*);
+AssembleKernel assemble_kernel() {
+#ifdef BODYMODEL_FIT_AVX2
+  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) return assemble_panel_row_avx2;
+#endif
+  return assemble_panel_row_portable;
+}
+const AssembleKernel assemble_panel_row = assemble_kernel();
 
 using Clock = std::chrono::steady_clock;
 
@@ -98,11 +146,21 @@ struct ModelFitter::Impl {
     std::array<int, 9> pos;       // value positions of the lower block (row-major a, c)
   };
   std::vector<Slot> slots;        // slots with a neighbour
+  // The rotation system as 3×3 blocks for BlockCholesky3 (the default solver): slot i adds
+  // −R̂ (or −R̂ᵀ when its f is the lower unknown) to off-diagonal block slot_edge[i] (−1: a
+  // slot touching the fixed triangle).
+  std::vector<int> slot_edge;
+  int edge_count = 0;
+  std::unique_ptr<BlockCholesky3> block;
+  std::vector<int> solver_row;    // unknown → its block row in the block solver's order
+  // The Jacobian's right-hand side of unknown p gathers terms[term_begin[p] … term_begin[p+1]):
+  // slot index, and whether p is the slot's g (dR̂ᵀ X_f) rather than its f (dR̂ X_g).
+  std::vector<int> term_begin;
+  std::vector<std::pair<int, bool>> terms;
   std::vector<std::array<int, 9>> diag_pos;  // per unknown, −1 above the diagonal
   std::vector<double> diag_count; // per unknown: I × (number of slots touching it)
   SparseMatrixd pattern;          // 3n × 3n, lower triangle
   std::vector<char> referenced;   // #V: vertex used by a triangle
-  std::vector<Eigen::Matrix3d> identity;  // #F identities (stretch argument of solve_positions)
 
   // Per-evaluation state.
   struct State {
@@ -113,10 +171,20 @@ struct ModelFitter::Impl {
 
 // Per-fit workspace: the rotation-system solver (analysed once: the pattern never changes) and
 // the state of the last evaluation, whose factorisation the solver holds.
+// A slot's right-hand-side term of the Jacobian: three 3×3 matrices, one per basis value of
+// the slot, stored as v[(3a + c)·3 + e] = entry (a, c) of the e-th.
+struct JacobianTerm {
+  double v[27];
+};
+
 struct ModelFitter::Workspace {
+  bool reference = false;  // CHOLMOD (chol) instead of the block factorisation (factor)
   std::unique_ptr<Cholesky> chol;
-  Impl::State state;       // of the last evaluate(): its factorisation is in chol
+  BlockCholesky3::Factor factor;
+  Impl::State state;       // of the last solve(): its factorisation is in chol / factor
   Eigen::VectorXd x;       // its encoding values
+  std::vector<Eigen::Matrix3d> diag, off;  // the block system's values (kept: no re-allocation)
+  std::vector<JacobianTerm> at_f, at_g;     // the Jacobian's per-slot terms (jacobian())
 };
 
 ModelFitter::ModelFitter(std::shared_ptr<const EncodingTemplate> tmpl, std::shared_ptr<const EncodingMean> mean,
@@ -183,6 +251,36 @@ ModelFitter::ModelFitter(std::shared_ptr<const EncodingTemplate> tmpl, std::shar
     for (int a = 0; a < 3; ++a)
       for (int c = 0; c < 3; ++c) s.pos[3 * a + c] = position(3 * hi + a, 3 * lo + c);
   }
+  {
+    std::map<std::pair<int, int>, int> edge_of;  // (hi, lo) unknowns → edge (a pair may have 2 slots)
+    std::vector<std::pair<int, int>> lower;
+    m.slot_edge.assign(m.slots.size(), -1);
+    for (size_t i = 0; i < m.slots.size(); ++i) {
+      const int pf = m.unknown[m.slots[i].f], pg = m.unknown[m.slots[i].g];
+      if (pf < 0 || pg < 0) continue;
+      const std::pair<int, int> key(std::max(pf, pg), std::min(pf, pg));
+      auto [it, added] = edge_of.emplace(key, static_cast<int>(lower.size()));
+      if (added) lower.push_back(key);
+      m.slot_edge[i] = it->second;
+    }
+    m.edge_count = static_cast<int>(lower.size());
+    if (m.n > 0) {
+      m.block = std::make_unique<BlockCholesky3>(m.n, lower);
+      m.solver_row.assign(m.n, 0);
+      for (int i = 0; i < m.n; ++i) m.solver_row[m.block->permutation()[i]] = i;
+    }
+    std::vector<std::vector<std::pair<int, bool>>> by_unknown(m.n);
+    for (size_t i = 0; i < m.slots.size(); ++i) {
+      const int pf = m.unknown[m.slots[i].f], pg = m.unknown[m.slots[i].g];
+      if (pf >= 0) by_unknown[pf].emplace_back(static_cast<int>(i), false);
+      if (pg >= 0) by_unknown[pg].emplace_back(static_cast<int>(i), true);
+    }
+    m.term_begin.assign(1, 0);
+    for (const auto& list : by_unknown) {
+      m.terms.insert(m.terms.end(), list.begin(), list.end());
+      m.term_begin.push_back(static_cast<int>(m.terms.size()));
+    }
+  }
   m.diag_pos.resize(m.n);
   for (int p = 0; p < m.n; ++p)
     for (int a = 0; a < 3; ++a)
@@ -190,7 +288,6 @@ ModelFitter::ModelFitter(std::shared_ptr<const EncodingTemplate> tmpl, std::shar
   m.referenced.assign(m.nv, 0);
   for (int f = 0; f < m.nf; ++f)
     for (int k = 0; k < 3; ++k) m.referenced[F(f, k)] = 1;
-  m.identity.assign(m.nf, Eigen::Matrix3d::Identity());
   (void)F;
 }
 
@@ -203,8 +300,9 @@ Eigen::VectorXd ModelFitter::project(const Eigen::MatrixX3d& V, int K) const {
   return pca_.basis.leftCols(K).transpose() * (e.values - pca_.mean);
 }
 
-Eigen::MatrixX3d ModelFitter::evaluate(const Eigen::VectorXd& c, Eigen::MatrixXd* J) const {
+Eigen::MatrixX3d ModelFitter::evaluate(const Eigen::VectorXd& c, Eigen::MatrixXd* J, bool reference_solver) const {
   Workspace ws;
+  ws.reference = reference_solver;
   Eigen::MatrixX3d V = solve(ws, c);
   if (J) jacobian(ws, static_cast<int>(c.size()), *J);
   return V;
@@ -215,39 +313,71 @@ Eigen::MatrixX3d ModelFitter::solve(Workspace& ws, const Eigen::VectorXd& c) con
   const int K = static_cast<int>(c.size());
   if (K > pca_.component_count())
     throw InputError(fmt::format("fit: {} coefficients given, the model has {} components", K, pca_.component_count()));
-  ws.x = pca_.mean + pca_.basis.leftCols(K) * c;
+  // mean + B c in row blocks on all cores: the product reads the whole basis (D × K doubles,
+  // ≈ 100 MB for FAUST at 59 components), bound by memory bandwidth on one core.
+  ws.x.resize(pca_.mean.size());
+  const Eigen::Index D = pca_.mean.size(), rows = 8192;
+  tbb::parallel_for(Eigen::Index(0), (D + rows - 1) / rows, [&](Eigen::Index i) {
+    const Eigen::Index r0 = i * rows, nr = std::min(rows, D - r0);
+    ws.x.segment(r0, nr).noalias() = pca_.mean.segment(r0, nr) + pca_.basis.block(r0, 0, nr, K) * c;
+  });
   const Eigen::VectorXd& x = ws.x;
   Impl::State& st = ws.state;
   encoding_matrices(Encoding{x, mean_}, st.slot_R, st.S);
 
-  // Rotation system N X = b (the decoder's, docs/method.md §3.4).
-  SparseMatrixd N = m.pattern;
-  double* val = N.valuePtr();
-  std::fill(val, val + N.nonZeros(), 0.0);
-  for (int p = 0; p < m.n; ++p)
-    for (int a = 0; a < 3; ++a) val[m.diag_pos[p][3 * a + a]] = m.diag_count[p];
+  // Rotation system N X = b (the decoder's, docs/method.md §3.4): right-hand side from the
+  // slots touching the fixed triangle, matrix from the rest.
   Eigen::MatrixXd b = Eigen::MatrixXd::Zero(3 * m.n, 3);
   for (const auto& s : m.slots) {
     const Eigen::Matrix3d& Rs = st.slot_R[3 * s.f + s.k];
     const int pf = m.unknown[s.f], pg = m.unknown[s.g];
-    if (pf >= 0 && pg >= 0) {
-      // Block (f, g) gets −R̂; stored lower: as is when f is the higher index, else transposed.
-      for (int a = 0; a < 3; ++a)
-        for (int cc = 0; cc < 3; ++cc) val[s.pos[3 * a + cc]] -= s.f_high ? Rs(a, cc) : Rs(cc, a);
-    } else if (pf < 0 && pg >= 0) {
+    if (pf < 0 && pg >= 0) {
       b.middleRows<3>(3 * pg) += Rs.transpose();  // X_f = I (fixed)
     } else if (pg < 0 && pf >= 0) {
       b.middleRows<3>(3 * pf) += Rs;              // X_g = I (fixed)
     }
   }
-  if (!ws.chol) {
-    ws.chol = std::make_unique<Cholesky>();
-    ws.chol->analyzePattern(N);
+  if (!ws.reference && m.block) {
+    // Block (f, g) gets −R̂ per slot; the lower block of the pair (hi, lo) is stored.
+    ws.diag.resize(m.n);
+    ws.off.assign(m.edge_count, Eigen::Matrix3d::Zero());
+    for (int p = 0; p < m.n; ++p) ws.diag[p] = m.diag_count[p] * Eigen::Matrix3d::Identity();
+    for (size_t i = 0; i < m.slots.size(); ++i) {
+      const int e = m.slot_edge[i];
+      if (e < 0) continue;
+      const auto& s = m.slots[i];
+      const Eigen::Matrix3d& Rs = st.slot_R[3 * s.f + s.k];
+      if (s.f_high)
+        ws.off[e] -= Rs;
+      else
+        ws.off[e] -= Rs.transpose();
+    }
+    if (!m.block->factorize(ws.diag, ws.off, ws.factor))
+      throw NumericalError("fit: the rotation system is not positive definite");
+    m.block->solve(ws.factor, b);
+    st.X = std::move(b);
+  } else {
+    SparseMatrixd N = m.pattern;
+    double* val = N.valuePtr();
+    std::fill(val, val + N.nonZeros(), 0.0);
+    for (int p = 0; p < m.n; ++p)
+      for (int a = 0; a < 3; ++a) val[m.diag_pos[p][3 * a + a]] = m.diag_count[p];
+    for (const auto& s : m.slots) {
+      if (m.unknown[s.f] < 0 || m.unknown[s.g] < 0) continue;
+      const Eigen::Matrix3d& Rs = st.slot_R[3 * s.f + s.k];
+      // Block (f, g) gets −R̂; stored lower: as is when f is the higher index, else transposed.
+      for (int a = 0; a < 3; ++a)
+        for (int cc = 0; cc < 3; ++cc) val[s.pos[3 * a + cc]] -= s.f_high ? Rs(a, cc) : Rs(cc, a);
+    }
+    if (!ws.chol) {
+      ws.chol = std::make_unique<Cholesky>();
+      ws.chol->analyzePattern(N);
+    }
+    Cholesky& chol = *ws.chol;
+    chol.factorize(N);
+    if (chol.info() != Eigen::Success) throw NumericalError("fit: the rotation system is not positive definite");
+    st.X = chol.solve(b);
   }
-  Cholesky& chol = *ws.chol;
-  chol.factorize(N);
-  if (chol.info() != Eigen::Success) throw NumericalError("fit: the rotation system is not positive definite");
-  st.X = chol.solve(b);
   if (!st.X.allFinite()) throw NumericalError("fit: the rotation solve produced NaN");
   st.R.assign(m.nf, Eigen::Matrix3d::Identity());
   st.Pinv.assign(m.nf, Eigen::Matrix3d::Zero());
@@ -269,9 +399,7 @@ void ModelFitter::jacobian(Workspace& ws, int K, Eigen::MatrixXd& Jout) const {
   const Impl& m = *impl_;
   const Impl::State& st = ws.state;
   const Eigen::VectorXd& x = ws.x;
-  Cholesky& chol = *ws.chol;
   Eigen::MatrixXd* J = &Jout;
-  // In chunks of coefficients (memory: 3n × 3·chunk doubles).
   J->resize(3 * m.nv, K);
   std::vector<Eigen::Matrix3d> Jr(m.slots.size());
   tbb::parallel_for(0, static_cast<int>(m.slots.size()), [&](int i) {
@@ -282,9 +410,107 @@ void ModelFitter::jacobian(Workspace& ws, int K, Eigen::MatrixXd& Jout) const {
     const int p = m.unknown[f];
     return p < 0 ? Eigen::Matrix3d::Identity() : Eigen::Matrix3d(st.X.middleRows<3>(3 * p));
   };
-  const int chunk = 32;
-  for (int k0 = 0; k0 < K; k0 += chunk) {
-    const int kc = std::min(chunk, K - k0);
+  // Coefficient k's column of J from the derivative dX of the rotation system's solution
+  // (dX_block(p): its 3×3 block of unknown p): the polar factor's derivative, then one Poisson
+  // solve.
+  // Columns k0 … k0+kc−1 of J from the derivatives dX of the rotation system's solution
+  // (dX_block(p, j): the 3×3 block of unknown p for coefficient k0 + j): the polar factor's
+  // derivative for all kc in one pass over the triangles, then one Poisson solve each.
+  auto positions_columns = [&](int k0, int kc, const auto& dX_block) {
+    std::vector<Eigen::Matrix3d> dU(static_cast<size_t>(kc) * m.nf);  // coefficient j's at j·#F + f
+    for (int f = 0; f < m.nf; ++f) {
+      const int p = m.unknown[f];
+      const Eigen::Matrix3d& R = st.R[f];
+      for (int j = 0; j < kc; ++j) {
+        Eigen::Matrix3d dU_local = stretch_of(pca_.basis.col(k0 + j).data() + 15 * f + 9);  // dS_f
+        if (p >= 0) {
+          // R_fᵀ dU_f = [ν]× S_f + dS_f, ν = Pinv_f axial(Aᵀ − A), A = R_fᵀ dM, dM = dXᵀ: only
+          // A's off-diagonal entries are needed.
+          const Eigen::Matrix3d dX = dX_block(p, j);
+          auto A = [&](int a, int b) { return R.col(a).dot(dX.row(b)); };
+          const Eigen::Vector3d w(A(2, 1) - A(1, 2), A(0, 2) - A(2, 0), A(1, 0) - A(0, 1));
+          const Eigen::Vector3d nu = st.Pinv[f] * w;
+          for (int c = 0; c < 3; ++c) dU_local.col(c) += nu.cross(st.S[f].col(c));
+        }
+        dU[static_cast<size_t>(j) * m.nf + f] = R * dU_local;
+      }
+    }
+    const Eigen::MatrixXd dV = decoder_.solve_positions_many(dU, kc);  // one pass through the factor
+    for (int j = 0; j < kc; ++j)
+      for (int v = 0; v < m.nv; ++v)
+        J->block<3, 1>(3 * v, k0 + j) =
+            m.referenced[v] ? Eigen::Vector3d(dV.block<1, 3>(v, 3 * j).transpose()) : Eigen::Vector3d::Zero();
+  };
+
+  if (!ws.reference && m.block) {
+    // dR̂ = R̂ [J_r b]× is linear in the basis segment b of the slot, so each slot's two
+    // right-hand-side terms are 3×3 matrices per component of b, computed once per Jacobian:
+    //   f rows: dR̂ X_g = Σ_e b_e R̂ [J_r e_e]× X_g,   g rows: dR̂ᵀ X_f = −Σ_e b_e [J_r e_e]× R̂ᵀ X_f.
+    // Kept in the workspace (≈ 18 MB for FAUST: re-allocating them per Jacobian page-faults).
+    std::vector<JacobianTerm>& at_f = ws.at_f;
+    std::vector<JacobianTerm>& at_g = ws.at_g;
+    at_f.resize(m.slots.size());
+    at_g.resize(m.slots.size());
+    tbb::parallel_for(0, static_cast<int>(m.slots.size()), [&](int i) {
+      const auto& s = m.slots[i];
+      const Eigen::Matrix3d& Rs = st.slot_R[3 * s.f + s.k];
+      const Eigen::Matrix3d Xg = X_of(s.g), RtXf = Rs.transpose() * X_of(s.f);
+      for (int e = 0; e < 3; ++e) {
+        const Eigen::Matrix3d E = skew(Jr[i].col(e));
+        const Eigen::Matrix3d F = Rs * E * Xg, G = -E * RtXf;
+        for (int a = 0; a < 3; ++a)
+          for (int c = 0; c < 3; ++c) {
+            at_f[i].v[(3 * a + c) * 3 + e] = F(a, c);
+            at_g[i].v[(3 * a + c) * 3 + e] = G(a, c);
+          }
+      }
+    });
+    // Groups of four coefficients (kPanel = 12 columns) run in parallel (the block solve is
+    // const; CHOLMOD's is not), each assembling its right-hand sides straight into the
+    // solver's row-major layout (3n × 12 doubles: in cache, no copies). Column 4c + j of the
+    // panel is column c of coefficient j's 3×3 blocks, so the four coefficients of one entry
+    // are contiguous and the assembly vectorises.
+    constexpr int W = BlockCholesky3::kPanel, group = W / 3;
+    static_assert(group == 4, "panel layout: 3 columns × 4 coefficients");
+    const int groups = (K + group - 1) / group;
+    tbb::parallel_for(0, groups, [&](int gi) {
+      const int k0 = group * gi, kc = std::min(group, K - k0);
+      std::vector<double> z(static_cast<size_t>(3 * m.n) * W);
+      const double* basis[group];
+      for (int j = 0; j < group; ++j) basis[j] = pca_.basis.col(k0 + std::min(j, kc - 1)).data();
+      // Unknowns in template order: the slots' terms and basis rows are read nearly in
+      // sequence; each block row of z is written once.
+      // (A last group of fewer than four repeats its last coefficient in the spare columns.)
+      for (int p = 0; p < m.n; ++p) {
+        double* Z = z.data() + static_cast<size_t>(3 * W) * m.solver_row[p];
+        std::fill(Z, Z + 3 * W, 0.0);
+        const double* M[8];
+        int off[8], count = 0;
+        for (int t = m.term_begin[p]; t < m.term_begin[p + 1]; ++t) {
+          const auto [i, at_g_rows] = m.terms[t];
+          M[count] = (at_g_rows ? at_g[i] : at_f[i]).v;
+          off[count++] = 15 * m.slots[i].f + 3 * m.slots[i].k;
+          if (count == 8 || t + 1 == m.term_begin[p + 1]) {
+            assemble_panel_row(Z, count, M, off, basis);
+            count = 0;
+          }
+        }
+      }
+      m.block->solve_panel(ws.factor, z.data());
+      positions_columns(k0, kc, [&](int p, int j) {
+        const double* Z = z.data() + static_cast<size_t>(3 * W) * m.solver_row[p];
+        Eigen::Matrix3d dX;
+        for (int a = 0; a < 3; ++a)
+          for (int c = 0; c < 3; ++c) dX(a, c) = Z[a * W + c * group + j];
+        return dX;
+      });
+    });
+    return;
+  }
+
+  // The reference path (CHOLMOD): 32 coefficients per solve (memory: 3n × 96 doubles).
+  for (int k0 = 0; k0 < K; k0 += 32) {
+    const int kc = std::min(32, K - k0);
     Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(3 * m.n, 3 * kc);
     tbb::parallel_for(0, kc, [&](int j) {
       const Eigen::Ref<const Eigen::VectorXd> bk = pca_.basis.col(k0 + j);
@@ -299,26 +525,9 @@ void ModelFitter::jacobian(Workspace& ws, int K, Eigen::MatrixXd& Jout) const {
         if (pf >= 0) out.middleRows<3>(3 * pf) += dR * X_of(s.g);
       }
     });
-    const Eigen::MatrixXd dX = chol.solve(rhs);
+    const Eigen::MatrixXd dX = ws.chol->solve(rhs);
     tbb::parallel_for(0, kc, [&](int j) {
-      const Eigen::Ref<const Eigen::VectorXd> bk = pca_.basis.col(k0 + j);
-      std::vector<Eigen::Matrix3d> dU(m.nf);
-      for (int f = 0; f < m.nf; ++f) {
-        const Eigen::Matrix3d dS = stretch_of(bk.data() + 15 * f + 9);
-        const int p = m.unknown[f];
-        Eigen::Matrix3d dR = Eigen::Matrix3d::Zero();
-        if (p >= 0) {
-          const Eigen::Matrix3d dM = dX.block<3, 3>(3 * p, 3 * j).transpose();
-          const Eigen::Matrix3d W = st.R[f].transpose() * dM - dM.transpose() * st.R[f];
-          dR = st.R[f] * skew(st.Pinv[f] * axial(W));
-        }
-        dU[f] = dR * st.S[f] + st.R[f] * dS;
-      }
-      Eigen::MatrixX3d dV = decoder_.solve_positions(dU, m.identity);
-      for (int v = 0; v < m.nv; ++v) {
-        if (!m.referenced[v]) dV.row(v).setZero();
-        J->block<3, 1>(3 * v, k0 + j) = dV.row(v).transpose();
-      }
+      positions_columns(k0 + j, 1, [&](int p, int) { return Eigen::Matrix3d(dX.block<3, 3>(3 * p, 3 * j)); });
     });
   }
 }
@@ -353,11 +562,15 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
     RigidMotion rigid;
     double cost = 0;
   };
-  Workspace ws;
-  auto evaluate_at = [&](const Eigen::VectorXd& cc) {
+  // Two workspaces: the accepted point's (its factorisation serves the next Jacobian) and the
+  // trial step's, swapped on acceptance, so a rejected step never costs a second decode of
+  // the accepted point.
+  Workspace ws, trial;
+  ws.reference = trial.reference = o.reference_solver;
+  auto evaluate_at = [&](Workspace& w, const Eigen::VectorXd& cc) {
     Eval e;
     const auto t0 = Clock::now();
-    e.raw = solve(ws, cc);
+    e.raw = solve(w, cc);
     out.summary.decode_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
     e.rigid = fit_rigid_motion(e.raw, Y);
     e.placed = apply(e.rigid, e.raw);
@@ -366,8 +579,7 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
     ++out.summary.evaluations;
     return e;
   };
-  Eval cur = evaluate_at(c);
-  bool factor_is_current = true;  // ws holds cur's state
+  Eval cur = evaluate_at(ws, c);  // ws holds cur's state from here on
   out.summary.start_mean_mm = (cur.placed - Y).rowwise().norm().mean();
   out.summary.history_mean_mm.push_back(out.summary.start_mean_mm);
 
@@ -377,7 +589,7 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
   auto run = [&](int Kc, double tolerance, int max_iterations) {
     double mu = 1e-4;
     const int P = Kc + 6;
-    Eigen::MatrixXd Jraw;
+    Eigen::MatrixXd Jraw, Jt(3 * m.nv, P);  // allocated once per stage (10 MB each: page faults)
     // Steps since Jraw was computed (−1: none yet, or it must be recomputed).
     int age = -1;
     for (int it = 0; it < max_iterations; ++it) {
@@ -385,10 +597,6 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
                       fmt::format("iteration {} ({} components)", out.summary.iterations + 1, Kc));
       const bool fresh = age < 0 || age >= o.jacobian_reuse;
       if (fresh) {
-        if (!factor_is_current) {
-          cur = evaluate_at(c);
-          factor_is_current = true;
-        }
         const auto t0 = Clock::now();
         jacobian(ws, Kc, Jraw);
         out.summary.jacobian_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
@@ -404,7 +612,6 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
       Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P, P);
       Eigen::VectorXd g;
       {
-        Eigen::MatrixXd Jt(3 * m.nv, P);
         tbb::parallel_for(0, m.nv, [&](int v) {
           Jt.block(3 * v, 0, 3, Kc) = Q * Jraw.block(3 * v, 0, 3, Kc);
           const Eigen::Vector3d p = (cur.placed.row(v) - centroid).transpose();
@@ -434,18 +641,17 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
         }
         Eigen::VectorXd c_new = c;
         c_new.head(Kc) += step.head(Kc);
-        Eval next = evaluate_at(c_new);
+        Eval next = evaluate_at(trial, c_new);
         if (next.cost < cur.cost) {
           const double decrease = (cur.cost - next.cost) / std::max(cur.cost, 1e-300);
           const double moved = (next.placed - cur.placed).rowwise().norm().maxCoeff();
           c = c_new;
           cur = std::move(next);
-          factor_is_current = true;
+          std::swap(ws, trial);
           mu = std::max(mu / 3, 1e-9);
           accepted = true;
           if (decrease < tolerance || moved < o.step_tolerance_mm) done = true;
         } else {
-          factor_is_current = false;
           if (fresh) mu *= 4;
         }
       }

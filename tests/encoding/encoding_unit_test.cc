@@ -378,10 +378,13 @@ TEST(BlockCholesky, SolvesLikeADenseFactorisationAndRejectsIndefiniteMatrices) {
   }
   BlockCholesky3::Factor factor;
   ASSERT_TRUE(chol.factorize(diag, off, factor));
-  Eigen::MatrixXd b = Eigen::MatrixXd::Random(3 * n, 5), x = b;
-  chol.solve(factor, x);
-  const Eigen::MatrixXd reference = A.llt().solve(b);
-  EXPECT_LT((x - reference).cwiseAbs().maxCoeff(), 1e-12 * reference.cwiseAbs().maxCoeff());
+  // 3 columns (the decoder's kernel), 1, and 5 / 14 (12-column panels, the last zero-padded).
+  for (int k : {3, 1, 5, 14}) {
+    Eigen::MatrixXd b = Eigen::MatrixXd::Random(3 * n, k), x = b;
+    chol.solve(factor, x);
+    const Eigen::MatrixXd reference = A.llt().solve(b);
+    EXPECT_LT((x - reference).cwiseAbs().maxCoeff(), 1e-12 * reference.cwiseAbs().maxCoeff()) << k << " columns";
+  }
   diag[n / 2] = -diag[n / 2];
   EXPECT_FALSE(chol.factorize(diag, off, factor));
 }

@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <random>
 
 #include "core/landmarks.h"
@@ -62,7 +63,11 @@ EndToEnd register_known_subject(const MakeHuman& mh, const RegistrationTemplate&
   posed.V = pose_template(subject.mesh.V, sk, subject.weights, 1.0, truth);
 
   // Scan: dense noisy samples minus the downward-facing surface (holes).
-  const PointCloud dense = test::scan_of(posed, 70000, 3, 1.0);
+  // BODYMODEL_TEST_SEED draws another scan and other landmark noise (default 3), to measure
+  // the spread the bounds below must cover.
+  const char* seed_env = std::getenv("BODYMODEL_TEST_SEED");
+  const unsigned seed = seed_env ? unsigned(std::strtoul(seed_env, nullptr, 10)) : 3u;
+  const PointCloud dense = test::scan_of(posed, 70000, seed, 1.0);
   std::vector<int> keep;
   for (Eigen::Index i = 0; i < dense.P.rows(); ++i)
     if (dense.N(i, 1) > -0.6) keep.push_back(int(i));
@@ -71,7 +76,7 @@ EndToEnd register_known_subject(const MakeHuman& mh, const RegistrationTemplate&
   scan.N = dense.N(keep, Eigen::all);
   EXPECT_GT(scan.P.rows(), 50000);
 
-  std::mt19937_64 rng(7);
+  std::mt19937_64 rng(seed + 4);
   std::normal_distribution<double> noise(0.0, 5.0);
   std::vector<Landmark> landmarks;
   for (const auto& [name, v] : body_landmarks())
@@ -140,20 +145,22 @@ TEST(RegisterScan, EndToEndWithShapeFit) {
   ASSERT_TRUE(t.r.shape.has_value());
   std::printf("fitted sliders: gender %.3f height %.3f weight %.3f muscle %.3f\n",
               t.r.shape->gender, t.r.shape->height, t.r.shape->weight, t.r.shape->muscle);
-  // Measured: 3.77 mm, p95 10.1 mm, surface 0.62 mm, hole max 5.9 mm, 0 flipped, joint
-  // median 3.2° (3.82, 10.2, 0.62, 6.2, 0, 3.8 before the final pose fit; without the shape
-  // fit: 7.25, 21.2, 0.84, 14.6, 10, 5.2). Bounds ~12% above the previous figures;
-  // each fails for the registration without the shape fit. Gender trades with muscle on an
-  // outline (fitted 0.85 and 0.77 for 1.0 and 0.6); height and weight come back within 0.01.
-  EXPECT_LT(e.correspondence_mean, 4.3);
-  EXPECT_LT(t.p95, 11.5);
-  EXPECT_LT(e.surface_mean, 0.7);
-  EXPECT_LT(e.hole_max, 7.0);
-  EXPECT_LE(e.flipped_triangles, 3);
-  EXPECT_LT(t.joint_median, 4.3);
-  EXPECT_NEAR(t.r.shape->gender, 1.0, 0.25);
-  EXPECT_NEAR(t.r.shape->height, 0.7, 0.05);
-  EXPECT_NEAR(t.r.shape->weight, 0.65, 0.05);
+  // Bounds from the spread over 8 runs (BODYMODEL_TEST_SEED 3, 5, 11, 19; gcc and clang, whose
+  // rounding differences alone move the fit as much as another seed): correspondence mean
+  // 3.50–5.24 mm, p95 9.2–16.0, surface 0.59–0.67, hole max 5.9–12.2, flipped 0–2, joint median
+  // 2.5–5.0°; sliders gender 0.64–0.87 (trades with muscle on an outline), height 0.60–0.70,
+  // weight 0.54–0.67 for 1.0 / 0.7 / 0.65. Without the shape fit (seed 3): 7.25, 21.2, 0.84,
+  // 14.6, 10 flipped, 5.2°, sliders at the start 0.5. Each bound but the joint median's sits
+  // ~12% above the worst run and fails for the registration without the shape fit.
+  EXPECT_LT(e.correspondence_mean, 6.0);
+  EXPECT_LT(t.p95, 18.0);
+  EXPECT_LT(e.surface_mean, 0.75);
+  EXPECT_LT(e.hole_max, 13.5);
+  EXPECT_LE(e.flipped_triangles, 4);
+  EXPECT_LT(t.joint_median, 5.6);
+  EXPECT_NEAR(t.r.shape->gender, 1.0, 0.45);
+  EXPECT_NEAR(t.r.shape->height, 0.7, 0.12);
+  EXPECT_NEAR(t.r.shape->weight, 0.65, 0.13);
 }
 
 // The pose and shape alternation stops after shape_rounds shape fits, the last of which moves
