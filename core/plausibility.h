@@ -43,6 +43,9 @@ std::vector<char> trunk_and_limbs_region(const std::vector<std::string>& bone_na
                                          const SkinWeights& weights);
 
 // Number of intersecting triangle pairs that share no vertex.   V #V by 3, F #F by 3.
+// Broad phase a uniform grid; the same count as self_intersecting_triangle_pairs_box_d (CGAL's
+// box_self_intersection_d broad phase, the reference), with the same exact narrow phase.
 int self_intersecting_triangle_pairs(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F);
+int self_intersecting_triangle_pairs_box_d(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F);
 
 }  // namespace bodymodel

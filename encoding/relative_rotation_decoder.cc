@@ -117,6 +117,10 @@ struct RelativeRotationDecoder::Impl {
   mutable std::mutex mutex;
   mutable std::vector<std::unique_ptr<Cholesky>> rotation_pool;  // analysed, idle
   mutable std::shared_ptr<const PoissonFactor> constrained_poisson;  // last constraint set
+  // Block-Cholesky factors of earlier calls, idle: a factor is tens of MB, and a fresh one is
+  // zero-filled page by page (memset and page faults were 5–8 % of a population crowd's CPU),
+  // while factorize() overwrites every panel anyway.
+  mutable std::vector<BlockCholesky3::Factor> factor_pool;
   mutable DecodeTiming last;
 
   std::unique_ptr<Cholesky> analysed_rotation_solver() const {
@@ -487,9 +491,21 @@ std::vector<Eigen::Matrix3d> RelativeRotationDecoder::rotations(
     timing.assemble_ms += ms_since(t0);
     t0 = Clock::now();
     BlockCholesky3::Factor factor;
-    if (!m.block_solver->factorize(diag, off, factor))
+    {
+      std::lock_guard<std::mutex> lock(m.mutex);
+      if (!m.factor_pool.empty()) {
+        factor = std::move(m.factor_pool.back());
+        m.factor_pool.pop_back();
+      }
+    }
+    const bool factorised = m.block_solver->factorize(diag, off, factor);
+    if (factorised) m.block_solver->solve(factor, b);
+    {
+      std::lock_guard<std::mutex> lock(m.mutex);
+      m.factor_pool.push_back(std::move(factor));
+    }
+    if (!factorised)
       throw NumericalError("rotation system: numeric factorisation failed (not positive definite)");
-    m.block_solver->solve(factor, b);
     X = std::move(b);
     timing.rotation_solve_ms += ms_since(t0);
     if (!X.allFinite()) throw NumericalError("rotation system: the solve produced NaN");

@@ -5,6 +5,7 @@
 #include <tbb/task_arena.h>
 
 #include <mutex>
+#include <set>
 
 #include "core/error.h"
 
@@ -53,6 +54,26 @@ void generate_crowd_bodies_for(std::shared_ptr<const BodyModel> model,
                                const std::function<void(CrowdBody&&)>& on_body, const ProgressCallback& progress) {
   if (o.threads < 0) throw InputError(fmt::format("generate: {} threads", o.threads));
   const ShapeMorpher morpher(model);
+  // Calibrate each distinct label set and sex's measured response first, with every core (in
+  // the loop below the first body to need one would calibrate it alone while other workers
+  // wait for it).
+  {
+    std::set<std::string> prepared;
+    auto prepare_all = [&] {
+      for (int k : indices) {
+        const std::vector<LabelCondition> c = conditions_of(k);
+        std::string key;
+        for (const auto& l : c) key += l.label + (l.label == "sex" ? fmt::format("={}|", l.lo) : "|");
+        if (prepared.insert(key).second) prepare_generation(morpher, c, o.generate);
+      }
+    };
+    if (o.threads > 0) {
+      tbb::task_arena arena(o.threads);
+      arena.execute(prepare_all);
+    } else {
+      prepare_all();
+    }
+  }
   std::mutex mutex;  // the progress callback is not assumed thread-safe
   int done = 0;
   const int n = static_cast<int>(indices.size());

@@ -21,7 +21,7 @@ namespace bodymodel {
 
 // Bumped whenever generate_body's algorithm changes what a seed produces (a resumed crowd must
 // not mix bodies of two algorithms).
-inline constexpr int kCrowdGeneratorVersion = 3;  // 3: fold repair after decoding
+inline constexpr int kCrowdGeneratorVersion = 4;  // 3: fold repair after decoding; 4: quadratic measured response at the sex's mean
 
 // The generation seed of body k of a crowd seeded with `seed`.
 inline uint64_t crowd_body_seed(uint64_t seed, int k) { return seed * 1000003ull + static_cast<uint64_t>(k); }

@@ -9,6 +9,7 @@
 #include <mutex>
 #include <set>
 #include <Eigen/LU>
+#include <tbb/parallel_for.h>
 
 #include "core/error.h"
 #include "core/geometry.h"
@@ -39,9 +40,99 @@ std::string MorphSummary::report() const {
   return s;
 }
 
+// The measured response of the conditions' labels to a requested change d (label units, the
+// eq. 11 request): measured labels change by f(d) = θ·φ(u), u = d's measured components,
+// φ(u) = (u_j, u_j², u_j u_l for j < l); other labels by d itself (their value is the
+// regression's, met exactly).
+struct ShapeMorpher::Response {
+  bool usable = false;           // false: unit slope (the regression as the response)
+  std::vector<int> measured;     // condition indices of the measured labels (k)
+  std::vector<int> other;        // condition indices of unmeasured labels with a linear effect
+  bool cross = false;            // φ has the u_j u_l terms
+  Eigen::VectorXd anchor_value;  // m: at the anchor, measured where measurable
+  Eigen::VectorXd anchor_predicted;  // m: the regression's values at the anchor
+  Eigen::VectorXd anchor;        // K: the anchor's coefficients
+  Eigen::MatrixXd theta;         // k by #φ
+
+  int terms() const {
+    const int k = static_cast<int>(measured.size());
+    return 2 * k + (cross ? k * (k - 1) / 2 : 0) + static_cast<int>(other.size());
+  }
+  // φ(d): the measured labels' terms, then the other labels' requested changes (linear).
+  Eigen::VectorXd phi(const Eigen::VectorXd& d) const {
+    const Eigen::VectorXd u = measured_part(d);
+    const int k = static_cast<int>(u.size());
+    Eigen::VectorXd p(terms());
+    int t = 0;
+    for (int j = 0; j < k; ++j) p(t++) = u(j);
+    for (int j = 0; j < k; ++j) p(t++) = u(j) * u(j);
+    if (cross)
+      for (int j = 0; j < k; ++j)
+        for (int l = j + 1; l < k; ++l) p(t++) = u(j) * u(l);
+    for (int j : other) p(t++) = d(j);
+    return p;
+  }
+  Eigen::VectorXd measured_part(const Eigen::VectorXd& d) const {
+    Eigen::VectorXd u(measured.size());
+    for (size_t j = 0; j < measured.size(); ++j) u(j) = d(measured[j]);
+    return u;
+  }
+  // f(d), m values.
+  Eigen::VectorXd change(const Eigen::VectorXd& d) const {
+    Eigen::VectorXd f = d;
+    if (!usable) return f;
+    const Eigen::VectorXd fm = theta * phi(d);
+    for (size_t i = 0; i < measured.size(); ++i) f(measured[i]) = fm(i);
+    return f;
+  }
+  // ∂f/∂d at d, m by m.
+  Eigen::MatrixXd jacobian(const Eigen::VectorXd& d) const {
+    const int m = static_cast<int>(d.size()), k = static_cast<int>(measured.size());
+    Eigen::MatrixXd J = Eigen::MatrixXd::Identity(m, m);
+    if (!usable) return J;
+    const Eigen::VectorXd u = measured_part(d);
+    Eigen::MatrixXd Ju = Eigen::MatrixXd::Zero(k, k);  // ∂φ-part/∂u
+    for (int i = 0; i < k; ++i) {
+      int t = 2 * k;
+      for (int j = 0; j < k; ++j) Ju(i, j) = theta(i, j) + 2 * theta(i, k + j) * u(j);
+      if (cross)
+        for (int j = 0; j < k; ++j)
+          for (int l = j + 1; l < k; ++l, ++t) {
+            Ju(i, j) += theta(i, t) * u(l);
+            Ju(i, l) += theta(i, t) * u(j);
+          }
+    }
+    const int first_other = terms() - static_cast<int>(other.size());
+    for (int i = 0; i < k; ++i) {
+      J.row(measured[i]).setZero();
+      for (int j = 0; j < k; ++j) J(measured[i], measured[j]) = Ju(i, j);
+      for (size_t j = 0; j < other.size(); ++j) J(measured[i], other[j]) = theta(i, first_other + j);
+    }
+    return J;
+  }
+  // The request d with f(d) = g (Newton on the model from the slope at 0; the best iterate if
+  // it does not converge).
+  Eigen::VectorXd request_for(const Eigen::VectorXd& g, const Eigen::VectorXd& scale) const {
+    Eigen::FullPivLU<Eigen::MatrixXd> lu0(jacobian(Eigen::VectorXd::Zero(g.size())));
+    Eigen::VectorXd d = lu0.solve(g);
+    if (!usable) return d;
+    Eigen::VectorXd best = d;
+    double best_r = ((g - change(d)).array() / scale.array()).abs().maxCoeff();
+    for (int it = 0; it < 10 && best_r > 1e-3; ++it) {
+      Eigen::FullPivLU<Eigen::MatrixXd> lu(jacobian(d));
+      if (!lu.isInvertible()) break;
+      d += lu.solve(g - change(d));
+      const double r = ((g - change(d)).array() / scale.array()).abs().maxCoeff();
+      if (!std::isfinite(r)) break;
+      if (r < best_r) best_r = r, best = d;
+    }
+    return best;
+  }
+};
+
 struct ShapeMorpher::ResponseCache {
   std::mutex mutex;
-  std::map<std::string, Eigen::MatrixXd> inverse_jacobians;  // by label set and sex
+  std::map<std::string, std::shared_ptr<const Response>> responses;  // by label set, sex, anchor
 };
 
 ShapeMorpher::ShapeMorpher(std::shared_ptr<const BodyModel> model, DecoderOptions options)
@@ -104,52 +195,118 @@ Eigen::VectorXd label_values(const ShapeMorpher& morpher, const std::vector<Labe
 
 }  // namespace
 
-Eigen::MatrixXd ShapeMorpher::measured_response(const std::vector<LabelCondition>& conditions,
-                                                const MorphOptions& o) const {
+std::shared_ptr<const ShapeMorpher::Response> ShapeMorpher::measured_response(
+    const std::vector<LabelCondition>& conditions, const MorphOptions& o) const {
   const SubModel& sm = model_->shape;
   const int m = static_cast<int>(conditions.size());
+  const int K = sm.component_count();
+  const Eigen::VectorXd anchor =
+      o.response_anchor.size() == K ? o.response_anchor : Eigen::VectorXd(Eigen::VectorXd::Zero(K));
   std::string key = std::to_string(static_cast<int>(o.sex)) + (o.prior_weighted ? "|likely" : "");
   for (auto& c : conditions) key += "|" + c.label;
+  key.append(reinterpret_cast<const char*>(anchor.data()), sizeof(double) * K);
+  // Held while calibrating: a second caller with the same key waits instead of repeating it
+  // (prepare() calibrates before a crowd's parallel loop, so workers rarely wait here).
   std::lock_guard<std::mutex> lock(response_cache_->mutex);
-  auto found = response_cache_->inverse_jacobians.find(key);
-  if (found != response_cache_->inverse_jacobians.end()) return found->second;
+  auto found = response_cache_->responses.find(key);
+  if (found != response_cache_->responses.end()) return found->second;
+  auto r = std::make_shared<Response>();
+  r->anchor = anchor;
   std::vector<int> idx(m);
-  Eigen::MatrixXd S(sm.component_count(), m);
+  Eigen::MatrixXd S(K, m);
   for (int i = 0; i < m; ++i) {
     idx[i] = sm.regression.index(conditions[i].label);
     S.col(i) = sm.regression.gradients.col(idx[i]);
+    if (is_measurable_label(conditions[i].label))
+      r->measured.push_back(i);
+    else if (conditions[i].label != "sex")  // the sex of a crowd's body is its start's
+      r->other.push_back(i);
   }
-  // Finite differences at the mean body (coefficients 0): one step per measured label, of
-  // about the size of a typical request (5 cm, 5 kg, half a standard deviation).
-  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(sm.component_count());
-  const Eigen::VectorXd v0 = label_values(*this, conditions, idx, zero, decode(sm.pca.mean), o.sex);
-  Eigen::MatrixXd J = Eigen::MatrixXd::Identity(m, m);
-  bool usable = true;
-  for (int i = 0; i < m; ++i) {
-    if (!is_measurable_label(conditions[i].label)) continue;
-    const LabelInfo& info = sm.regression.labels[idx[i]];
-    const double step = info.unit == "cm" || info.unit == "kg" ? 5.0 : 0.5 * std::max(info.stddev, 1e-9);
-    Eigen::VectorXd delta = Eigen::VectorXd::Zero(m);
-    delta(i) = step;
-    const Eigen::VectorXd z = constrained_change(S, delta, change_options(sm, o));
-    const Eigen::VectorXd v = label_values(*this, conditions, idx, z, decode(sm.pca.mean + sm.pca.basis * z), o.sex);
-    J.col(i) = (v - v0) / step;
-    if (!(J(i, i) > 0.2 && J(i, i) < 5)) usable = false;  // not a usable slope: keep the unit one
+  const int k = static_cast<int>(r->measured.size());
+  r->cross = k <= 4;
+  const Eigen::VectorXd pred = sm.regression.predict(anchor);
+  r->anchor_predicted.resize(m);
+  for (int i = 0; i < m; ++i) r->anchor_predicted(i) = pred(idx[i]);
+  // Calibration requests: 0, ±step_j e_j, and step_j e_j + step_l e_l. Steps of 1.5 standard
+  // deviations of the label in the data (the spread a population asks for), shortened to stay
+  // inside the data's range (at least a quarter of a standard deviation).
+  std::vector<Eigen::VectorXd> requests(1, Eigen::VectorXd::Zero(m));
+  Eigen::VectorXd plus = Eigen::VectorXd::Zero(m);
+  for (int j : r->measured) {
+    const LabelInfo& info = sm.regression.labels[idx[j]];
+    const double sd = std::max(info.stddev, 1e-9);
+    const double up = std::clamp(info.max - pred(idx[j]), 0.25 * sd, 1.5 * sd);
+    const double down = std::clamp(pred(idx[j]) - info.min, 0.25 * sd, 1.5 * sd);
+    Eigen::VectorXd d = Eigen::VectorXd::Zero(m);
+    d(j) = up;
+    requests.push_back(d);
+    d(j) = -down;
+    requests.push_back(d);
+    plus(j) = up;
   }
-  Eigen::MatrixXd inverse = Eigen::MatrixXd::Identity(m, m);
-  if (usable && J.allFinite()) {
-    Eigen::FullPivLU<Eigen::MatrixXd> lu(J);
-    if (lu.isInvertible() && lu.rcond() > 1e-3) inverse = lu.inverse();
+  // The other labels' effect on the measured ones (age changes weight at a constant predicted
+  // weight: −0.04 kg per year on the population model): one step each, a linear term.
+  for (int j : r->other) {
+    const LabelInfo& info = sm.regression.labels[idx[j]];
+    const double sd = std::max(info.stddev, 1e-9);
+    Eigen::VectorXd d = Eigen::VectorXd::Zero(m);
+    d(j) = std::clamp(info.max - pred(idx[j]), 0.25 * sd, 1.5 * sd);
+    requests.push_back(d);
   }
-  response_cache_->inverse_jacobians[key] = inverse;
-  return inverse;
+  if (r->cross)
+    for (int a = 0; a < k; ++a)
+      for (int b = a + 1; b < k; ++b) {
+        Eigen::VectorXd d = Eigen::VectorXd::Zero(m);
+        d(r->measured[a]) = plus(r->measured[a]);
+        d(r->measured[b]) = plus(r->measured[b]);
+        requests.push_back(d);
+      }
+  std::vector<Eigen::VectorXd> values(requests.size());
+  const auto opts = change_options(sm, o);
+  tbb::parallel_for(0, static_cast<int>(requests.size()), [&](int q) {
+    const Eigen::VectorXd z = requests[q].isZero() ? Eigen::VectorXd(Eigen::VectorXd::Zero(K))
+                                                   : constrained_change(S, requests[q], opts);
+    const Eigen::VectorXd c = anchor + z;
+    values[q] = label_values(*this, conditions, idx, c, decode(sm.pca.reconstruct(c)), o.sex);
+  });
+  r->anchor_value = values[0];
+  if (k > 0) {
+    // θ from the calibration points: one exact (square) solve per measured label.
+    const int nt = r->terms();
+    Eigen::MatrixXd Phi(nt, nt), Y(nt, k);
+    for (int q = 1; q <= nt; ++q) {
+      Phi.row(q - 1) = r->phi(requests[q]).transpose();
+      for (int i = 0; i < k; ++i) Y(q - 1, i) = values[q](r->measured[i]) - values[0](r->measured[i]);
+    }
+    Eigen::FullPivLU<Eigen::MatrixXd> lu(Phi);
+    if (lu.isInvertible() && Y.allFinite() && values[0].allFinite()) {
+      r->theta = lu.solve(Y).transpose();
+      r->usable = r->theta.allFinite();
+      // Not a usable response (a slope out of [0.2, 5] at the anchor): the unit slope.
+      for (int i = 0; i < k && r->usable; ++i)
+        if (!(r->theta(i, i) > 0.2 && r->theta(i, i) < 5)) r->usable = false;
+      if (r->usable) {
+        Eigen::FullPivLU<Eigen::MatrixXd> j0(r->jacobian(Eigen::VectorXd::Zero(m)));
+        r->usable = j0.isInvertible() && j0.rcond() > 1e-3;
+      }
+    }
+  }
+  response_cache_->responses[key] = r;
+  return r;
+}
+
+void ShapeMorpher::prepare(const std::vector<LabelCondition>& conditions, const MorphOptions& options) const {
+  bool any_measured = false;
+  for (auto& c : conditions) any_measured = any_measured || is_measurable_label(c.label);
+  if (options.calibrated_response && options.triangle_mask.size() == 0 && any_measured)
+    measured_response(conditions, options);
 }
 
 namespace {
 
 }  // namespace
 
-Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
+Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0_given,
                                               const std::vector<LabelCondition>& conditions,
                                               const MorphOptions& o, MorphSummary* summary,
                                               Eigen::VectorXd* x_out, const Eigen::VectorXd* c0_known) const {
@@ -158,8 +315,15 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
   // The start's shape coefficients. Without a mask every candidate is x0 + basis·z, whose
   // coefficients are c0 + z (orthonormal basis): no D-sized projection per iteration (each
   // costs as much memory traffic as reading the whole basis).
-  const Eigen::VectorXd c0 = c0_known ? *c0_known : sm.pca.project(x0);
+  if (x0_given.size() == 0 && !c0_known) throw InputError("morph: neither a start encoding nor its coefficients");
+  // x0 is needed only to decode the start or mask a change; else every candidate is made from c0.
   const bool masked = o.triangle_mask.size() != 0;
+  bool any_keep_ = false;
+  for (auto& c : conditions) any_keep_ = any_keep_ || c.keep;
+  const bool need_x0 = masked || any_keep_ || conditions.empty() || o.max_iterations <= 0;
+  const Eigen::VectorXd x0 =
+      x0_given.size() == 0 && need_x0 ? sm.pca.reconstruct(*c0_known) : x0_given;
+  const Eigen::VectorXd c0 = c0_known ? *c0_known : sm.pca.project(x0);
   const SemanticRegression& reg = sm.regression;
   const int m = static_cast<int>(conditions.size());
   std::vector<int> idx(m);
@@ -184,6 +348,8 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
     return label_values(*this, conditions, idx, masked ? sm.pca.project(x) : Eigen::VectorXd(c0 + z), V, o.sex);
   };
   auto apply_change = [&](const Eigen::VectorXd& z) {
+    // Without x0 (see the header): mean + basis·(c0 + z), one pass over the basis.
+    if (x0.size() == 0) return sm.pca.reconstruct(c0 + z);
     Eigen::VectorXd x = x0 + sm.pca.basis * z;
     if (masked) x = masked_change(model_->encoding_of(x0), model_->encoding_of(x), o.triangle_mask).values;
     return x;
@@ -205,6 +371,18 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
   } else {
     Eigen::VectorXd pred = reg.predict(c0);
     for (int i = 0; i < m; ++i) start(i) = pred(idx[i]);
+  }
+  // The measured response (MorphOptions::calibrated_response), or none (unit slope).
+  const bool calibrated = o.calibrated_response && !masked && any_measured;
+  const std::shared_ptr<const Response> response =
+      calibrated ? measured_response(conditions, o) : std::make_shared<const Response>();
+  if (!start_measured && response->usable) {
+    // At the anchor the start is known as measured; elsewhere the regression's value corrected
+    // by its error at the anchor (see MorphOptions::response_anchor).
+    const bool at_anchor = c0.size() == response->anchor.size() && c0 == response->anchor;
+    for (int i : response->measured)
+      start(i) = at_anchor ? response->anchor_value(i)
+                           : start(i) + response->anchor_value(i) - response->anchor_predicted(i);
   }
   Eigen::VectorXd target(m), lo(m), hi(m), tol(m);
   for (int i = 0; i < m; ++i) {
@@ -243,11 +421,9 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
     return b;
   };
 
-  // Requested change per measured change: J⁻¹ (MorphOptions::calibrated_response) or 1.
-  const Eigen::MatrixXd response_inverse = o.calibrated_response && !masked && any_measured
-                                               ? measured_response(conditions, o)
-                                               : Eigen::MatrixXd::Identity(m, m);
-  Eigen::VectorXd delta = response_inverse * (target - start);
+  // The request whose modelled response is the remaining change (with the unit slope: the
+  // change itself).
+  Eigen::VectorXd delta = response->request_for(target - start, tol);
   Eigen::VectorXd z = Eigen::VectorXd::Zero(sm.component_count());
   Eigen::VectorXd x = x0, best_x = x0, v = start, best_v = start;
   Eigen::MatrixX3d best_V = V;
@@ -270,8 +446,12 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0,
     }
     ok = all_ok(v);
     // Newton-like correction on the measured value: the remaining error, through the measured
-    // response (or with a unit slope: the regression as the Jacobian's estimate).
-    delta += response_inverse * (target - v);
+    // response's Jacobian at the current request (or with a unit slope: the regression as the
+    // Jacobian's estimate).
+    {
+      Eigen::FullPivLU<Eigen::MatrixXd> lu(response->jacobian(delta));
+      delta += lu.isInvertible() ? Eigen::VectorXd(lu.solve(target - v)) : Eigen::VectorXd(target - v);
+    }
   }
   if (summary) {
     summary->iterations = it;
@@ -325,6 +505,48 @@ void remeasure_labels(const ShapeMorpher& morpher, const Eigen::MatrixX3d& V, Se
 
 }  // namespace
 
+namespace {
+
+// The sampling of generate_body: the conditions' sex's subjects (none without a sex condition),
+// their mean coefficients, and the morph options with that sex and the mean as the anchor of the
+// measured response (MorphOptions::response_anchor).
+struct GenerationSetup {
+  std::vector<int> pool;
+  Eigen::VectorXd mu;
+  MorphOptions mo;
+};
+
+GenerationSetup generation_setup(const ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
+                                 const GenerateOptions& o) {
+  const SubModel& sm = morpher.model().shape;
+  GenerationSetup g;
+  int sex_label = sm.regression.find("sex");
+  Sex sex = Sex::unknown;
+  for (auto& c : conditions)
+    if (c.label == "sex" && !c.keep && c.lo == c.hi && sex_label >= 0) {
+      sex = c.lo < 0.5 ? Sex::female : Sex::male;
+      for (int i = 0; i < sm.labels.rows(); ++i)
+        if (std::isfinite(sm.labels(i, sex_label)) && std::abs(sm.labels(i, sex_label) - c.lo) < 0.5)
+          g.pool.push_back(i);
+    }
+  g.mo = o.morph;
+  if (g.mo.sex == Sex::unknown) g.mo.sex = sex;
+  if (g.pool.size() >= 2) {
+    g.mu = Eigen::VectorXd::Zero(sm.component_count());
+    for (int i : g.pool) g.mu += sm.pca.coefficients.row(i).transpose();
+    g.mu /= g.pool.size();
+    if (g.mo.response_anchor.size() == 0) g.mo.response_anchor = g.mu;
+  }
+  return g;
+}
+
+}  // namespace
+
+void prepare_generation(const ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
+                        const GenerateOptions& options) {
+  morpher.prepare(conditions, generation_setup(morpher, conditions, options).mo);
+}
+
 GeneratedBody generate_body(const ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
                             uint64_t seed, const GenerateOptions& o) {
   const BodyModel& model = morpher.model();
@@ -333,20 +555,11 @@ GeneratedBody generate_body(const ShapeMorpher& morpher, const std::vector<Label
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> n01(0.0, 1.0);
   // Sex-specific sampling pool.
-  std::vector<int> pool;
-  int sex_label = sm.regression.find("sex");
-  Sex sex = Sex::unknown;
-  for (auto& c : conditions)
-    if (c.label == "sex" && !c.keep && c.lo == c.hi && sex_label >= 0) {
-      sex = c.lo < 0.5 ? Sex::female : Sex::male;
-      for (int i = 0; i < sm.labels.rows(); ++i)
-        if (std::isfinite(sm.labels(i, sex_label)) && std::abs(sm.labels(i, sex_label) - c.lo) < 0.5)
-          pool.push_back(i);
-    }
+  GenerationSetup setup = generation_setup(morpher, conditions, o);
+  const std::vector<int>& pool = setup.pool;
   GeneratedBody best;
   double best_missed = 1e300;
-  MorphOptions mo = o.morph;
-  if (mo.sex == Sex::unknown) mo.sex = sex;
+  MorphOptions& mo = setup.mo;
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   for (int attempt = 1; attempt <= std::max(1, o.max_attempts); ++attempt) {
     // A sample outside a range is moved to a random point of it (not its nearest edge), so a
@@ -354,19 +567,17 @@ GeneratedBody generate_body(const ShapeMorpher& morpher, const std::vector<Label
     mo.range_aim = u01(rng);
     Eigen::VectorXd c(K);
     if (pool.size() >= 2) {
-      Eigen::VectorXd mu = Eigen::VectorXd::Zero(K);
-      for (int i : pool) mu += sm.pca.coefficients.row(i).transpose();
-      mu /= pool.size();
+      const Eigen::VectorXd& mu = setup.mu;
       c = mu;
       const double s = o.spread / std::sqrt(pool.size() - 1.0);
       for (int i : pool) c += s * n01(rng) * (sm.pca.coefficients.row(i).transpose() - mu);
     } else {
       for (int k = 0; k < K; ++k) c(k) = o.spread * std::sqrt(std::max(sm.pca.eigenvalues(k), 0.0)) * n01(rng);
     }
-    Eigen::VectorXd x0 = sm.pca.reconstruct(c);
     GeneratedBody g;
     g.attempts = attempt;
-    g.V = morpher.morph_encoding(x0, conditions, mo, &g.summary, &g.encoding, &c);
+    // No start encoding: the morph makes its candidates from c (one pass over the basis each).
+    g.V = morpher.morph_encoding(Eigen::VectorXd(), conditions, mo, &g.summary, &g.encoding, &c);
     if (o.repair_folds) {
       g.folds = repair_body_folds(model, g.V, o.fold_repair);
       if (g.folds.vertices_moved > 0) remeasure_labels(morpher, g.V, mo.sex, g.summary);

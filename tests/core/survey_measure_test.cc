@@ -1,6 +1,7 @@
 // The survey measurements (NHANES definitions, core/measure.h) on a MakeHuman body whose girths
 // and lengths are made known: torso rings moved onto circles, the upper-arm ring onto an even
 // polygon, the landmarks of the two lengths placed at given distances.
+#include <random>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -182,7 +183,38 @@ TEST(Plausibility, SelfIntersectionsOfTwoCrossingBodies) {
   F << b.mesh.F, b.mesh.F.array() + static_cast<int>(b.mesh.V.rows());
   const int both = self_intersecting_triangle_pairs(V, F);
   EXPECT_GT(both, 2 * own + 100);
+  // The grid broad phase finds the pairs CGAL's box intersection finds.
+  EXPECT_EQ(self_intersecting_triangle_pairs_box_d(b.mesh.V, b.mesh.F), own);
+  EXPECT_EQ(self_intersecting_triangle_pairs_box_d(V, F), both);
   // Far apart: exactly twice the body's own count.
   V.bottomRows(b.mesh.V.rows()).col(0).array() += 5000;
   EXPECT_EQ(self_intersecting_triangle_pairs(V, F), 2 * own);
+}
+
+TEST(Plausibility, SelfIntersectionGridCountsWhatCgalBoxIntersectionCounts) {
+  // A soup of random triangles of mixed sizes (some sharing vertices, one degenerate, some
+  // 12× larger): the grid broad phase and CGAL's box_self_intersection_d give the same count.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0, 100), small(-4, 4);
+  const int nv = 3000, nf = 2000;
+  Eigen::MatrixX3d V(nv, 3);
+  for (int v = 0; v < nv; v += 3) {
+    const Eigen::RowVector3d c(u(rng), u(rng), u(rng));
+    const double scale = v % 300 == 0 ? 12.0 : 1.0;
+    for (int k = 0; k < 3; ++k) V.row(v + k) = c + scale * Eigen::RowVector3d(small(rng), small(rng), small(rng));
+  }
+  V.row(7) = V.row(6);  // a degenerate triangle
+  // The vertices' triangles, then triangles sharing vertices with them and their neighbours
+  // in index order (spanning a few units: the grid's cells, not the whole cube).
+  Eigen::MatrixX3i F(nf, 3);
+  std::uniform_int_distribution<int> any(0, nv - 7);
+  for (int f = 0; f < nf; ++f)
+    if (f < nv / 3) F.row(f) << 3 * f, 3 * f + 1, 3 * f + 2;
+    else {
+      const int a = any(rng);
+      F.row(f) << a, a + 1, a + 5;
+    }
+  const int grid = self_intersecting_triangle_pairs(V, F);
+  EXPECT_GT(grid, 10);
+  EXPECT_EQ(grid, self_intersecting_triangle_pairs_box_d(V, F));
 }
