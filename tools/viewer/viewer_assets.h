@@ -12,14 +12,12 @@ const char* viewer_js();
 const char* serve_html();   // `bodymodel serve`'s page
 
 // three.min.js to copy or serve: $BODYMODEL_THREE, else the build folder's npm install
-// (scripts/setup.sh; BODYMODEL_BUILD_DIR is compiled into the executable).
+// (scripts/setup.sh). The build folder's path lives in the generated viewer_assets.cc only, so
+// the other sources compile the same in every clone and a fresh clone still hits ccache.
+const char* build_dir();
 inline std::filesystem::path default_three_js() {
   if (const char* e = std::getenv("BODYMODEL_THREE"); e && *e) return e;
-#ifdef BODYMODEL_BUILD_DIR
-  return std::filesystem::path(BODYMODEL_BUILD_DIR) / "npm" / "node_modules" / "three" / "build" / "three.min.js";
-#else
-  return {};
-#endif
+  return std::filesystem::path(build_dir()) / "npm" / "node_modules" / "three" / "build" / "three.min.js";
 }
 // Base64 of raw bytes: the viewer and serve ship vertex arrays inside scripts (file:// pages
 // cannot fetch binary files).
