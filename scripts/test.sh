@@ -15,8 +15,8 @@ config=(-DCMAKE_BUILD_TYPE=Release)
 ctest_args=()   # the sanitizer phase selects labels
 if [ "${1:-}" = "--sanitize" ]; then
   build="$here/build-asan"
-  # The compiler: g++ by default (the sanitizer build CI has run on the whole tree);
-  # BODYMODEL_SANITIZE_CXX=clang++ builds it with clang (as scripts/fuzz.sh does). A build folder
+  # The compiler: g++ by default; BODYMODEL_SANITIZE_CXX=clang++ builds it with clang (as
+  # scripts/fuzz.sh does, and .ci/run's sanitizer phase). A build folder
   # configured with another compiler is configured afresh.
   cxx="${BODYMODEL_SANITIZE_CXX:-g++}"
   if [ -f "$build/CMakeCache.txt" ] && ! grep -q "^CMAKE_CXX_COMPILER:[A-Z]*=.*${cxx}\$" "$build/CMakeCache.txt"; then
