@@ -68,12 +68,29 @@ CharacterJobResult write_character(const BodyModel& model, const Eigen::MatrixX3
     if (!progress) return {};
     return [=](double f, std::string_view w) { return progress(a + (b - a) * f, w); };
   };
-  CharacterExamples ex = make_character_examples(model, V, data_file("makehuman"), o.character, sub(0, 0.6));
+  // With judge poses the pose fits of every rig on each take about as long as the rigs' fits.
+  const bool judge = !o.judge_poses.empty();
+  const double e1 = judge ? 0.45 : 0.6, f1 = judge ? 0.7 : 0.95;
+  CharacterExamples ex = make_character_examples(model, V, data_file("makehuman"), o.character, sub(0, e1));
   res.examples_seconds = seconds_since(t0);
   auto t1 = std::chrono::steady_clock::now();
-  CharacterRigs rigs = fit_character_rigs(ex, o.character, sub(0.6, 0.95));
+  CharacterRigs rigs = fit_character_rigs(ex, o.character, sub(e1, f1));
   res.fit_seconds = seconds_since(t1);
   res.errors = evaluate_character_rigs(ex, rigs);
+  if (judge) {
+    auto t2 = std::chrono::steady_clock::now();
+    for (auto& p : o.judge_poses)
+      if (p.target.rows() != ex.rest.rows())
+        throw InputError(fmt::format("judge pose '{}' has {} vertices, the character {}", p.name, p.target.rows(),
+                                     ex.rest.rows()));
+    res.judged = judge_rigs_on_poses({{"template_lbs", &rigs.template_lbs},
+                                      {"smooth_lbs", &rigs.smooth_lbs},
+                                      {"lbs", &rigs.lbs},
+                                      {"as", &rigs.as},
+                                      {"mwe", &rigs.mwe}},
+                                     ex.skeleton, ex.driven, ex.F, o.judge_poses, o.judge_fit, sub(f1, 0.95));
+    res.judge_seconds = seconds_since(t2);
+  }
   for (auto& p : ex.poses) (p.held_out ? res.held_out_poses : res.training_poses)++;
   report_progress(progress, 0.96, "writing");
 
@@ -101,6 +118,7 @@ CharacterJobResult write_character(const BodyModel& model, const Eigen::MatrixX3
     res.flipped_after_repair += ex.flipped_after[i];
   }
   write_text_file(dir / "poses.csv", poses);
+  if (judge) write_text_file(dir / "judge.csv", judge_csv(res.judged, o.judge_poses));
 
   const BodyMeasurements m = measure_body(V, ex.F);
   res.character = description;
@@ -112,6 +130,13 @@ CharacterJobResult write_character(const BodyModel& model, const Eigen::MatrixX3
   for (auto& r : res.errors)
     errs.push_back({{"method", r.method}, {"split", r.split}, {"mean_mm", r.mean_mm}, {"max_mm", r.max_mm}});
   res.character["fit_errors"] = errs;
+  if (judge) {
+    nlohmann::json j = nlohmann::json::array();
+    for (auto& r : res.judged)
+      if (r.pose == "all")
+        j.push_back({{"method", r.method}, {"poses", r.poses}, {"mean_mm", r.mean_mm}, {"max_mm", r.max_mm}});
+    res.character["real_pose_errors"] = j;
+  }
 
   CharacterRigFile f;
   f.rig = rigs.mwe;

@@ -8,6 +8,9 @@
 //   skinning_error.png  held-out pose with the largest SSD error: pose morph | SSD | AS | MWE,
 //                   per-vertex error on a fixed colour scale (skinning_error_scale_mm)
 //   character.glb   the SSD rig as glTF 2.0 (when the glTF writer is available)
+//   judge.csv       with judge poses only: each rig's vertex error (mm) on real poses that are not
+//                   the model's own, after the same pose fit for every rig
+//                   (tools/pipeline/character_judge.h), per pose and over all of them
 #pragma once
 
 #include <Eigen/Core>
@@ -19,6 +22,7 @@
 #include "core/progress.h"
 #include "model/body_model.h"
 #include "tools/pipeline/character.h"
+#include "tools/pipeline/character_judge.h"
 
 namespace bodymodel {
 
@@ -27,6 +31,10 @@ struct CharacterJobOptions {
   double error_scale_mm = 60;   // colour scale of skinning_error.png (0 blue → red)
   bool write_pictures = true;
   bool write_glb = true;
+  // Real poses of the body (e.g. registrations of the person the body was unposed from) to judge
+  // every rig on besides the model's pose morphs; none = no judge.csv.
+  std::vector<JudgePose> judge_poses;
+  RigPoseFitOptions judge_fit;
 };
 
 struct CharacterJobResult {
@@ -38,6 +46,8 @@ struct CharacterJobResult {
   int flipped_before_repair = 0, flipped_after_repair = 0;
   bool wrote_glb = false;
   std::string glb_note;         // why not, when not
+  std::vector<JudgeRow> judged; // judge_rigs_on_poses rows when judge poses were given
+  double judge_seconds = 0;
 };
 
 // Writes the files above into `dir` (which must exist). `description` is stored in the rig's

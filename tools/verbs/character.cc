@@ -1,11 +1,19 @@
-// bodymodel character model.npz [--where LABEL=VALUE ...] [--seed N | --in body.ply] --out char/
+// bodymodel character model.npz [--where LABEL=VALUE ...] [--seed N | --in body.ply [--unpose]]
+//                    [--judge-poses REG/*.ply] --out char/
 #include <fmt/format.h>
 
+#include <filesystem>
+#include <cmath>
+#include <fstream>
+#include <map>
 #include <memory>
+#include <sstream>
 
 #include "core/error.h"
 #include "core/io/file_names.h"
 #include "core/io/mesh_io.h"
+#include "core/io/pose_csv.h"
+#include "core/up_axis.h"
 #include "model/model_file.h"
 #include "model/morph.h"
 #include "tools/console.h"
@@ -19,7 +27,9 @@ namespace {
 
 struct CharacterArgs {
   std::string model, in, out;
-  std::vector<std::string> where;
+  std::vector<std::string> where, judge_poses;
+  std::string judge_scans;
+  bool unpose = false;
   uint64_t seed = 1;
   bool force = false;
   int threads = 0;
@@ -39,6 +49,109 @@ void print_fit_table(const std::vector<RigErrorRow>& rows) {
                r.max_mm);
 }
 
+namespace fs = std::filesystem;
+
+// The pose a registration was fitted in (`register-mesh` writes <stem>.pose.csv beside
+// <stem>.ply): the start of the pose fits. The rest pose when there is none.
+Pose start_pose_for(const std::string& mesh, const std::vector<std::string>& bone_names) {
+  fs::path p = fs::path(mesh);
+  p.replace_extension(".pose.csv");
+  std::error_code ec;
+  if (!fs::exists(p, ec)) return Pose::rest(static_cast<int>(bone_names.size()));
+  std::vector<std::string> skipped;
+  return read_pose_csv(p, bone_names, &skipped).pose;
+}
+
+// Two-sided distance (mm) of each registration to its scan from `register-mesh.csv` in the
+// folder of `mesh`, by mesh stem; empty when the file is not there.
+std::map<std::string, double> registration_distances(const std::string& mesh) {
+  std::map<std::string, double> out;
+  const fs::path csv = fs::path(mesh).parent_path() / "register-mesh.csv";
+  std::ifstream in(csv);
+  std::string line;
+  if (!in || !std::getline(in, line)) return out;
+  auto split = [](const std::string& l) {
+    std::vector<std::string> v;
+    std::stringstream ss(l);
+    std::string x;
+    while (std::getline(ss, x, ',')) v.push_back(x);
+    return v;
+  };
+  const std::vector<std::string> head = split(line);
+  const auto col = std::find(head.begin(), head.end(), "two_sided_mm") - head.begin();
+  if (col >= static_cast<long>(head.size()) || head.empty() || head[0] != "mesh") return out;
+  while (std::getline(in, line)) {
+    const std::vector<std::string> v = split(line);
+    if (static_cast<long>(v.size()) <= col) continue;
+    try {
+      out[v[0]] = std::stod(v[col]);
+    } catch (const std::exception&) {
+      throw InputError("'" + csv.string() + "': two_sided_mm of '" + v[0] + "' is not a number");
+    }
+  }
+  return out;
+}
+
+// The scan a judged registration was made from: DIR/<stem>.{off,ply,obj}, brought into the
+// project's frame with the scale and up axis `register-mesh` recorded beside the registration
+// (register-mesh.json).
+Mesh judge_scan_for(const std::string& mesh, const std::string& dir) {
+  const std::string stem = fs::path(mesh).stem().string();
+  fs::path scan;
+  for (const char* ext : {".off", ".ply", ".obj"})
+    if (std::error_code ec; fs::exists(fs::path(dir) / (stem + ext), ec)) {
+      scan = fs::path(dir) / (stem + ext);
+      break;
+    }
+  if (scan.empty()) throw InputError("--judge-scans: no " + stem + ".off/.ply/.obj in '" + dir + "'");
+  const fs::path settings = fs::path(mesh).parent_path() / "register-mesh.json";
+  std::ifstream in(settings);
+  if (!in)
+    throw InputError("--judge-scans: '" + settings.string() +
+                     "' is missing (register-mesh's settings: the scans' scale and up axis)");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const std::exception& e) {
+    throw InputError("'" + settings.string() + "': not JSON (" + e.what() + ")");
+  }
+  if (!j.contains("scale") || !j["scale"].is_number() || !j.contains("up") || !j["up"].is_string())
+    throw InputError("'" + settings.string() + "': needs \"scale\" (number) and \"up\" (axis)");
+  Mesh m = read_mesh(scan);
+  m.V = to_project_frame(m.V, j["scale"].get<double>(), up_axis_rotation(j["up"].get<std::string>(), "'" +
+                         settings.string() + "' up"));
+  return m;
+}
+
+void print_judge_table(const std::vector<JudgeRow>& rows, const std::vector<JudgePose>& poses) {
+  double reg = 0;
+  int nreg = 0;
+  for (auto& p : poses)
+    if (std::isfinite(p.registration_mm)) reg += p.registration_mm, ++nreg;
+  fmt::print("rigs posed onto {} real poses (the same pose fit for every rig), vertex error:\n", poses.size());
+  fmt::print("{:<13} {:>5} {:>9} {:>9} {:>9} {:>9} {:>14}\n", "rig", "poses", "mean mm", "rms mm", "p95 mm", "max mm",
+             "scan 2-sided");
+  for (auto& r : rows)
+    if (r.pose == "all")
+      fmt::print("{:<13} {:>5} {:>9.2f} {:>9.2f} {:>9.2f} {:>9.2f} {:>14}\n", r.method, r.poses, r.mean_mm, r.rms_mm,
+                 r.p95_mm, r.max_mm,
+                 std::isfinite(r.scan_two_sided_mm) ? fmt::format("{:.2f}", r.scan_two_sided_mm) : "-");
+  if (nreg) fmt::print("registrations' two-sided distance to their scans (a floor for every rig): {:.2f} mm mean over {}\n",
+                       reg / nreg, nreg);
+  // MWE against MakeHuman's weights pose by pose.
+  int better = 0;
+  for (auto& p : poses) {
+    double m = 0, t = 0;
+    for (auto& r : rows) {
+      if (r.pose != p.name) continue;
+      if (r.method == "mwe") m = r.mean_mm;
+      if (r.method == "template_lbs") t = r.mean_mm;
+    }
+    better += m < t;
+  }
+  fmt::print("MWE below MakeHuman's weights (template_lbs) in mean error on {} of {} poses\n", better, poses.size());
+}
+
 }  // namespace
 
 BODYMODEL_VERB(add_character_verb) {
@@ -49,7 +162,9 @@ BODYMODEL_VERB(add_character_verb) {
       "range of motion (MakeHuman static poses, CMU frames, encoding-space in-betweens), fit SSD,\n"
       "Animation Space and MWE (delta space over SSD) with the template skeleton, and write\n"
       "OUT/body.obj, OUT/rig.npz (MWE + skeleton), OUT/fit.csv (training and held-out errors, mm),\n"
-      "OUT/poses.csv, OUT/skinning_error.png and OUT/character.glb (SSD rig, glTF 2.0).");
+      "OUT/poses.csv, OUT/skinning_error.png and OUT/character.glb (SSD rig, glTF 2.0); with\n"
+      "--judge-poses also OUT/judge.csv: every rig posed onto real poses of the body by the same\n"
+      "pose fit, and its vertex error there (docs/skinning.md, character rigs on real poses).");
   cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`, with its skeleton)")->required();
   cmd->add_option("--where", a->where, "LABEL=VALUE or LABEL=LO..HI for the generated body, repeatable");
   cmd->add_option("--seed", a->seed, "Random seed of the generated body")
@@ -58,6 +173,19 @@ BODYMODEL_VERB(add_character_verb) {
   cmd->add_option("--in", a->in, "Use this body (model topology, standard pose, mm) instead of generating one");
   cmd->add_option("--out", a->out, "Output folder (must not exist unless --force)")->required();
   cmd->add_flag("--force", a->force, "Replace an existing output folder");
+  cmd->add_flag("--unpose", a->unpose,
+                "The --in body is posed (e.g. a registration of a real person): unpose it by inverting linear blend "
+                "skinning in a pose fitted to it, pulled towards <in>.pose.csv beside it (register-mesh writes "
+                "one); body.obj is the unposed body");
+  cmd->add_option("--judge-scans", a->judge_scans,
+                  "Folder of the scans the judge poses were registered to (<stem>.off/.ply/.obj, in the unit and "
+                  "axes register-mesh.json beside the registrations records): also the posed rigs' two-sided "
+                  "surface distance to them")
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--judge-poses", a->judge_poses,
+                  "Also judge every rig on these real poses of the body (meshes of the model's topology, mm, +y up, "
+                  "e.g. `register-mesh` outputs; each <stem>.pose.csv beside a mesh starts its pose fit): judge.csv")
+      ->check(CLI::ExistingFile);
   cmd->add_option("--mwe-s", a->mwe_s, "MWE ridge scale s, relative (λ_h = s·d⁴/σ²(c_h), skinning/fit_mwe.h)")
       ->capture_default_str();
   cmd->add_option("--mwe-components", a->mwe_components, "MWE principal components kept (0 = all with variance)")
@@ -99,10 +227,26 @@ BODYMODEL_VERB(add_character_verb) {
     o.character.mwe_mask_steps = a->mwe_mask_steps;
     o.character.mwe_mask_bones = a->mwe_mask_bones;
     validate_character_options(o.character);  // before any work
+    if (a->unpose && a->in.empty()) throw InputError("character: --unpose needs --in (the posed body)");
+    if (!a->judge_scans.empty() && a->judge_poses.empty())
+      throw InputError("character: --judge-scans needs --judge-poses (the registrations of those scans)");
     StagedFolder out(a->out, a->force);
     auto model = std::make_shared<const BodyModel>(load_model(a->model));
     if (model->rig.empty())
       throw InputError("'" + a->model + "' has no skeleton: rebuild it without --no-rig (a character needs one)");
+    // Judge poses read and checked before any work.
+    for (auto& f : a->judge_poses) {
+      Mesh m = read_mesh(f);
+      model->check_topology(m.V, m.F, "'" + f + "'");
+      JudgePose p;
+      p.name = fs::path(f).stem().string();
+      p.target = m.V;
+      p.start = start_pose_for(f, model->rig.bone_names);
+      const auto reg = registration_distances(f);
+      if (auto it = reg.find(p.name); it != reg.end()) p.registration_mm = it->second;
+      if (!a->judge_scans.empty()) p.scan = judge_scan_for(f, a->judge_scans);
+      o.judge_poses.push_back(std::move(p));
+    }
     Eigen::MatrixX3d V;
     // The description goes into rig.npz: file names only, not the folders of this machine.
     nlohmann::json desc = {{"model", path_label(a->model)}};
@@ -111,6 +255,25 @@ BODYMODEL_VERB(add_character_verb) {
       model->check_topology(body.V, body.F, "'" + a->in + "'");
       V = body.V;
       desc["input"] = path_label(a->in);
+      if (a->unpose) {
+        cli::ProgressBar ub("unpose");
+        // The pose is fitted, pulled towards the registration's own pose when register-mesh wrote one.
+        fs::path pose_file = fs::path(a->in);
+        pose_file.replace_extension(".pose.csv");
+        std::error_code ec;
+        UnposeOptions uo = unpose_with_prior();
+        if (!fs::exists(pose_file, ec)) {
+          uo.fit.prior_mm_per_rad = 0;
+          cli::warn("no " + pose_file.string() + ": the pose is fitted from rest without a prior (see docs/skinning.md)");
+        }
+        const UnposeResult u = unpose_body(*model, V, start_pose_for(a->in, model->rig.bone_names), uo, ub.callback());
+        ub.finish(fmt::format("posed template to the body, RMS per round {:.2f} mm ... {:.2f} mm", u.rms_mm.front(),
+                              u.rms_mm.back()));
+        V = u.rest;
+        desc["unposed"] = true;
+        desc["unpose_rms_mm"] = u.rms_mm.back();
+        desc["unpose_prior_mm_per_rad"] = uo.fit.prior_mm_per_rad;
+      }
     } else {
       std::vector<LabelCondition> cond = parse_conditions(model->shape.regression, a->where);
       ShapeMorpher morpher(model);
@@ -126,8 +289,9 @@ BODYMODEL_VERB(add_character_verb) {
     }
     cli::ProgressBar bar("character");
     CharacterJobResult r = write_character(*model, V, out.path(), desc, o, bar.callback());
-    bar.finish(fmt::format("{} training + {} held-out poses; examples {:.0f} s, fits {:.0f} s", r.training_poses,
-                           r.held_out_poses, r.examples_seconds, r.fit_seconds));
+    bar.finish(fmt::format("{} training + {} held-out poses; examples {:.0f} s, fits {:.0f} s{}", r.training_poses,
+                           r.held_out_poses, r.examples_seconds, r.fit_seconds,
+                           r.judged.empty() ? "" : fmt::format(", real poses {:.0f} s", r.judge_seconds)));
     out.commit();
     print_fit_table(r.errors);
     const RigErrorRow& lbs = find_row(r.errors, "lbs", "held_out");
@@ -137,6 +301,7 @@ BODYMODEL_VERB(add_character_verb) {
                mwe.mean_mm < lbs.mean_mm && mwe.max_mm < lbs.max_mm ? "MWE better" : "MWE NOT better in both");
     fmt::print("flipped triangles over the range of motion: {} as morphed, {} after the fold repair\n",
                r.flipped_before_repair, r.flipped_after_repair);
+    if (!r.judged.empty()) print_judge_table(r.judged, o.judge_poses);
     if (!r.wrote_glb) cli::warn("no character.glb: " + r.glb_note);
     cli::info("wrote " + a->out);
   });
