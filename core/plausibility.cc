@@ -89,7 +89,7 @@ bool triangles_cross(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, int f
 
 }  // namespace
 
-int self_intersecting_triangle_pairs_box_d(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F) {
+int self_intersecting_triangle_pairs_box_d(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, std::ptrdiff_t cutoff) {
   // One box per triangle; its info is the face index.
   using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, int, CGAL::Box_intersection_d::ID_EXPLICIT>;
   std::vector<Box> boxes;
@@ -107,10 +107,9 @@ int self_intersecting_triangle_pairs_box_d(const Eigen::MatrixX3d& V, const Eige
     if (triangles_cross(V, F, a.info(), b.info())) ++count;
   };
   // cutoff: below this many boxes the segment tree stops recursing and scans. CGAL's default
-  // (10) recurses far too deep for a body's ~27 000 small boxes; 2000 is the value of CGAL's
-  // own Polygon_mesh_processing::self_intersections. The pairs found do not depend on it.
-  constexpr std::ptrdiff_t kCutoff = 2000;
-  CGAL::box_self_intersection_d<CGAL::Sequential_tag>(boxes.begin(), boxes.end(), callback, kCutoff);
+  // (10) recurses far too deep for a body's ~27 000 small boxes; 2000 (the default here) is the
+  // value of CGAL's own Polygon_mesh_processing::self_intersections.
+  CGAL::box_self_intersection_d<CGAL::Sequential_tag>(boxes.begin(), boxes.end(), callback, cutoff);
   return count;
 }
 

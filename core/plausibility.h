@@ -13,6 +13,7 @@
 // arms sunk into the torso show up here.
 #pragma once
 
+#include <cstddef>
 #include <Eigen/Core>
 #include <string>
 #include <vector>
@@ -46,6 +47,8 @@ std::vector<char> trunk_and_limbs_region(const std::vector<std::string>& bone_na
 // Broad phase a uniform grid; the same count as self_intersecting_triangle_pairs_box_d (CGAL's
 // box_self_intersection_d broad phase, the reference), with the same exact narrow phase.
 int self_intersecting_triangle_pairs(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F);
-int self_intersecting_triangle_pairs_box_d(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F);
+// cutoff: CGAL's segment-tree cutoff (its own default is 10); the pairs found do not depend on it.
+int self_intersecting_triangle_pairs_box_d(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
+                                           std::ptrdiff_t cutoff = 2000);
 
 }  // namespace bodymodel

@@ -13,6 +13,8 @@
 #include <mutex>
 #include <thread>
 
+#include <sys/socket.h>  // listen(): the backlog, below
+
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "model/morph.h"
@@ -307,8 +309,18 @@ void run_serve(const ServeArgs& a) {
       res.set_content(service->glb(service->make(body)), "model/gltf-binary");
     });
   });
+  // cpp-httplib listens with a backlog of 5 (compiled into Debian's shared library): a burst of
+  // connections beyond it has its SYNs dropped and the clients wait for retransmits (1, 3, 7,
+  // 15, 31 s), which stalled 200 concurrent requests by up to a minute on a loaded machine.
+  // Linux lets a second listen() on the bound socket raise the backlog.
+  int listen_fd = -1;
+  svr.set_socket_options([&listen_fd](socket_t sock) {
+    httplib::default_socket_options(sock);
+    listen_fd = sock;
+  });
   if (!svr.bind_to_port(a.host, a.port))
     throw InputError(fmt::format("cannot listen on {}:{} (in use, or not an address of this machine)", a.host, a.port));
+  if (listen_fd >= 0) ::listen(listen_fd, SOMAXCONN);
   if (a.host != "127.0.0.1" && a.host != "localhost" && a.host != "::1")
     cli::warn("serving on " + a.host + ": reachable from other machines (no authentication)");
   g_server = &svr;
