@@ -236,8 +236,8 @@ RecoveredBones recover_bones(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3
   return out;
 }
 
-BoneTransforms fit_transforms_with_fixed_weights(const SkinningRig& rig, const Eigen::MatrixX3d& Q,
-                                                 const BoneTransforms& initial, int iterations) {
+namespace {
+void check_fixed_weight_fit(const SkinningRig& rig, const Eigen::MatrixX3d& Q, const BoneTransforms& initial) {
   if (rig.method != SkinningMethod::lbs)
     throw InputError("fixed-weight transform fit: expected an ssd rig, found " + skinning_method_name(rig.method));
   if (Q.rows() != rig.rest.rows())
@@ -250,6 +250,100 @@ BoneTransforms fit_transforms_with_fixed_weights(const SkinningRig& rig, const E
   std::string problem;
   if (!transforms_are_rigid({initial}, 1e-4, &problem))
     throw InputError("fixed-weight transform fit: rigid initial transforms are required but " + problem);
+}
+
+// Member threshold of a bone's Procrustes problem (a weight this small moves nothing).
+constexpr double kMemberWeight = 1e-8;
+}  // namespace
+
+FixedWeightMoments fixed_weight_moments(const SkinningRig& rig) {
+  const Eigen::Index n = rig.rest.rows(), K = rig.influences.cols();
+  const int B = rig.bone_count;
+  FixedWeightMoments m;
+  m.bones = B;
+  m.members.assign(static_cast<size_t>(B), 0);
+  m.self.assign(static_cast<size_t>(B), Eigen::Matrix4d::Zero());
+  // Dense B × B slots while accumulating, then the non-empty ones per bone.
+  std::vector<int> slot(static_cast<size_t>(B) * B, -1);
+  std::vector<Eigen::Matrix4d> acc;
+  std::vector<std::pair<int, int>> which;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    Eigen::Vector4d v;
+    v << rig.rest.row(i).transpose(), 1.0;
+    const Eigen::Matrix4d vv = v * v.transpose();
+    for (Eigen::Index a = 0; a < K; ++a) {
+      const int b = rig.influences(i, a);
+      const double wa = rig.coefficients(i, a);
+      if (b < 0 || !(wa > kMemberWeight)) continue;
+      ++m.members[static_cast<size_t>(b)];
+      m.self[static_cast<size_t>(b)] += (wa * wa) * vv;
+      for (Eigen::Index c = 0; c < K; ++c) {
+        const int k = rig.influences(i, c);
+        if (k < 0) continue;
+        int& s = slot[static_cast<size_t>(b) * B + static_cast<size_t>(k)];
+        if (s < 0) {
+          s = static_cast<int>(acc.size());
+          acc.push_back(Eigen::Matrix4d::Zero());
+          which.push_back({b, k});
+        }
+        acc[static_cast<size_t>(s)] += (wa * rig.coefficients(i, c)) * vv;
+      }
+    }
+  }
+  m.cross.assign(static_cast<size_t>(B), {});
+  for (size_t s = 0; s < acc.size(); ++s) m.cross[static_cast<size_t>(which[s].first)].push_back({which[s].second, acc[s]});
+  return m;
+}
+
+BoneTransforms fit_transforms_with_fixed_weights(const SkinningRig& rig, const Eigen::MatrixX3d& Q,
+                                                 const BoneTransforms& initial, int iterations,
+                                                 const FixedWeightMoments* moments) {
+  check_fixed_weight_fit(rig, Q, initial);
+  FixedWeightMoments own;
+  if (!moments || moments->bones != rig.bone_count) {
+    own = fixed_weight_moments(rig);
+    moments = &own;
+  }
+  const Eigen::Index n = rig.rest.rows(), K = rig.influences.cols();
+  const int B = rig.bone_count;
+  // The frame's side of the sums: Σ_i w_ib q_i ṽ_iᵀ per bone (3 × 4).
+  std::vector<Eigen::Matrix<double, 3, 4>> q(static_cast<size_t>(B), Eigen::Matrix<double, 3, 4>::Zero());
+  for (Eigen::Index i = 0; i < n; ++i) {
+    Eigen::Vector4d v;
+    v << rig.rest.row(i).transpose(), 1.0;
+    const Eigen::Vector3d qi = Q.row(i).transpose();
+    const Eigen::Matrix<double, 3, 4> qv = qi * v.transpose();
+    for (Eigen::Index a = 0; a < K; ++a) {
+      const int b = rig.influences(i, a);
+      const double wa = rig.coefficients(i, a);
+      if (b >= 0 && wa > kMemberWeight) q[static_cast<size_t>(b)] += wa * qv;
+    }
+  }
+  BoneTransforms T = initial;
+  for (int it = 0; it < iterations; ++it) {
+    for (int b = 0; b < B; ++b) {
+      if (moments->members[static_cast<size_t>(b)] < 3) continue;
+      // Σ_i w_ib (q_i − Σ_k w_ik T_k ṽ_i + w_ib T_b ṽ_i) ṽ_iᵀ = [Σ w r vᵀ | Σ w r] of the per-vertex form.
+      const Eigen::Matrix4d& D = moments->self[static_cast<size_t>(b)];
+      Eigen::Matrix<double, 3, 4> sum = q[static_cast<size_t>(b)] + T[static_cast<size_t>(b)].matrix().topRows<3>() * D;
+      for (const auto& [k, M] : moments->cross[static_cast<size_t>(b)])
+        sum.noalias() -= T[static_cast<size_t>(k)].matrix().topRows<3>() * M;
+      const double sw = D(3, 3);
+      if (sw <= 0) continue;
+      const Eigen::Vector3d ca = D.block<3, 1>(0, 3) / sw, cb = sum.col(3) / sw;
+      const Eigen::Matrix3d S = sum.leftCols<3>() - sw * cb * ca.transpose();
+      Eigen::Affine3d Tn = Eigen::Affine3d::Identity();
+      Tn.linear() = nearest_rotation(S);
+      Tn.translation() = cb - Tn.linear() * ca;
+      T[static_cast<size_t>(b)] = Tn;
+    }
+  }
+  return T;
+}
+
+BoneTransforms fit_transforms_with_fixed_weights_per_vertex(const SkinningRig& rig, const Eigen::MatrixX3d& Q,
+                                                            const BoneTransforms& initial, int iterations) {
+  check_fixed_weight_fit(rig, Q, initial);
   const Eigen::Index n = rig.rest.rows(), K = rig.influences.cols();
   const int B = rig.bone_count;
   // Vertices influenced by each bone, with the weight.

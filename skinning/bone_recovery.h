@@ -50,10 +50,30 @@ RecoveredBones recover_bones(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3
 BoneTransforms fit_section_transforms(const Eigen::MatrixX3d& rest, const Eigen::VectorXi& vertex_bone,
                                       int bones, const Eigen::MatrixX3d& Q);
 
+// What the fixed-weight transform fit needs of an SSD rig's weights, independent of the frame
+// (Le & Deng 2012's SSDR: the per-bone Procrustes sums are linear in the other bones' maps, so
+// they follow from weight moments instead of a pass over the vertices). With ṽ = (v, 1) and a
+// bone's members i (weight w_ib > 1e-8): cross[b] = (k, Σ_i w_ib w_ik ṽ ṽᵀ) for every bone k
+// sharing a member with b (b itself included), self[b] = Σ_i w_ib² ṽ ṽᵀ.
+struct FixedWeightMoments {
+  int bones = 0;
+  std::vector<int> members;   // per bone
+  std::vector<std::vector<std::pair<int, Eigen::Matrix4d>>> cross;
+  std::vector<Eigen::Matrix4d> self;
+};
+FixedWeightMoments fixed_weight_moments(const SkinningRig& lbs_rig);
+
 // Bone transforms of a frame Q with an SSD rig's weights held fixed (SSDR-style, Kavan & Le 2012:
 // each bone in turn solves a weighted Procrustes problem on the residual of the others), starting
 // from `initial`. Transforms stay rigid; `initial` must be rigid (InputError otherwise).
+// The sums come from the weight moments (computed here when `moments` is null; pass them to share
+// them between frames): one pass over the vertices per frame instead of one per bone and iteration.
 BoneTransforms fit_transforms_with_fixed_weights(const SkinningRig& lbs_rig, const Eigen::MatrixX3d& Q,
-                                                 const BoneTransforms& initial, int iterations = 5);
+                                                 const BoneTransforms& initial, int iterations = 5,
+                                                 const FixedWeightMoments* moments = nullptr);
+// The same fit summing over each bone's vertices in every iteration: the implementation before the
+// moments, kept as the reference of the tests and the benchmark (equal up to rounding).
+BoneTransforms fit_transforms_with_fixed_weights_per_vertex(const SkinningRig& lbs_rig, const Eigen::MatrixX3d& Q,
+                                                            const BoneTransforms& initial, int iterations = 5);
 
 }  // namespace bodymodel

@@ -32,6 +32,14 @@ CvRule parse_cv_rule(const std::string& s) {
   throw InputError("--cv-rule: expected min, one-se or one-se-unpaired, found '" + s + "'");
 }
 
+std::string cv_nesting_name(CvNesting n) { return n == CvNesting::weights ? "weights" : "full"; }
+
+CvNesting parse_cv_nesting(const std::string& s) {
+  if (s == "weights") return CvNesting::weights;
+  if (s == "full") return CvNesting::full;
+  throw InputError("--cv-nesting: expected full or weights, found '" + s + "'");
+}
+
 namespace {
 // Sample standard deviation / √n of v (0 for fewer than two values or a non-finite one).
 double standard_error_of_mean(const std::vector<double>& v) {
@@ -92,33 +100,61 @@ std::vector<std::vector<int>> cv_folds(int count, const SkinCrossValidationOptio
 }
 
 CrossValidator::CrossValidator(const SkinningExamples& ex, const LbsFitOptions& lbs, const SkinCrossValidationOptions& o,
-                               std::vector<const ReferenceSurface*> surfaces)
+                               std::vector<const ReferenceSurface*> surfaces, const FoldBoneFitter& fold_bones,
+                               const ProgressCallback& progress)
     : ex_(ex), options_(o), surfaces_(std::move(surfaces)) {
   if (!surfaces_.empty() && static_cast<int>(surfaces_.size()) != ex.pose_count())
     throw InputError("cross-validation: " + std::to_string(surfaces_.size()) + " surfaces for " +
                      std::to_string(ex.pose_count()) + " examples");
+  if (o.nesting == CvNesting::full && !fold_bones)
+    throw InputError("cross-validation: full nesting needs the bones refitted per fold, and no bone fit was given");
   folds_ = cv_folds(ex.pose_count(), o);
-  for (const auto& held : folds_) {
+  for (size_t f = 0; f < folds_.size(); ++f) {
+    const auto& held = folds_[f];
+    report_progress(progress, double(f) / folds_.size(),
+                    o.nesting == CvNesting::full ? "bones of cross-validation fold " + std::to_string(f + 1)
+                                                 : "SSD of cross-validation fold " + std::to_string(f + 1));
     std::vector<bool> out(static_cast<size_t>(ex.pose_count()), false);
     for (int p : held) out[static_cast<size_t>(p)] = true;
+    std::vector<int> train;
+    for (int p = 0; p < ex.pose_count(); ++p)
+      if (!out[static_cast<size_t>(p)]) train.push_back(p);
+    if (o.nesting == CvNesting::full) {
+      FoldBones b = fold_bones(train, held);
+      if (b.train.pose_count() != static_cast<int>(train.size()) || b.held_out.size() != held.size())
+        throw InputError("cross-validation: the fold's bone fit returned " + std::to_string(b.train.pose_count()) +
+                         " training and " + std::to_string(b.held_out.size()) + " held-out bone sets for " +
+                         std::to_string(train.size()) + " and " + std::to_string(held.size()));
+      fold_train_.push_back(std::move(b.train));
+      fold_lbs_.push_back(std::move(b.lbs));
+      fold_held_transforms_.push_back(std::move(b.held_out));
+      continue;
+    }
     SkinningExamples sub;
     sub.rest = ex.rest;
-    for (int p = 0; p < ex.pose_count(); ++p)
-      if (!out[static_cast<size_t>(p)]) {
-        sub.poses.push_back(ex.poses[static_cast<size_t>(p)]);
-        sub.transforms.push_back(ex.transforms[static_cast<size_t>(p)]);
-      }
+    for (int p : train) {
+      sub.poses.push_back(ex.poses[static_cast<size_t>(p)]);
+      sub.transforms.push_back(ex.transforms[static_cast<size_t>(p)]);
+    }
     fold_lbs_.push_back(fit_lbs(sub, {}, lbs));
     fold_train_.push_back(std::move(sub));
   }
+  report_progress(progress, 1.0, "cross-validation folds ready");
+}
+
+const BoneTransforms& CrossValidator::held_out_transforms(int fold, int k) const {
+  if (!fold_held_transforms_.empty()) return fold_held_transforms_[static_cast<size_t>(fold)][static_cast<size_t>(k)];
+  return ex_.transforms[static_cast<size_t>(folds_[static_cast<size_t>(fold)][static_cast<size_t>(k)])];
 }
 
 std::vector<double> CrossValidator::held_out_errors(const FittedModel& m, int fold) const {
   std::vector<double> out;
   const Eigen::Index stride = std::max(1, options_.vertex_stride), n = ex_.vertex_count();
   const Eigen::Index count = (n + stride - 1) / stride;
-  for (int p : folds_[static_cast<size_t>(fold)]) {
-    const Eigen::MatrixX3d X = m.pose(ex_.transforms[static_cast<size_t>(p)]);
+  const std::vector<int>& held = folds_[static_cast<size_t>(fold)];
+  for (size_t k = 0; k < held.size(); ++k) {
+    const int p = held[k];
+    const Eigen::MatrixX3d X = m.pose(held_out_transforms(fold, static_cast<int>(k)));
     if (!X.allFinite()) {
       out.push_back(std::numeric_limits<double>::infinity());
       continue;

@@ -21,12 +21,16 @@
 // (`one_se_unpaired`, sd of the best candidate's per-example errors / √n, the textbook form with
 // examples in place of folds) includes how much harder one pose is than another, which says
 // nothing about which candidate is better and lets the rule fall back to the strongest ridge.
-// The held-out examples keep the bone maps they were given (from the bone fit over all training
-// frames, weights held fixed, like unseen frames): a mild approximation of full nesting, which
-// would refit the bones per fold.
+// Nesting: `weights` (the default) refits the SSD base per fold but the held-out examples keep the
+// bone maps they were given (from the bone fit over all training frames, which saw them); `full`
+// refits the bones too — recovery and SSD alternation on the fold's training part only, the
+// held-out examples' bone maps then fitted like unseen frames (weights held fixed) — through a
+// FoldBoneFitter the caller supplies (sequence_evaluation.h), at about one more bones + SSD fit
+// per fold. Measured in docs/skinning.md.
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -41,6 +45,9 @@ enum class CvScheme { none, interleaved, last };
 enum class CvRule { minimum, one_se, one_se_unpaired };
 std::string cv_rule_name(CvRule r);
 CvRule parse_cv_rule(const std::string& s);   // "min", "one-se", "one-se-unpaired"; InputError otherwise
+enum class CvNesting { weights, full };
+std::string cv_nesting_name(CvNesting n);
+CvNesting parse_cv_nesting(const std::string& s);   // "weights", "full"; InputError otherwise
 
 struct SkinCrossValidationOptions {
   CvScheme scheme = CvScheme::interleaved;
@@ -51,6 +58,7 @@ struct SkinCrossValidationOptions {
   // vertex_stride-th vertex (the closest-point queries dominate the cost; 1 = every vertex).
   int vertex_stride = 4;
   CvRule rule = CvRule::minimum;   // one_se measured worse on AS (docs/skinning.md)
+  CvNesting nesting = CvNesting::weights;
   // Grids (the start value is used when a grid is empty). Each reaches far enough that its
   // largest value gives back the method's base (AS → the SSD prior, MWE → its underlying rig,
   // the RBFs → the mean correction): a choice at the edge of a grid would mean the grid is short.
@@ -108,6 +116,15 @@ struct CrossValidationResult {
   std::string brief() const;   // one line: model, folds, chosen setting and its error
 };
 
+// Bones of one fold under full nesting, fitted on the fold's training part only.
+struct FoldBones {
+  SkinningExamples train;                  // the fold's training examples with their own bone maps
+  SkinningRig lbs;                         // the SSD base fitted (and alternated) with them
+  std::vector<BoneTransforms> held_out;    // bone maps of the held-out examples, in fold order
+};
+// train, held_out: indices into the cross-validated examples (disjoint).
+using FoldBoneFitter = std::function<FoldBones(const std::vector<int>& train, const std::vector<int>& held_out)>;
+
 // The folds of a scheme: for each fold, the held-out example indices (0..count−1).
 // Throws InputError when the scheme leaves no example to fit on or none to hold out.
 std::vector<std::vector<int>> cv_folds(int count, const SkinCrossValidationOptions& options);
@@ -116,13 +133,20 @@ class CrossValidator {
  public:
   // ex: the training examples (rest, transforms, poses). lbs: how the SSD base is fitted.
   // surfaces: one per example (the example mesh's surface) or empty; F their faces.
+  // fold_bones: required when options.nesting is full (InputError otherwise), unused else.
   CrossValidator(const SkinningExamples& ex, const LbsFitOptions& lbs, const SkinCrossValidationOptions& options,
-                 std::vector<const ReferenceSurface*> surfaces = {});
+                 std::vector<const ReferenceSurface*> surfaces = {}, const FoldBoneFitter& fold_bones = {},
+                 const ProgressCallback& progress = {});
   // Chooses the setting of `model` (starting from `start`, whose other fields are kept).
   // ssd and dqs have nothing to choose: the result holds `start`.
   CrossValidationResult select(SkinningModel model, const ModelFitOptions& start,
                                const ProgressCallback& progress = {}) const;
   int folds() const { return static_cast<int>(folds_.size()); }
+  // What each fold fits on and poses its held-out examples with (exposed for tests).
+  const SkinningExamples& fold_train(int f) const { return fold_train_[static_cast<size_t>(f)]; }
+  const SkinningRig& fold_lbs(int f) const { return fold_lbs_[static_cast<size_t>(f)]; }
+  const BoneTransforms& held_out_transforms(int fold, int k) const;   // k-th held-out example of the fold
+  const std::vector<int>& held_out(int f) const { return folds_[static_cast<size_t>(f)]; }
 
  private:
   // Mean error over each held-out example's sampled vertices.
@@ -133,6 +157,7 @@ class CrossValidator {
   std::vector<std::vector<int>> folds_;
   std::vector<SkinningExamples> fold_train_;
   std::vector<SkinningRig> fold_lbs_;
+  std::vector<std::vector<BoneTransforms>> fold_held_transforms_;   // full nesting only
 };
 
 }  // namespace bodymodel

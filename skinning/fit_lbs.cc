@@ -162,6 +162,24 @@ SkinningRig fit_lbs(const SkinningExamples& ex, const Eigen::MatrixXi& influence
   rig.influences = Eigen::MatrixXi::Constant(n, K, -1);
   rig.coefficients = Eigen::MatrixXd::Zero(n, K);
 
+  // H_kl = Σ_p ω_p² (M_k(p) ṽ)·(M_l(p) ṽ) = ṽᵀ G_kl ṽ with G_kl = Σ_p ω_p² M_k(p)ᵀ M_l(p) (4 × 4, M as its
+  // 3 × 4 rows): the pose sum done once per bone pair instead of once per vertex (the per-pose form
+  // was most of the fit's own time on 30 Vlasic frames, 16 candidates).
+  std::vector<Eigen::Matrix4d> G;
+  if (options.pairwise_moments) {
+    G.assign(static_cast<size_t>(B) * B, Eigen::Matrix4d::Zero());
+    for (int p = 0; p < P; ++p) {
+      const double w2 = ex.pose_weight(p) * ex.pose_weight(p);
+      const auto& T = ex.transforms[static_cast<size_t>(p)];
+      for (int k = 0; k < B; ++k) {
+        const Eigen::Matrix<double, 3, 4> Mk = T[static_cast<size_t>(k)].matrix().topRows<3>();
+        for (int l = k; l < B; ++l)
+          G[static_cast<size_t>(k) * B + l].noalias() += w2 * Mk.transpose() * T[static_cast<size_t>(l)].matrix().topRows<3>();
+      }
+    }
+    for (int k = 0; k < B; ++k)
+      for (int l = 0; l < k; ++l) G[static_cast<size_t>(k) * B + l] = G[static_cast<size_t>(l) * B + k].transpose();
+  }
   const Eigen::Index chunk = std::max<Eigen::Index>(1024, n / 20);
   for (Eigen::Index start = 0; start < n; start += chunk) {
     report_progress(progress, double(start) / n, "SSD weights");
@@ -180,14 +198,22 @@ SkinningRig fit_lbs(const SkinningExamples& ex, const Eigen::MatrixXi& influence
           H.setZero(m, m);
           g.setZero(m);
           Y.resize(3, m);
+          const bool moments = !G.empty();
+          if (moments) {
+            const Eigen::Vector4d vh(v(0), v(1), v(2), 1.0);
+            for (Eigen::Index l = 0; l < m; ++l)
+              for (Eigen::Index k = 0; k <= l; ++k)
+                H(k, l) = vh.dot(G[static_cast<size_t>(bones[static_cast<size_t>(k)]) * B + bones[static_cast<size_t>(l)]] * vh);
+          }
           for (int p = 0; p < P; ++p) {
             const double w = ex.pose_weight(p);
             const auto& T = ex.transforms[static_cast<size_t>(p)];
             for (Eigen::Index k = 0; k < m; ++k) Y.col(k) = w * (T[static_cast<size_t>(bones[static_cast<size_t>(k)])] * v);
             // The upper triangle only, by hand: at most 32 × 32 with depth 3, where Eigen's GEMM path
             // (packing, blocking) cost as much as the rest of the fit.
-            for (Eigen::Index l = 0; l < m; ++l)
-              for (Eigen::Index k = 0; k <= l; ++k) H(k, l) += Y.col(k).dot(Y.col(l));
+            if (!moments)
+              for (Eigen::Index l = 0; l < m; ++l)
+                for (Eigen::Index k = 0; k <= l; ++k) H(k, l) += Y.col(k).dot(Y.col(l));
             g.noalias() += Y.transpose() * (w * ex.poses[static_cast<size_t>(p)].row(i).transpose());
           }
           for (Eigen::Index l = 0; l < m; ++l)

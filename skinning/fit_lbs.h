@@ -26,6 +26,9 @@ struct LbsFitOptions {
   // SSD models bones as rigid (Jacka §2): refuse non-rigid transforms unless disabled.
   bool require_rigid = true;
   double rigid_tolerance = 1e-4;
+  // Normal equations from per-bone-pair pose moments (ṽᵀ G_kl ṽ); false = summed pose by pose per
+  // vertex, the implementation before them (equal up to rounding), kept as the benchmark's baseline.
+  bool pairwise_moments = true;
 };
 
 struct LbsFitSummary {

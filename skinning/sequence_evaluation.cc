@@ -32,6 +32,106 @@ std::vector<int> evenly_spaced_frames(int frame_count, int count) {
   return out;
 }
 
+namespace {
+BoneTransforms fit_frame_transforms(const SkinningRig& lbs, const Eigen::MatrixX3d& Q, const BoneTransforms& initial,
+                                    int iterations, const FixedWeightMoments& moments,
+                                    const SequenceEvaluationOptions& options) {
+  return options.baseline_fit ? fit_transforms_with_fixed_weights_per_vertex(lbs, Q, initial, iterations)
+                                          : fit_transforms_with_fixed_weights(lbs, Q, initial, iterations, &moments);
+}
+
+// Bones (recovered from the training frames when `given` is empty), SSD and its alternation on the
+// training frames, then every other frame's bone maps. `rest` is the rig's rest shape and Frest its
+// faces (bone recovery); it need not be one of the frames (full nesting's folds, where the rest
+// frame may be held out). Inputs are checked by the callers.
+PreparedSequence prepare_core(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3i& Frest,
+                              const std::vector<Eigen::MatrixX3d>& frames, const std::vector<int>& train,
+                              const SequenceEvaluationOptions& options, const std::vector<BoneTransforms>& given,
+                              const ProgressCallback& progress) {
+  const int nf = static_cast<int>(frames.size());
+  const auto t0 = std::chrono::steady_clock::now();
+  const double c0 = process_cpu_seconds();
+  PreparedSequence out;
+  SkinningExamples& ex = out.examples;
+  ex.rest = rest;
+  for (int t : train) ex.poses.push_back(frames[static_cast<size_t>(t)]);
+  if (given.empty()) {
+    ProgressCallback sub = progress ? ProgressCallback([&](double f, std::string_view w) {
+      return progress(0.5 * f, w);
+    }) : ProgressCallback();
+    out.recovered = recover_bones(rest, Frest, ex.poses, options.recovery, &out.recovery, sub);
+    ex.transforms = out.recovered.transforms;
+    out.recovery_cpu_seconds = process_cpu_seconds() - c0;
+  } else {
+    for (int t : train) ex.transforms.push_back(given[static_cast<size_t>(t)]);
+  }
+  report_progress(progress, 0.5, "SSD weights");
+  LbsFitOptions lo = options.lbs;
+  lo.max_influences = options.max_influences;
+  lo.require_rigid = given.empty() ? true : lo.require_rigid;
+  out.lbs = fit_lbs(ex, {}, lo, &out.lbs_summary);
+  out.alternation_rms.push_back(out.lbs_summary.rms_residual);
+  if (given.empty()) {
+    for (int a = 0; a < options.alternations; ++a) {
+      const FixedWeightMoments moments = fixed_weight_moments(out.lbs);   // shared by every frame of the round
+      tbb::parallel_for(0, static_cast<int>(train.size()), [&](int p) {
+        ex.transforms[static_cast<size_t>(p)] = fit_frame_transforms(
+            out.lbs, ex.poses[static_cast<size_t>(p)], ex.transforms[static_cast<size_t>(p)],
+            options.alternation_transform_iterations > 0 ? options.alternation_transform_iterations
+                                                         : options.transform_iterations, moments, options);
+      });
+      // Influence sets are chosen afresh every round: keeping the first round's costs 20 % of
+      // unseen E_RMS on the horse (bones that take over vertices late must be able to).
+      out.lbs = fit_lbs(ex, {}, lo, &out.lbs_summary);
+      const double before = out.alternation_rms.back(), after = out.lbs_summary.rms_residual;
+      out.alternation_rms.push_back(after);
+      if (before - after < options.alternation_tolerance * before) break;
+    }
+  }
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  out.cpu_seconds = process_cpu_seconds() - c0;
+  const auto t1 = std::chrono::steady_clock::now();
+  // Transforms of every frame: training frames keep theirs; unseen frames are fitted with the SSD
+  // weights held fixed (or taken from `given`).
+  out.transforms.assign(static_cast<size_t>(nf), {});
+  out.is_train.assign(static_cast<size_t>(nf), false);
+  for (size_t p = 0; p < train.size(); ++p) {
+    out.transforms[static_cast<size_t>(train[p])] = ex.transforms[p];
+    out.is_train[static_cast<size_t>(train[p])] = true;
+  }
+  report_progress(progress, 0.8, "unseen-frame transforms");
+  const FixedWeightMoments moments = given.empty() ? fixed_weight_moments(out.lbs) : FixedWeightMoments{};
+  tbb::parallel_for(0, nf, [&](int f) {
+    if (out.is_train[static_cast<size_t>(f)]) return;
+    if (!given.empty()) {
+      out.transforms[static_cast<size_t>(f)] = given[static_cast<size_t>(f)];
+      return;
+    }
+    const Eigen::MatrixX3d& Q = frames[static_cast<size_t>(f)];
+    // Two starts, the better fit kept: the recovered sections' own rigid maps, and the bone maps of
+    // the nearest training frame (smallest Σ‖q_i − q'_i‖², the frames' vertices correspond).
+    const BoneTransforms a = fit_frame_transforms(
+        out.lbs, Q, fit_section_transforms(rest, out.recovered.vertex_bone, ex.bone_count(), Q),
+        options.transform_iterations, moments, options);
+    size_t nearest = 0;
+    double best = std::numeric_limits<double>::infinity();
+    for (size_t p = 0; p < train.size(); ++p) {
+      const double d = (ex.poses[p] - Q).squaredNorm();
+      if (d < best) best = d, nearest = p;
+    }
+    const BoneTransforms b =
+        fit_frame_transforms(out.lbs, Q, ex.transforms[nearest], options.transform_iterations, moments, options);
+    const double ea = (evaluate_rig(out.lbs, a) - Q).squaredNorm(), eb = (evaluate_rig(out.lbs, b) - Q).squaredNorm();
+    out.transforms[static_cast<size_t>(f)] = ea <= eb ? a : b;
+  });
+  out.unseen_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+  out.unseen_cpu_seconds = process_cpu_seconds() - c0 - out.cpu_seconds;
+  report_progress(progress, 1.0, "prepared");
+  return out;
+}
+
+}  // namespace
+
 PreparedSequence prepare_skinning_sequence(const std::vector<Eigen::MatrixX3d>& frames,
                                            const Eigen::MatrixX3i& F, const std::vector<int>& train_in,
                                            const SequenceEvaluationOptions& options,
@@ -70,86 +170,33 @@ PreparedSequence prepare_skinning_sequence(const std::vector<Eigen::MatrixX3d>& 
   if (given.empty() && !train_set.count(options.rest_frame))
     throw InputError("skinning evaluation: the rest frame (" + std::to_string(options.rest_frame) +
                      ") must be a training frame: its geometry becomes the rig's rest shape");
-  const auto t0 = std::chrono::steady_clock::now();
-  const double c0 = process_cpu_seconds();
   const std::vector<int> train(train_set.begin(), train_set.end());
-  const Eigen::MatrixX3d& rest = frames[static_cast<size_t>(options.rest_frame)];
-  PreparedSequence out;
-  SkinningExamples& ex = out.examples;
-  ex.rest = rest;
-  for (int t : train) ex.poses.push_back(frames[static_cast<size_t>(t)]);
-  if (given.empty()) {
-    ProgressCallback sub = progress ? ProgressCallback([&](double f, std::string_view w) {
-      return progress(0.5 * f, w);
-    }) : ProgressCallback();
-    const Eigen::MatrixX3i& Frest =
-        options.frame_faces.empty() ? F : options.frame_faces[static_cast<size_t>(options.rest_frame)];
-    out.recovered = recover_bones(rest, Frest, ex.poses, options.recovery, &out.recovery, sub);
-    ex.transforms = out.recovered.transforms;
-    out.recovery_cpu_seconds = process_cpu_seconds() - c0;
-  } else {
-    for (int t : train) ex.transforms.push_back(given[static_cast<size_t>(t)]);
-  }
-  report_progress(progress, 0.5, "SSD weights");
-  LbsFitOptions lo = options.lbs;
-  lo.max_influences = options.max_influences;
-  lo.require_rigid = given.empty() ? true : lo.require_rigid;
-  out.lbs = fit_lbs(ex, {}, lo, &out.lbs_summary);
-  out.alternation_rms.push_back(out.lbs_summary.rms_residual);
-  if (given.empty()) {
-    for (int a = 0; a < options.alternations; ++a) {
-      tbb::parallel_for(0, static_cast<int>(train.size()), [&](int p) {
-        ex.transforms[static_cast<size_t>(p)] = fit_transforms_with_fixed_weights(
-            out.lbs, ex.poses[static_cast<size_t>(p)], ex.transforms[static_cast<size_t>(p)],
-            options.alternation_transform_iterations > 0 ? options.alternation_transform_iterations
-                                                         : options.transform_iterations);
-      });
-      // Influence sets are chosen afresh every round: keeping the first round's costs 20 % of
-      // unseen E_RMS on the horse (bones that take over vertices late must be able to).
-      out.lbs = fit_lbs(ex, {}, lo, &out.lbs_summary);
-      const double before = out.alternation_rms.back(), after = out.lbs_summary.rms_residual;
-      out.alternation_rms.push_back(after);
-      if (before - after < options.alternation_tolerance * before) break;
-    }
-  }
-  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  out.cpu_seconds = process_cpu_seconds() - c0;
-  const auto t1 = std::chrono::steady_clock::now();
-  // Transforms of every frame: training frames keep theirs; unseen frames are fitted with the SSD
-  // weights held fixed (or taken from `given`).
-  out.transforms.assign(static_cast<size_t>(nf), {});
-  out.is_train.assign(static_cast<size_t>(nf), false);
-  for (size_t p = 0; p < train.size(); ++p) {
-    out.transforms[static_cast<size_t>(train[p])] = ex.transforms[p];
-    out.is_train[static_cast<size_t>(train[p])] = true;
-  }
-  report_progress(progress, 0.8, "unseen-frame transforms");
-  tbb::parallel_for(0, nf, [&](int f) {
-    if (out.is_train[static_cast<size_t>(f)]) return;
-    if (!given.empty()) {
-      out.transforms[static_cast<size_t>(f)] = given[static_cast<size_t>(f)];
-      return;
-    }
-    const Eigen::MatrixX3d& Q = frames[static_cast<size_t>(f)];
-    // Two starts, the better fit kept: the recovered sections' own rigid maps, and the bone maps of
-    // the nearest training frame (smallest Σ‖q_i − q'_i‖², the frames' vertices correspond).
-    const BoneTransforms a = fit_transforms_with_fixed_weights(
-        out.lbs, Q, fit_section_transforms(rest, out.recovered.vertex_bone, ex.bone_count(), Q),
-        options.transform_iterations);
-    size_t nearest = 0;
-    double best = std::numeric_limits<double>::infinity();
-    for (size_t p = 0; p < train.size(); ++p) {
-      const double d = (ex.poses[p] - Q).squaredNorm();
-      if (d < best) best = d, nearest = p;
-    }
-    const BoneTransforms b =
-        fit_transforms_with_fixed_weights(out.lbs, Q, ex.transforms[nearest], options.transform_iterations);
-    const double ea = (evaluate_rig(out.lbs, a) - Q).squaredNorm(), eb = (evaluate_rig(out.lbs, b) - Q).squaredNorm();
-    out.transforms[static_cast<size_t>(f)] = ea <= eb ? a : b;
-  });
-  out.unseen_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
-  out.unseen_cpu_seconds = process_cpu_seconds() - c0 - out.cpu_seconds;
-  report_progress(progress, 1.0, "prepared");
+  const Eigen::MatrixX3i& Frest =
+      options.frame_faces.empty() ? F : options.frame_faces[static_cast<size_t>(options.rest_frame)];
+  return prepare_core(frames[static_cast<size_t>(options.rest_frame)], Frest, frames, train, options, given, progress);
+}
+
+FoldBones fit_fold_bones(const SkinningExamples& ex, const Eigen::MatrixX3i& Frest, const std::vector<int>& train,
+                         const std::vector<int>& held_out, const SequenceEvaluationOptions& options) {
+  std::vector<int> all(train);
+  all.insert(all.end(), held_out.begin(), held_out.end());
+  std::sort(all.begin(), all.end());
+  if (train.empty() || std::adjacent_find(all.begin(), all.end()) != all.end() || all.front() < 0 ||
+      all.back() >= ex.pose_count())
+    throw InputError("fold bones: the training and held-out examples must be disjoint, non-empty on the training side "
+                     "and within 0.." + std::to_string(ex.pose_count() - 1));
+  // Only the fold's examples: the held-out poses reach the fit only as frames to fit bone maps to
+  // after the weights are fixed.
+  std::vector<Eigen::MatrixX3d> frames;
+  for (int p : train) frames.push_back(ex.poses[static_cast<size_t>(p)]);
+  for (int p : held_out) frames.push_back(ex.poses[static_cast<size_t>(p)]);
+  std::vector<int> fold_train(train.size());
+  for (size_t k = 0; k < train.size(); ++k) fold_train[k] = static_cast<int>(k);
+  PreparedSequence prep = prepare_core(ex.rest, Frest, frames, fold_train, options, {}, {});
+  FoldBones out;
+  out.train = std::move(prep.examples);
+  out.lbs = std::move(prep.lbs);
+  for (size_t k = 0; k < held_out.size(); ++k) out.held_out.push_back(prep.transforms[train.size() + k]);
   return out;
 }
 
@@ -291,13 +338,29 @@ SequenceEvaluation evaluate_skinning_sequence(const std::vector<Eigen::MatrixX3d
     if (prep.is_train[f]) train_surfaces.push_back(trees.back().get());
   }
   std::unique_ptr<CrossValidator> validator;
-  if (options.cv.scheme != CvScheme::none)
+  if (options.cv.scheme != CvScheme::none) {
+    const double c0 = process_cpu_seconds();
+    SkinCrossValidationOptions cv = options.cv;
+    // Given bone maps are not fitted to anything: there is nothing to refit per fold.
+    if (!given.empty()) cv.nesting = CvNesting::weights;
+    const Eigen::MatrixX3i& Frest =
+        options.frame_faces.empty() ? F : options.frame_faces[static_cast<size_t>(options.rest_frame)];
+    FoldBoneFitter fold_bones;
+    if (cv.nesting == CvNesting::full)
+      fold_bones = [&](const std::vector<int>& t, const std::vector<int>& h) {
+        return fit_fold_bones(prep.examples, Frest, t, h, options);
+      };
+    ProgressCallback csub = progress ? ProgressCallback([&](double f, std::string_view w) {
+      return progress(0.3 + 0.1 * f, w);
+    }) : ProgressCallback();
     validator = std::make_unique<CrossValidator>(prep.examples, [&] {
       LbsFitOptions lo = options.lbs;
       lo.max_influences = options.max_influences;
       lo.require_rigid = false;
       return lo;
-    }(), options.cv, train_surfaces);
+    }(), cv, train_surfaces, fold_bones, csub);
+    out.cv_setup_cpu_seconds = process_cpu_seconds() - c0;
+  }
   SequenceEvaluationOptions opt = options;
   // MWE over an Animation Space base uses the AS ridge chosen for AS, EigenSkin and the quadratic
   // method PSD's pose space (kernel width, RBF ridge): fit AS and PSD first, or cross-validate
@@ -321,7 +384,7 @@ SequenceEvaluation evaluate_skinning_sequence(const std::vector<Eigen::MatrixX3d
     const size_t m = static_cast<size_t>(std::find(options.methods.begin(), options.methods.end(), method) -
                                          options.methods.begin());
     ProgressCallback msub = progress ? ProgressCallback([&](double f, std::string_view w) {
-      return progress(0.3 + 0.7 * (k + f) / order.size(), w);
+      return progress(0.4 + 0.6 * (k + f) / order.size(), w);
     }) : ProgressCallback();
     const FittedModel model = fit_sequence_method(method, prep, opt, validator.get(), &fits[m], msub);
     if (method == SkinningModel::as && validator) opt.fit.mwe.base_as_ridge = fits[m].cv.chosen.animation_space.ridge;

@@ -45,6 +45,9 @@ struct SequenceEvaluationOptions {
   // +1 % (horse) of unseen SSD geometric deviation, but moved the cross-validated Animation Space
   // ridge on the horse (λ 0.1 → 1, unseen AS +5 %): not the default (docs/skinning.md).
   int alternation_transform_iterations = 0;
+  // The fixed-weight transform fits summed over the vertices in every pass (before issue 26's weight
+  // moments; equal up to rounding): the benchmark's baseline, with lbs.pairwise_moments false.
+  bool baseline_fit = false;
   LbsFitOptions lbs = [] {
     LbsFitOptions o;
     o.influence_candidates = 16;   // horse: 12 → 16 candidates, unseen SSD E_RMS 0.79 → 0.74
@@ -88,6 +91,7 @@ struct SequenceEvaluation {
   std::vector<double> alternation_rms;   // training residual RMS after the first SSD fit and each round
   double prepare_seconds = 0, prepare_cpu_seconds = 0;   // bones + SSD (+ alternation)
   double recovery_cpu_seconds = 0, unseen_cpu_seconds = 0;
+  double cv_setup_cpu_seconds = 0;   // the folds' SSD bases (and bones, under full nesting)
   double seconds = 0;
 };
 
@@ -125,6 +129,13 @@ PreparedSequence prepare_skinning_sequence(const std::vector<Eigen::MatrixX3d>& 
                                            const SequenceEvaluationOptions& options,
                                            const std::vector<BoneTransforms>& transforms = {},
                                            const ProgressCallback& progress = {});
+
+// Full nesting's bones of one cross-validation fold (CvNesting::full): bone recovery, SSD and its
+// alternation on the examples `train` of ex only (rest shape ex.rest, its faces Frest), then the
+// held-out examples' bone maps fitted with those SSD weights held fixed, as unseen frames are.
+// ex.transforms are not used. Throws InputError when the index sets overlap or leave the range.
+FoldBones fit_fold_bones(const SkinningExamples& ex, const Eigen::MatrixX3i& Frest, const std::vector<int>& train,
+                         const std::vector<int>& held_out, const SequenceEvaluationOptions& options);
 
 // Train and unseen statistics of one rig over every frame. `surfaces` (one per frame) may be
 // given to reuse the closest-point trees; otherwise they are built here.

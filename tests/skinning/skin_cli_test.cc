@@ -132,6 +132,12 @@ TEST(SkinCli, UnorderedPosesWithAnExplicitSplitAndEveryBadInput) {
         "a fold leaves 1 training example(s), the method needs 2");
   fails("skin eval " + seq + " --methods ssd,nope --out " + (dir / "x").string(), "unknown skinning method 'nope'");
   fails("skin eval " + seq + " --cv folds:x --out " + (dir / "x").string(), "--cv: expected auto, none, folds:K or last:N");
+  fails("skin eval " + seq + " --cv-nesting leaky --out " + (dir / "x").string(), "--cv-nesting: expected full or weights");
+  // Full nesting: the report says so and counts the folds' bone fits.
+  ASSERT_EQ(run_cli("skin eval " + seq + " --methods ssd,as --cv folds:3 --cv-nesting full --bones 3 --out " +
+                    (dir / "n").string(), &out), 0) << out;
+  EXPECT_NE(out.find("nesting full"), std::string::npos) << out;
+  EXPECT_NE(out.find("and bones, nesting full"), std::string::npos) << out;
   // A frame with other faces (same vertex count): refused unless --per-frame-faces.
   {
     const Mesh m = read_mesh(dir / "poses" / "pose01.off");

@@ -17,7 +17,7 @@ namespace {
 
 struct FitArgs {
   std::string rest, poses, transforms, method = "mwe", out = "rig.npz", cv = "folds:5",
-              cv_rule = "min";
+              cv_rule = "min", cv_nesting = cv_nesting_name(SkinCrossValidationOptions{}.nesting);
   int bones = 0, max_influences = 4;
   double as_ridge = AnimationSpaceFitOptions{}.ridge, mwe_s = MweFitOptions{}.ridge_scale;
   int mwe_components = MweFitOptions{}.components;
@@ -69,6 +69,9 @@ void run_fit(const FitArgs& a) {
     throw InputError("--cv: expected none, folds:K or last:N, found '" + a.cv + "'");
   }
   cv.rule = parse_cv_rule(a.cv_rule);
+  cv.nesting = parse_cv_nesting(a.cv_nesting);
+  // Given bone maps are not fitted: there is nothing to refit per fold.
+  if (!a.transforms.empty()) cv.nesting = CvNesting::weights;
   const Mesh rest = read_mesh(a.rest);
   const MeshSequence seq = read_mesh_sequence(a.poses);
   for (size_t p = 0; p < seq.frames.size(); ++p)
@@ -131,7 +134,12 @@ void run_fit(const FitArgs& a) {
     LbsFitOptions lo = opt.lbs;
     lo.max_influences = a.max_influences;
     lo.require_rigid = false;
-    validator = std::make_unique<CrossValidator>(ex, lo, cv, surfaces);
+    FoldBoneFitter fold_bones;
+    if (cv.nesting == CvNesting::full)
+      fold_bones = [&](const std::vector<int>& t, const std::vector<int>& h) {
+        return fit_fold_bones(ex, rest.F, t, h, opt);
+      };
+    validator = std::make_unique<CrossValidator>(ex, lo, cv, surfaces, fold_bones);
     if (method == SkinningModel::mwe)   // the AS base's ridge, chosen the same way
       opt.fit.mwe.base_as_ridge = validator->select(SkinningModel::as, opt.fit).chosen.animation_space.ridge;
     if (method == SkinningModel::eigenskin || method == SkinningModel::quadratic) {   // PSD's pose space
@@ -177,6 +185,10 @@ BODYMODEL_VERB(add_skin_fit_verb) {
   cmd->add_option("--bones", a->bones, "Recover this many bones from the poses instead (no skeleton)");
   cmd->add_option("--method", a->method, "ssd, dqs, as, mwe, psd, eigenskin or quadratic")->capture_default_str();
   cmd->add_option("--cv", a->cv, "Cross-validation over the poses: folds:K (interleaved), last:N or none")
+      ->capture_default_str();
+  cmd->add_option("--cv-nesting", a->cv_nesting,
+                  "What each fold refits on its training part: weights (the SSD base) or full (bone recovery and SSD "
+                  "alternation too; only with --bones)")
       ->capture_default_str();
   cmd->add_option("--cv-rule", a->cv_rule,
                   "Which cross-validated setting is kept: one-se (the most regularised within one paired standard "
