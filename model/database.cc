@@ -6,9 +6,9 @@
 #include <limits>
 #include <map>
 #include <set>
-#include <sstream>
 
 #include "core/error.h"
+#include "core/io/csv.h"
 #include "core/io/file_names.h"
 #include "core/io/mesh_io.h"
 #include "core/measure.h"
@@ -20,18 +20,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::vector<std::string> split_csv(const std::string& line) {
-  std::vector<std::string> out;
-  std::string cell;
-  std::stringstream ss(line);
-  while (std::getline(ss, cell, ',')) {
-    while (!cell.empty() && (cell.back() == '\r' || cell.back() == ' ')) cell.pop_back();
-    out.push_back(cell);
-  }
-  if (!line.empty() && line.back() == ',') out.emplace_back();
-  return out;
-}
-
 std::vector<std::vector<std::string>> read_csv(const fs::path& path) {
   std::ifstream f(path);
   if (!f) throw InputError(fmt::format("cannot open '{}'", path.string()));
@@ -39,7 +27,7 @@ std::vector<std::vector<std::string>> read_csv(const fs::path& path) {
   std::string line;
   while (std::getline(f, line)) {
     if (line.empty() || line == "\r") continue;
-    rows.push_back(split_csv(line));
+    rows.push_back(split_csv_line(line));
   }
   if (rows.empty()) throw InputError(fmt::format("'{}' is empty (expected a header line)", path.string()));
   for (size_t i = 1; i < rows.size(); ++i)

@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/io/csv.h"
 #include "core/io/mesh_io.h"
 #include "core/plausibility.h"
 #include "tools/pipeline/folder_settings.h"
@@ -39,15 +40,6 @@ std::string labels_header(const CrowdOutputOptions& o) {
 }
 
 int column_count(const std::string& header) { return static_cast<int>(std::count(header.begin(), header.end(), ',')) + 1; }
-
-std::vector<std::string> split_row(const std::string& line) {
-  std::vector<std::string> cells;
-  std::stringstream ss(line);
-  std::string c;
-  while (std::getline(ss, c, ',')) cells.push_back(c);
-  if (!line.empty() && line.back() == ',') cells.push_back("");
-  return cells;
-}
 
 std::string sex_name(const std::vector<LabelCondition>& conditions) {
   for (auto& c : conditions)
@@ -100,7 +92,7 @@ std::vector<std::optional<std::string>> read_previous_rows(const fs::path& csv, 
   std::string line;
   if (!std::getline(ss, line) || line != header) return rows;
   while (std::getline(ss, line)) {
-    auto cells = split_row(line);
+    auto cells = split_csv_line(line);
     if (static_cast<int>(cells.size()) != column_count(header)) continue;
     char* end = nullptr;
     long i = std::strtol(cells[0].c_str(), &end, 10);
@@ -153,7 +145,7 @@ GenerateCrowdSummary write_crowd(std::shared_ptr<const BodyModel> model,
   std::vector<int> todo;
   std::error_code ec;
   for (int i = 0; i < count; ++i) {
-    if (rows[i] && split_row(*rows[i])[1] == summary.files[i] && fs::is_regular_file(out / summary.files[i], ec))
+    if (rows[i] && split_csv_line(*rows[i])[1] == summary.files[i] && fs::is_regular_file(out / summary.files[i], ec))
       continue;
     rows[i].reset();
     todo.push_back(i);
@@ -204,7 +196,7 @@ GenerateCrowdSummary write_crowd(std::shared_ptr<const BodyModel> model,
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   write_text_file(csv_path, labels_csv(rows, header));
   for (auto& r : rows) {
-    auto cells = split_row(*r);
+    auto cells = split_csv_line(*r);
     summary.constraints_met += cells[kColumnMet] == "1" ? 1 : 0;
     const int flipped = std::atoi(cells[kColumnFlipped].c_str());
     summary.flipped_triangles += flipped;

@@ -2,14 +2,14 @@
 //                    [--judge-poses REG/*.ply] --out char/
 #include <fmt/format.h>
 
-#include <filesystem>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <memory>
-#include <sstream>
 
 #include "core/error.h"
+#include "core/io/csv.h"
 #include "core/io/file_names.h"
 #include "core/io/mesh_io.h"
 #include "core/io/pose_csv.h"
@@ -51,11 +51,12 @@ void print_fit_table(const std::vector<RigErrorRow>& rows) {
 
 namespace fs = std::filesystem;
 
-// The pose a registration was fitted in (`register-mesh` writes <stem>.pose.csv beside
-// <stem>.ply): the start of the pose fits. The rest pose when there is none.
+// The pose a registration was fitted in: `register-mesh` writes <stem>.pose.csv beside <stem>.ply.
+fs::path pose_file_beside(const std::string& mesh) { return fs::path(mesh).replace_extension(".pose.csv"); }
+
+// The start of the pose fits: the registration's pose, the rest pose when there is none.
 Pose start_pose_for(const std::string& mesh, const std::vector<std::string>& bone_names) {
-  fs::path p = fs::path(mesh);
-  p.replace_extension(".pose.csv");
+  const fs::path p = pose_file_beside(mesh);
   std::error_code ec;
   if (!fs::exists(p, ec)) return Pose::rest(static_cast<int>(bone_names.size()));
   std::vector<std::string> skipped;
@@ -70,18 +71,11 @@ std::map<std::string, double> registration_distances(const std::string& mesh) {
   std::ifstream in(csv);
   std::string line;
   if (!in || !std::getline(in, line)) return out;
-  auto split = [](const std::string& l) {
-    std::vector<std::string> v;
-    std::stringstream ss(l);
-    std::string x;
-    while (std::getline(ss, x, ',')) v.push_back(x);
-    return v;
-  };
-  const std::vector<std::string> head = split(line);
+  const std::vector<std::string> head = split_csv_line(line);
   const auto col = std::find(head.begin(), head.end(), "two_sided_mm") - head.begin();
   if (col >= static_cast<long>(head.size()) || head.empty() || head[0] != "mesh") return out;
   while (std::getline(in, line)) {
-    const std::vector<std::string> v = split(line);
+    const std::vector<std::string> v = split_csv_line(line);
     if (static_cast<long>(v.size()) <= col) continue;
     try {
       out[v[0]] = std::stod(v[col]);
@@ -258,8 +252,7 @@ BODYMODEL_VERB(add_character_verb) {
       if (a->unpose) {
         cli::ProgressBar ub("unpose");
         // The pose is fitted, pulled towards the registration's own pose when register-mesh wrote one.
-        fs::path pose_file = fs::path(a->in);
-        pose_file.replace_extension(".pose.csv");
+        const fs::path pose_file = pose_file_beside(a->in);
         std::error_code ec;
         UnposeOptions uo = unpose_with_prior();
         if (!fs::exists(pose_file, ec)) {

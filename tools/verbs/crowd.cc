@@ -10,6 +10,7 @@
 #include "core/data_path.h"
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/io/csv.h"
 #include "core/io/bvh.h"
 #include "core/io/file_names.h"
 #include "core/io/mesh_io.h"
@@ -166,10 +167,7 @@ BODYMODEL_VERB(add_crowd_verb) {
         std::string line;
         std::getline(in, line);
         while (std::getline(in, line)) {
-          std::vector<std::string> f;
-          std::stringstream ss(line);
-          std::string x;
-          while (std::getline(ss, x, ',')) f.push_back(x);
+          const std::vector<std::string> f = split_csv_line(line);
           if (f.size() >= 6) ratio = std::max(ratio, std::stod(f[3])), flipped = std::max(flipped, std::stoi(f[5]));
           if (f.size() >= 11) p99 = std::max(p99, std::stod(f[10]));
           if (f.size() >= 17)

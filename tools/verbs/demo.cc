@@ -11,12 +11,12 @@
 #include <fstream>
 #include <map>
 #include <memory>
-#include <sstream>
 #include <thread>
 
 #include "core/data_path.h"
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/io/csv.h"
 #include "core/io/mesh_io.h"
 #include "tools/console.h"
 #include "tools/pipeline/output_folder.h"
@@ -140,13 +140,7 @@ std::vector<std::vector<std::string>> read_csv(const fs::path& p) {
   std::vector<std::vector<std::string>> rows;
   std::ifstream in(p);
   std::string line;
-  while (std::getline(in, line)) {
-    std::vector<std::string> r;
-    std::stringstream ss(line);
-    std::string c;
-    while (std::getline(ss, c, ',')) r.push_back(c);
-    rows.push_back(r);
-  }
+  while (std::getline(in, line)) rows.push_back(split_csv_line(line));
   return rows;
 }
 
