@@ -15,16 +15,42 @@ constexpr size_t kMaxName = 200;  // bytes; file systems allow 255, leaving room
 
 bool bad_char(unsigned char c) { return c < 0x20 || c == 0x7f || c == '/' || c == '\\' || c == ':'; }
 
-// The name shown in a message: control characters as \xNN, cut to 60 bytes.
+// Length of the valid UTF-8 sequence at s[i], 0 when the byte there does not start one.
+size_t utf8_length(std::string_view s, size_t i) {
+  const unsigned char c = static_cast<unsigned char>(s[i]);
+  if (c < 0x80) return 1;
+  size_t n;
+  unsigned cp;
+  if (c >= 0xc2 && c <= 0xdf) n = 2, cp = c & 0x1f;
+  else if (c >= 0xe0 && c <= 0xef) n = 3, cp = c & 0x0f;
+  else if (c >= 0xf0 && c <= 0xf4) n = 4, cp = c & 0x07;
+  else return 0;
+  if (i + n > s.size()) return 0;
+  for (size_t k = 1; k < n; ++k) {
+    const unsigned char d = static_cast<unsigned char>(s[i + k]);
+    if ((d & 0xc0) != 0x80) return 0;
+    cp = (cp << 6) | (d & 0x3f);
+  }
+  if ((n == 3 && cp < 0x800) || (n == 4 && cp < 0x10000) || cp > 0x10ffff || (cp >= 0xd800 && cp <= 0xdfff)) return 0;
+  return n;
+}
+
+// The name shown in a message: control characters and bytes that are not UTF-8 as \xNN, cut
+// to 60 bytes.
 std::string printable(std::string_view s) {
   std::string out;
-  for (unsigned char c : s.substr(0, 60)) {
-    if (c < 0x20 || c == 0x7f) {
+  const std::string_view shown = s.substr(0, 60);
+  for (size_t i = 0; i < shown.size();) {
+    const unsigned char c = static_cast<unsigned char>(shown[i]);
+    const size_t n = utf8_length(shown, i);
+    if (n == 0 || c < 0x20 || c == 0x7f) {
       char buf[8];
       std::snprintf(buf, sizeof buf, "\\x%02x", c);
       out += buf;
+      ++i;
     } else {
-      out.push_back(static_cast<char>(c));
+      out.append(shown.substr(i, n));
+      i += n;
     }
   }
   if (s.size() > 60) out += "…";
@@ -44,6 +70,7 @@ std::string file_name_problem(std::string_view name) {
     if (c < 0x20 || c == 0x7f) return "it holds a control character";
     if (c == ':') return "it holds ':'";
   }
+  if (!valid_utf8(name)) return "it holds bytes that are not UTF-8";
   if (name[0] == '.') return "it starts with '.'";
   return "";
 }
@@ -58,7 +85,16 @@ std::string sanitized_file_name(std::string_view name, const std::string& fallba
   if (file_name_problem(name).empty()) return std::string(name);
   std::string out;
   out.reserve(name.size());
-  for (unsigned char c : name) out.push_back(bad_char(c) ? '_' : static_cast<char>(c));
+  for (size_t i = 0; i < name.size();) {
+    const size_t n = utf8_length(name, i);
+    if (n == 0 || (n == 1 && bad_char(static_cast<unsigned char>(name[i])))) {
+      out.push_back('_');
+      ++i;
+    } else {
+      out.append(name.substr(i, n));
+      i += n;
+    }
+  }
   // "../../tmp/x" → "tmp_x", "/abs" → "abs", ".hidden" → "hidden".
   out.erase(0, out.find_first_not_of("._"));
   if (out.size() > kMaxName) {
@@ -71,20 +107,62 @@ std::string sanitized_file_name(std::string_view name, const std::string& fallba
 }
 
 std::vector<std::string> unique_file_names(const std::vector<std::string>& names, const std::string& fallback_prefix) {
-  std::vector<std::string> out;
-  std::set<std::string> taken;  // lower case
   auto lower = [](std::string s) {
     for (auto& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
     return s;
   };
+  std::vector<std::string> out(names.size());
+  std::set<std::string> taken;  // lower case
+  // First the plain names, each the first of its spelling: they keep their names, so a later
+  // "_2" made for a repeated name can never take one of them.
+  std::vector<char> kept(names.size(), 0);
+  for (size_t i = 0; i < names.size(); ++i)
+    if (file_name_problem(names[i]).empty() && taken.insert(lower(names[i])).second) {
+      out[i] = names[i];
+      kept[i] = 1;
+    }
+  // Then every other name: sanitised, and suffixed past every name taken.
   for (size_t i = 0; i < names.size(); ++i) {
+    if (kept[i]) continue;
     char index[24];
     std::snprintf(index, sizeof index, "_%03zu", i);
     const std::string base = sanitized_file_name(names[i], fallback_prefix + index);
     std::string name = base;
-    for (int k = 2; taken.count(lower(name)); ++k) name = base + "_" + std::to_string(k);
+    for (int k = 2; taken.count(lower(name)); ++k) {
+      const std::string suffix = "_" + std::to_string(k);
+      // Stay within the length limit (cut at a UTF-8 boundary).
+      std::string stem = base.substr(0, std::min(base.size(), kMaxName - suffix.size()));
+      while (stem.size() < base.size() && !stem.empty() && (static_cast<unsigned char>(base[stem.size()]) & 0xc0) == 0x80)
+        stem.pop_back();
+      name = stem + suffix;
+    }
     taken.insert(lower(name));
-    out.push_back(name);
+    out[i] = name;
+  }
+  return out;
+}
+
+bool valid_utf8(std::string_view s) {
+  for (size_t i = 0; i < s.size();) {
+    const size_t n = utf8_length(s, i);
+    if (n == 0) return false;
+    i += n;
+  }
+  return true;
+}
+
+std::string utf8_or_replaced(std::string_view s) {
+  std::string out;
+  out.reserve(s.size());
+  for (size_t i = 0; i < s.size();) {
+    const size_t n = utf8_length(s, i);
+    if (n == 0) {
+      out += "\xEF\xBF\xBD";  // U+FFFD
+      ++i;
+    } else {
+      out.append(s.substr(i, n));
+      i += n;
+    }
   }
   return out;
 }

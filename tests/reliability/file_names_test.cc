@@ -55,7 +55,8 @@ TEST(FileNames, UniqueNamesKeepEveryItem) {
   }
   EXPECT_EQ(lower.size(), names.size());  // distinct even on a case-insensitive file system
   EXPECT_EQ(names[0], "body");
-  EXPECT_EQ(names[1], "body_2");
+  EXPECT_EQ(names[1], "body_3");  // "body_2" is the last item's own name (issue 40: 1, 1, 1_2)
+  EXPECT_EQ(names[5], "body_2");
   EXPECT_EQ(names[3], "decoded_003");
 }
 
