@@ -1,5 +1,6 @@
 #include "model/model_file.h"
 
+#include "core/io/json_text.h"
 #include "model/format.h"
 
 #include "core/error.h"
@@ -10,7 +11,7 @@
 namespace bodymodel {
 namespace {
 
-std::string json_list(const std::vector<std::string>& v) { return nlohmann::json(v).dump(); }
+std::string json_list(const std::vector<std::string>& v) { return json_text(nlohmann::json(v)); }
 
 // A NaN or infinity in a model array would reach every body decoded from it: refused on load,
 // naming the array and the first bad element.
@@ -188,7 +189,7 @@ nlohmann::json portable_metadata(nlohmann::json meta) {
 
 Npz model_to_npz(const BodyModel& model) {
   Npz z;
-  z.put_text("metadata", portable_metadata(model.metadata).dump());
+  z.put_text("metadata", json_text(portable_metadata(model.metadata)));
   z.put_int("format_version", kModelFormatVersion);
   z.put("template_vertices", Eigen::MatrixXd(model.tmpl->rest_vertices()));
   z.put("template_faces", Eigen::MatrixXi(model.tmpl->faces()));

@@ -1,6 +1,7 @@
 #include "skinning/rig_io.h"
 
 #include "core/error.h"
+#include "core/io/json_text.h"
 #include "core/io/npz.h"
 
 #include <nlohmann/json.hpp>
@@ -47,7 +48,7 @@ void save_rig(const std::filesystem::path& path, const SkinningRig& rig, const E
     if (skeleton->bone_count() != rig.bone_count)
       throw InputError(path.string() + ": the skeleton has " + std::to_string(skeleton->bone_count()) +
                        " bones, the rig " + std::to_string(rig.bone_count));
-    z.put_text("skeleton_names", nlohmann::json(skeleton->names).dump());
+    z.put_text("skeleton_names", json_text(nlohmann::json(skeleton->names)));
     Eigen::VectorXi parents(skeleton->bone_count());
     for (int b = 0; b < skeleton->bone_count(); ++b) parents(b) = skeleton->parents[static_cast<size_t>(b)];
     z.put("skeleton_parents", parents);

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include "core/error.h"
+#include "core/io/json_text.h"
 #include "core/io/npz.h"
 #include "skinning/rig_io.h"
 
@@ -23,7 +24,7 @@ void save_character_rig(const fs::path& path, const CharacterRigFile& c) {
   save_rig(tmp, c.rig, c.F, c.training_transforms);
   Npz z = Npz::load(tmp);
   const Skeleton& s = c.skeleton;
-  z.put_text("skeleton_names", nlohmann::json(s.names).dump());
+  z.put_text("skeleton_names", json_text(nlohmann::json(s.names)));
   Eigen::VectorXi parents(s.bone_count());
   for (int b = 0; b < s.bone_count(); ++b) parents(b) = s.parents[b];
   z.put("skeleton_parents", parents);
@@ -36,7 +37,7 @@ void save_character_rig(const fs::path& path, const CharacterRigFile& c) {
   z.put("lbs_coefficients", c.lbs.coefficients);
   z.put("template_influences", c.template_lbs.influences);
   z.put("template_coefficients", c.template_lbs.coefficients);
-  z.put_text("character", c.character.dump());
+  z.put_text("character", json_text(c.character));
   z.save(path);
 }
 

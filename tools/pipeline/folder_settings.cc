@@ -9,12 +9,15 @@
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/io/json_text.h"
 
 namespace bodymodel {
 
 namespace fs = std::filesystem;
 
-std::string settings_difference(const fs::path& file, const nlohmann::json& expected) {
+std::string settings_difference(const fs::path& file, const nlohmann::json& settings) {
+  // As written (json_text): a name with bytes that are not UTF-8 compares equal to its record.
+  const nlohmann::json expected = nlohmann::json::parse(json_text(settings));
   const std::string name = file.filename().string();
   std::error_code ec;
   if (!fs::is_regular_file(file, ec)) return "no " + name;
@@ -27,7 +30,7 @@ std::string settings_difference(const fs::path& file, const nlohmann::json& expe
   if (!old.is_object()) return name + " is not a JSON object";
   if (old == expected) return "";
   auto shown = [](const nlohmann::json& v) {
-    std::string s = v.dump();
+    std::string s = json_text(v);
     return s.size() > 80 ? s.substr(0, 77) + "..." : s;
   };
   for (const auto& [key, value] : expected.items()) {
@@ -104,7 +107,7 @@ bool ResumableFolder::open(bool allow_resume) {
       fs::remove_all(p, ec);
       if (ec) throw InputError("cannot remove the earlier output '" + p.string() + "': " + ec.message());
     }
-    write_text_file(dir_ / record_, settings_.dump(2) + "\n");
+    write_text_file(dir_ / record_, json_text(settings_, 2) + "\n");
   }
   return resume;
 }

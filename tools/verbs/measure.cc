@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
+#include "core/io/json_text.h"
 #include "core/io/mesh_io.h"
 #include "core/measure.h"
 #include "tools/verb.h"
@@ -63,7 +64,7 @@ BODYMODEL_VERB(add_measure_verb) {
                           {"neck_cm", b.neck_cm},     {"chest_cm", b.chest_cm},
                           {"waist_cm", b.waist_cm},   {"hips_cm", b.hips_cm}};
       if (std::isfinite(b.body_fat_pct)) j["body_fat_pct"] = b.body_fat_pct;
-      fmt::print("{}\n", j.dump(2));
+      fmt::print("{}\n", json_text(j, 2));
       return;
     }
     fmt::print("{:<14}{:>10}  {}\n", "measurement", "value", "note");

@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/io/atomic_write.h"
+#include "core/io/json_text.h"
 #include "core/io/mesh_io.h"
 #include "core/measure.h"
 #include "model/fit.h"
@@ -127,7 +128,7 @@ BODYMODEL_VERB(add_model_fit_verb) {
         {"note", "measured_* values assume a closed mesh in a standing pose (core/measure.h); predicted values "
                  "come from the model's regression (docs/method.md §4.2)"}};
     fs::path json_path = a->json.empty() ? fs::path(a->out).replace_extension(".json") : fs::path(a->json);
-    write_text_file(json_path, out.dump(2) + "\n");
+    write_text_file(json_path, json_text(out, 2) + "\n");
     fmt::print("{}\n", fit.summary.report());
     for (auto& [name, j] : labels.items()) {
       std::string line = fmt::format("  {:<14}", name);

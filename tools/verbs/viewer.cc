@@ -16,6 +16,7 @@
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "core/io/bvh.h"
+#include "core/io/json_text.h"
 #include "core/io/mesh_io.h"
 #include "core/retarget.h"
 #include "skinning/rig_io.h"
@@ -220,8 +221,8 @@ void run_viewer(const ViewerArgs& a) {
   StagedFolder out(a.out, a.force);
   write_text_file(out / "index.html", viewer_index_html());
   write_text_file(out / "viewer.js", viewer_js());
-  write_text_file(out / "viewer_data.js", "window.VIEWER_DATA = " + d.dump() + ";\n");
-  if (!rigs.empty() && !a.no_check) write_text_file(out / "check.json", check.dump());
+  write_text_file(out / "viewer_data.js", "window.VIEWER_DATA = " + json_text(d) + ";\n");
+  if (!rigs.empty() && !a.no_check) write_text_file(out / "check.json", json_text(check));
   std::error_code ec;
   fs::copy_file(three, out / "three.min.js", ec);
   if (ec) throw InputError("cannot copy '" + three.string() + "': " + ec.message());
