@@ -1,9 +1,12 @@
 #include "tools/pipeline/output_folder.h"
 
+#include <fcntl.h>
 #include <signal.h>
+#include <stdio.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstring>
 #include <vector>
 
 #include <system_error>
@@ -59,6 +62,7 @@ StagedFolder::StagedFolder(fs::path final_dir, bool force, const std::string& fo
   const fs::path parent = final_.has_parent_path() ? final_.parent_path() : fs::path(".");
   ensure_directory(parent);
   remove_ended_runs(parent, final_.filename().string());
+  existed_ = fs::exists(final_, ec);
   staging_ = parent / ("." + final_.filename().string() + ".partial-" + std::to_string(::getpid()));
   fs::remove_all(staging_, ec);
   ensure_directory(staging_);
@@ -70,22 +74,52 @@ StagedFolder::~StagedFolder() {
   fs::remove_all(staging_, ec);
 }
 
+bool rename_no_replace(const fs::path& from, const fs::path& to) {
+#ifdef RENAME_NOREPLACE
+  if (::renameat2(AT_FDCWD, from.c_str(), AT_FDCWD, to.c_str(), RENAME_NOREPLACE) == 0) return true;
+  // Not supported by the kernel or this file system: rename() below.
+  if (errno != EINVAL && errno != ENOSYS && errno != ENOTSUP) return false;
+#endif
+  std::error_code ec;
+  if (fs::exists(to, ec)) {
+    errno = EEXIST;
+    return false;
+  }
+  // rename() replaces an empty folder only: a folder with anything in it fails (ENOTEMPTY).
+  return ::rename(from.c_str(), to.c_str()) == 0;
+}
+
 void StagedFolder::commit() {
   std::error_code ec;
+  const fs::path parent = final_.has_parent_path() ? final_.parent_path() : fs::path(".");
   fs::path old;
-  if (fs::exists(final_, ec)) {
-    old = final_.parent_path() / ("." + final_.filename().string() + ".old-" + std::to_string(::getpid()));
+  if (existed_ && fs::exists(final_, ec)) {
+    old = parent / ("." + final_.filename().string() + ".old-" + std::to_string(::getpid()));
     fs::remove_all(old, ec);
     fs::rename(final_, old, ec);
     if (ec) throw InputError("cannot replace '" + final_.string() + "': " + ec.message());
   }
-  fs::rename(staging_, final_, ec);
-  if (ec) {
-    if (!old.empty()) fs::rename(old, final_, ec);
-    throw InputError("cannot move the finished output into '" + final_.string() + "': " + ec.message());
+  if (rename_no_replace(staging_, final_)) {
+    committed_ = true;
+    if (!old.empty()) fs::remove_all(old, ec);
+    return;
   }
-  committed_ = true;
-  if (!old.empty()) fs::remove_all(old, ec);
+  const int err = errno;
+  if (!old.empty()) rename_no_replace(old, final_);  // put the forced folder back if nothing took its place
+  if (err != EEXIST && err != ENOTEMPTY)
+    throw InputError("cannot move the finished output into '" + final_.string() + "': " + std::strerror(err));
+  // Something appeared under the final name during the run: it is not ours to replace. The
+  // finished output stays, under a name that says what it is.
+  const fs::path kept = parent / (final_.filename().string() + ".new-" + std::to_string(::getpid()));
+  if (rename_no_replace(staging_, kept)) {
+    committed_ = true;  // nothing left to clean up
+    throw InputError("output folder '" + final_.string() +
+                     "' appeared while this run was writing (another run or program made it); it was left "
+                     "alone, and this run's output is in '" + kept.string() + "'");
+  }
+  throw InputError("output folder '" + final_.string() +
+                   "' appeared while this run was writing (another run or program made it); it was left alone "
+                   "and this run's output was discarded");
 }
 
 }  // namespace bodymodel
