@@ -20,19 +20,17 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// The project's one CSV reader (core/io/csv.h): quoted fields, a byte-order mark, CRLF.
 std::vector<std::vector<std::string>> read_csv(const fs::path& path) {
-  std::ifstream f(path);
-  if (!f) throw InputError(fmt::format("cannot open '{}'", path.string()));
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw InputError(fmt::format("cannot open '{}'", path.string()));
   std::vector<std::vector<std::string>> rows;
-  std::string line;
-  while (std::getline(f, line)) {
-    if (line.empty() || line == "\r") continue;
-    rows.push_back(split_csv_line(line));
-  }
+  const std::vector<CsvRecord> records = read_csv_file(path);
+  for (const auto& r : records) rows.push_back(r.fields);
   if (rows.empty()) throw InputError(fmt::format("'{}' is empty (expected a header line)", path.string()));
   for (size_t i = 1; i < rows.size(); ++i)
     if (rows[i].size() != rows[0].size())
-      throw InputError(fmt::format("'{}' line {}: {} fields, the header has {}", path.string(), i + 1,
+      throw InputError(fmt::format("'{}' line {}: {} fields, the header has {}", path.string(), records[i].line,
                                    rows[i].size(), rows[0].size()));
   return rows;
 }

@@ -10,6 +10,8 @@
 #include <random>
 
 #include "core/error.h"
+#include "core/io/atomic_write.h"
+#include "core/io/csv.h"
 
 namespace bodymodel {
 
@@ -42,32 +44,13 @@ std::string nhanes_name(const std::string& ours) {
   return it == names.end() ? ours : it->second;
 }
 
-// Splits one CSV line (double-quoted fields may hold commas; "" is a quote).
-std::vector<std::string> split_fields(const std::string& line) {
-  std::vector<std::string> out;
-  std::string cell;
-  bool quoted = false;
-  for (size_t i = 0; i < line.size(); ++i) {
-    const char c = line[i];
-    if (quoted) {
-      if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') cell += '"', ++i;
-      else if (c == '"') quoted = false;
-      else cell += c;
-    } else if (c == '"') {
-      quoted = true;
-    } else if (c == ',') {
-      out.push_back(cell);
-      cell.clear();
-    } else if (c != '\r') {
-      cell += c;
-    }
-  }
-  out.push_back(cell);
-  for (auto& s : out) {
+// Cells of a record (core/io/csv.h), trimmed of leading spaces too ("1, 2" as written by hand).
+std::vector<std::string> trimmed(std::vector<std::string> cells) {
+  for (auto& s : cells) {
     while (!s.empty() && s.back() == ' ') s.pop_back();
-    while (!s.empty() && s.front() == ' ') s.erase(s.begin());
+    s.erase(0, s.find_first_not_of(' ') == std::string::npos ? s.size() : s.find_first_not_of(' '));
   }
-  return out;
+  return cells;
 }
 
 bool missing(const std::string& s) { return s.empty() || s == "NA" || s == "na" || s == "NaN" || s == "."; }
@@ -106,20 +89,19 @@ bool PeopleTable::has(const std::string& column) const {
 }
 
 PeopleTable read_people(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(fmt::format("cannot open '{}'", path.string()));
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw InputError(fmt::format("cannot open '{}'", path.string()));
   PeopleTable t;
   t.source = path.string();
-  std::string line;
-  int line_no = 0;
+  // The project's one CSV reader: quoted ids, a spreadsheet's byte-order mark, CRLF.
+  const std::vector<CsvRecord> records = read_csv_file(path);
   std::vector<std::string> header_cols;  // our name per header column ("" = ignored)
   bool have_header = false;
   const auto& names = recorded_measurement_names();
-  while (std::getline(in, line)) {
-    ++line_no;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (line.empty() || line[0] == '#') continue;
-    const auto fields = split_fields(line);
+  for (const CsvRecord& record : records) {
+    const int line_no = record.line;
+    if (!record.fields.empty() && !record.fields[0].empty() && record.fields[0][0] == '#') continue;
+    const auto fields = trimmed(record.fields);
     if (!have_header) {
       have_header = true;
       for (const auto& h : fields) {

@@ -6,6 +6,7 @@
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/io/csv.h"
 #include "core/rotation.h"
 
 namespace bodymodel {
@@ -25,7 +26,7 @@ void write_pose_csv(const std::filesystem::path& path, const std::vector<std::st
   auto row = [&](const std::string& name, const Eigen::Vector3d& v) {
     char buf[128];
     std::snprintf(buf, sizeof buf, ",%.9g,%.9g,%.9g\n", v.x(), v.y(), v.z());
-    s += name + buf;
+    s += csv_field(name) + buf;
   };
   row("_scale", Eigen::Vector3d(r.scale, 0, 0));
   row("_root_translation_mm", r.pose.root_translation);
@@ -37,21 +38,16 @@ void write_pose_csv(const std::filesystem::path& path, const std::vector<std::st
 
 PoseRecord read_pose_csv(const std::filesystem::path& path, const std::vector<std::string>& bone_names,
                          std::vector<std::string>* skipped_bones) {
-  std::istringstream in(read_text_file(path));
+  const std::vector<CsvRecord> rows = read_csv_file(path);
   PoseRecord r;
   r.pose = Pose::rest(static_cast<int>(bone_names.size()));
-  std::string line;
   int lineno = 0;
   auto where = [&] { return path.string() + ":" + std::to_string(lineno) + ": "; };
-  while (std::getline(in, line)) {
-    ++lineno;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (line.empty() || (lineno == 1 && line.rfind("bone,", 0) == 0)) continue;
-    std::vector<std::string> f;
-    std::stringstream ls(line);
-    std::string cell;
-    while (std::getline(ls, cell, ',')) f.push_back(cell);
-    if (f.size() != 4) throw InputError(where() + "expected 'name,rx,ry,rz', found '" + line + "'");
+  for (size_t k = 0; k < rows.size(); ++k) {
+    lineno = rows[k].line;
+    const std::vector<std::string>& f = rows[k].fields;
+    if (k == 0 && f.size() == 4 && f[0] == "bone") continue;
+    if (f.size() != 4) throw InputError(where() + "expected 'name,rx,ry,rz', found '" + csv_row(f) + "'");
     Eigen::Vector3d v;
     for (int k = 0; k < 3; ++k) {
       try {

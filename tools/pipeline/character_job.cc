@@ -7,6 +7,7 @@
 #include "core/data_path.h"
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/io/csv.h"
 #include "core/io/mesh_io.h"
 #include "core/measure.h"
 #include "skinning/gltf_export.h"
@@ -102,7 +103,7 @@ CharacterJobResult write_character(const BodyModel& model, const Eigen::MatrixX3
       "as_mean_mm,as_max_mm,mwe_mean_mm,mwe_max_mm,mwe_max_vertex,mwe_max_bone\n";
   for (size_t i = 0; i < ex.poses.size(); ++i) {
     const auto& p = ex.poses[i];
-    poses += fmt::format("{},{},{},{},{}", p.name, p.held_out ? "held_out" : "train",
+    poses += fmt::format("{},{},{},{},{}", csv_field(p.name), p.held_out ? "held_out" : "train",
                          p.name == "rest" ? "the body" : p.blend_a >= 0 ? "encoding-space interpolation"
                                                                         : "pose morph",
                          ex.flipped_before[i], ex.flipped_after[i]);

@@ -88,16 +88,20 @@ std::vector<std::optional<std::string>> read_previous_rows(const fs::path& csv, 
   std::vector<std::optional<std::string>> rows(count);
   std::error_code ec;
   if (!fs::is_regular_file(csv, ec)) return rows;
-  std::stringstream ss(read_text_file(csv));
-  std::string line;
-  if (!std::getline(ss, line) || line != header) return rows;
-  while (std::getline(ss, line)) {
-    auto cells = split_csv_line(line);
+  std::vector<CsvRecord> records;
+  try {
+    records = read_csv_file(csv);
+  } catch (const InputError&) {
+    return rows;  // a table cut mid-row by a kill: its bodies are made again
+  }
+  if (records.empty() || csv_row(records[0].fields) != header) return rows;
+  for (size_t r = 1; r < records.size(); ++r) {
+    const auto& cells = records[r].fields;
     if (static_cast<int>(cells.size()) != column_count(header)) continue;
     char* end = nullptr;
     long i = std::strtol(cells[0].c_str(), &end, 10);
     if (!end || *end != '\0' || i < 0 || i >= count) continue;
-    rows[i] = line;
+    rows[i] = csv_row(cells);  // as written: every cell through csv_field
   }
   return rows;
 }
@@ -169,7 +173,7 @@ GenerateCrowdSummary write_crowd(std::shared_ptr<const BodyModel> model,
     auto num = [](double v) { return std::isfinite(v) ? fmt::format("{:.2f}", v) : std::string(); };
     const Roughness rough = roughness(g.V, model->tmpl->faces(), o.roughness_region);
     const int crossing = self_intersecting_triangle_pairs(g.V, model->tmpl->faces());
-    std::string row = fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}", i, summary.files[i],
+    std::string row = fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}", i, csv_field(summary.files[i]),
                                   o.people.empty() ? sex : o.people[i].sex, num(m.height_cm), num(m.weight_kg),
                                   num(m.volume_l), num(m.waist_cm), num(m.hips_cm), num(m.chest_cm), num(m.neck_cm),
                                   num(m.body_fat_pct), g.satisfied ? 1 : 0, g.summary.iterations, g.attempts, flipped,
@@ -177,7 +181,7 @@ GenerateCrowdSummary write_crowd(std::shared_ptr<const BodyModel> model,
                                   num(m.waist_iliac_cm), num(m.arm_circumference_cm), num(rough.p95_deg),
                                   num(rough.max_deg), crossing);
     if (!o.people.empty()) {
-      row += "," + o.people[i].id;
+      row += "," + csv_field(o.people[i].id);
       for (double v : o.people[i].recorded) row += "," + (std::isfinite(v) ? fmt::format("{:.1f}", v) : std::string());
     }
     std::lock_guard<std::mutex> lock(mutex);

@@ -3,6 +3,9 @@
 #include <fstream>
 #include <sstream>
 
+#include "core/error.h"
+#include "core/io/csv.h"
+
 namespace bodymodel {
 
 namespace fs = std::filesystem;
@@ -22,20 +25,24 @@ std::string html_escape(const std::string& s) {
 }
 
 std::string html_table_from_csv(const fs::path& csv, const std::string& href, int max_rows) {
-  std::ifstream in(csv);
-  if (!in) return "<p class=\"missing\">missing table: " + html_escape(href) + "</p>\n";
-  std::string out = "<table>\n", line;
+  std::error_code ec;
+  std::vector<CsvRecord> rows;
+  try {
+    if (fs::is_regular_file(csv, ec)) rows = read_csv_file(csv);  // quoted cells shown as their text
+  } catch (const InputError&) {
+    rows.clear();
+  }
+  if (rows.empty()) return "<p class=\"missing\">missing table: " + html_escape(href) + "</p>\n";
+  std::string out = "<table>\n";
   int row = 0, dropped = 0;
-  while (std::getline(in, line)) {
-    if (!line.empty() && line.back() == '\r') line.pop_back();
+  for (const auto& r : rows) {
     if (row > max_rows) {
       ++dropped;
       continue;
     }
-    std::stringstream ss(line);
-    std::string cell;
     out += "<tr>";
-    while (std::getline(ss, cell, ',')) out += (row == 0 ? "<th>" : "<td>") + html_escape(cell) + (row == 0 ? "</th>" : "</td>");
+    for (const auto& cell : r.fields)
+      out += (row == 0 ? "<th>" : "<td>") + html_escape(cell) + (row == 0 ? "</th>" : "</td>");
     out += "</tr>\n";
     ++row;
   }

@@ -27,6 +27,8 @@
 #include "core/error.h"
 #include "core/geometry.h"
 #include "core/io/atomic_write.h"
+#include "core/io/csv.h"
+#include "core/io/json_text.h"
 #include "tools/pipeline/folder_settings.h"
 #include "core/io/bvh.h"
 #include "core/io/interrupt_cleanup.h"
@@ -318,7 +320,7 @@ std::string description_json(const SyntheticDatabaseOptions& o, const std::vecto
                           {"reused_fits", o.fits}};
   }
   if (o.truth_only) meta["truth_only"] = true;  // no scans/*.ply: for `build`, not `register`
-  return meta.dump(2) + "\n";
+  return json_text(meta, 2) + "\n";
 }
 
 // Compares an existing database.json with the expected description; "" when they agree (the
@@ -397,29 +399,10 @@ struct StoredFit {
 };
 
 std::map<std::string, StoredFit> read_stored_fits(const fs::path& path, const MakeHuman& mh) {
-  std::ifstream in(path);
-  if (!in) throw InputError("cannot open '" + path.string() + "'");
-  auto split = [](const std::string& line) {  // RFC 4180 cells: the reason is quoted
-    std::vector<std::string> cells(1);
-    bool quoted = false;
-    for (size_t i = 0; i < line.size(); ++i) {
-      const char ch = line[i];
-      if (quoted && ch == '"' && i + 1 < line.size() && line[i + 1] == '"') {
-        cells.back() += '"';
-        ++i;
-      } else if (ch == '"') {
-        quoted = !quoted;
-      } else if (ch == ',' && !quoted) {
-        cells.emplace_back();
-      } else if (ch != '\r') {
-        cells.back() += ch;
-      }
-    }
-    return cells;
-  };
-  std::string line;
-  std::getline(in, line);
-  const std::vector<std::string> header = split(line);
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw InputError("cannot open '" + path.string() + "'");
+  const std::vector<CsvRecord> rows = read_csv_file(path);  // quoted ids and reasons, a BOM, CRLF
+  const std::vector<std::string> header = rows.empty() ? std::vector<std::string>() : rows[0].fields;
   auto col = [&](const std::string& name) {
     const auto it = std::find(header.begin(), header.end(), name);
     if (it == header.end())
@@ -434,10 +417,9 @@ std::map<std::string, StoredFit> read_stored_fits(const fs::path& path, const Ma
   for (const auto& s : sliders) slider_cols.push_back(col("slider_" + s));
   for (const auto& m : mh.measure_modifier_names()) modifier_cols.push_back(col("modifier_" + m));
   std::map<std::string, StoredFit> fits;
-  int line_no = 1;
-  while (std::getline(in, line)) {
-    ++line_no;
-    const std::vector<std::string> c = split(line);
+  for (size_t r = 1; r < rows.size(); ++r) {
+    const int line_no = rows[r].line;
+    const std::vector<std::string>& c = rows[r].fields;
     if (c.size() != header.size())
       throw InputError(fmt::format("'{}' line {}: {} cells for {} columns", path.string(), line_no, c.size(),
                                    header.size()));
@@ -529,12 +511,6 @@ std::vector<SyntheticSubject> population_subjects(const MakeHuman& mh, const Syn
 
 std::string csv_value(double v, int decimals) { return std::isfinite(v) ? fmt_double(v, decimals) : std::string(); }
 
-// A free-text cell for readers that split on every comma (model/database.cc): commas become ';'.
-std::string csv_text(std::string s) {
-  for (char& c : s)
-    if (c == ',' || c == '\n' || c == '"') c = c == ',' ? ';' : ' ';
-  return s;
-}
 
 // subjects.csv: the labels measured on the standard-pose truth mesh and the sliders; for a
 // population, the person (seqn, not a label), the recorded values (nhanes_*), the modifiers
@@ -554,7 +530,7 @@ std::string subjects_csv(const std::vector<SyntheticSubject>& subjects, const Ma
   csv += "\n";
   for (const auto& s : subjects) {
     const auto& k = s.sliders;
-    csv += s.id + "," + s.sex + "," + fmt_double(s.age_years, 1) + "," + fmt_double(s.height_cm, 2) + "," +
+    csv += csv_field(s.id) + "," + s.sex + "," + fmt_double(s.age_years, 1) + "," + fmt_double(s.height_cm, 2) + "," +
            fmt_double(s.weight_kg, 2) + "," + fmt_double(s.body_fat_pct, 2) + "," + fmt_double(s.muscle, 1) + "," +
            fmt_double(s.waist_cm, 2) + "," + fmt_double(s.hips_cm, 2) + "," + fmt_double(s.chest_cm, 2) + "," +
            fmt_double(s.neck_cm, 2) + "," + csv_value(s.waist_iliac_cm, 2) + "," +
@@ -564,14 +540,14 @@ std::string subjects_csv(const std::vector<SyntheticSubject>& subjects, const Ma
            fmt_double(k.proportions, 4) + "," + fmt_double(k.african, 4) + "," + fmt_double(k.asian, 4) + "," +
            fmt_double(k.caucasian, 4);
     if (population) {
-      csv += "," + s.person_id;
+      csv += "," + csv_field(s.person_id);
       for (size_t m = 0; m < recorded_measurement_names().size(); ++m)
         csv += "," + (m < s.recorded.size() ? csv_value(s.recorded[m], 1) : std::string());
       for (size_t m = 0; m < mh.measure_modifier_names().size(); ++m)
         csv += "," + fmt_double(static_cast<Eigen::Index>(m) < s.modifiers.size() ? s.modifiers(m) : 0.0, 4);
       // Text, not 0/1: subjects.csv's numeric columns become model labels, these are not labels.
       csv += std::string(",") + (s.fit_reached ? "yes" : "no") + "," + (s.extrapolated ? "yes" : "no") + "," +
-             csv_text(s.fit_reason);
+             csv_field(s.fit_reason);
     }
     csv += "\n";
   }
@@ -733,7 +709,7 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
             Eigen::Vector3d p = truth.row(v).transpose() + Eigen::Vector3d(ln(r), ln(r), ln(r));
             lm[name] = {p.x(), p.y(), p.z()};
           }
-          write_text_file(dir / "scans" / (id + ".landmarks.json"), lm.dump(1) + "\n");
+          write_text_file(dir / "scans" / (id + ".landmarks.json"), json_text(lm, 1) + "\n");
           write_mesh(dir / "truth" / (id + ".ply"), truth, body.mesh.F);
           std::string pose_csv = "bone,rx,ry,rz\n";
           Eigen::Vector3d g = rotation_vector_of(place.R);
@@ -770,7 +746,7 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
 
   std::string scans_csv = "scan_id,subject_id,pose,points\n";
   for (auto& s : summary.scans)
-    scans_csv += s.id + "," + s.subject_id + "," + s.pose + "," + std::to_string(s.points) + "\n";
+    scans_csv += csv_row({s.id, s.subject_id, s.pose}) + "," + std::to_string(s.points) + "\n";
   write_text_file(dir / "subjects.csv", subjects_csv(summary.subjects, mh, !o.population.empty()));
   write_text_file(dir / "scans.csv", scans_csv);
   summary.seconds =

@@ -68,14 +68,15 @@ Pose start_pose_for(const std::string& mesh, const std::vector<std::string>& bon
 std::map<std::string, double> registration_distances(const std::string& mesh) {
   std::map<std::string, double> out;
   const fs::path csv = fs::path(mesh).parent_path() / "register-mesh.csv";
-  std::ifstream in(csv);
-  std::string line;
-  if (!in || !std::getline(in, line)) return out;
-  const std::vector<std::string> head = split_csv_line(line);
+  std::error_code ec;
+  if (!fs::is_regular_file(csv, ec)) return out;
+  const std::vector<CsvRecord> rows = read_csv_file(csv);
+  if (rows.empty()) return out;
+  const std::vector<std::string>& head = rows[0].fields;
   const auto col = std::find(head.begin(), head.end(), "two_sided_mm") - head.begin();
   if (col >= static_cast<long>(head.size()) || head.empty() || head[0] != "mesh") return out;
-  while (std::getline(in, line)) {
-    const std::vector<std::string> v = split_csv_line(line);
+  for (size_t r = 1; r < rows.size(); ++r) {
+    const std::vector<std::string>& v = rows[r].fields;
     if (static_cast<long>(v.size()) <= col) continue;
     try {
       out[v[0]] = std::stod(v[col]);

@@ -136,11 +136,12 @@ void row_picture(const std::vector<fs::path>& files, const fs::path& png) {
   if (!meshes.empty()) render_row(meshes, F, {}, 160, 400).save_png(png);
 }
 
+// The rows of a table a stage wrote (none when it is missing).
 std::vector<std::vector<std::string>> read_csv(const fs::path& p) {
   std::vector<std::vector<std::string>> rows;
-  std::ifstream in(p);
-  std::string line;
-  while (std::getline(in, line)) rows.push_back(split_csv_line(line));
+  std::error_code ec;
+  if (!fs::is_regular_file(p, ec)) return rows;
+  for (auto& r : read_csv_file(p)) rows.push_back(std::move(r.fields));
   return rows;
 }
 

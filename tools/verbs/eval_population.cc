@@ -15,6 +15,7 @@
 
 #include "core/data_path.h"
 #include "core/io/atomic_write.h"
+#include "core/io/csv.h"
 #include "core/plausibility.h"
 #include "model/morph.h"
 #include "population/people.h"
@@ -38,26 +39,15 @@ struct EvalPopulationArgs {
 
 // The `seqn` column of a synth-db subjects.csv (the people a database was built from).
 std::set<std::string> excluded_ids(const fs::path& subjects) {
-  std::ifstream in(subjects);
-  if (!in) throw InputError("cannot open '" + subjects.string() + "'");
-  std::string line;
-  std::getline(in, line);
-  std::vector<std::string> header;
-  {
-    std::stringstream h(line);
-    std::string c;
-    while (std::getline(h, c, ',')) header.push_back(c);
-  }
+  const std::vector<CsvRecord> rows = read_csv_file(subjects);
+  const std::vector<std::string> header = rows.empty() ? std::vector<std::string>() : rows[0].fields;
   const auto it = std::find(header.begin(), header.end(), "seqn");
   if (it == header.end())
     throw InputError("'" + subjects.string() + "' has no seqn column (not a synth-db --population database)");
   const size_t col = static_cast<size_t>(it - header.begin());
   std::set<std::string> ids;
-  while (std::getline(in, line)) {
-    std::vector<std::string> cells;
-    std::stringstream r(line);
-    std::string c;
-    while (std::getline(r, c, ',')) cells.push_back(c);
+  for (size_t r = 1; r < rows.size(); ++r) {
+    const std::vector<std::string>& cells = rows[r].fields;
     if (col < cells.size() && !cells[col].empty()) ids.insert(cells[col]);
   }
   return ids;
@@ -192,7 +182,7 @@ BODYMODEL_VERB(add_eval_population_verb) {
       const Person& p = table.people[drawn[k]];
       const Row& r = rows[k];
       converged += r.converged;
-      csv += fmt::format("{},{},{:.0f},{:.1f},{:.1f},{:.2f},{:.2f},{}", p.id, p.sex == Sex::male ? "male" : "female",
+      csv += fmt::format("{},{},{:.0f},{:.1f},{:.1f},{:.2f},{:.2f},{}", csv_field(p.id), p.sex == Sex::male ? "male" : "female",
                          p.age_years, p.measurement("height_cm"), p.measurement("weight_kg"), r.m.height_cm,
                          r.m.weight_kg, r.converged ? 1 : 0);
       for (size_t g = 0; g < girths.size(); ++g) {

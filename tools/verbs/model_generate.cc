@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "core/io/atomic_write.h"
+#include "core/io/csv.h"
 #include "core/io/mesh_io.h"
 #include "core/plausibility.h"
 #include "model/morph.h"
@@ -91,26 +92,15 @@ std::function<bool(const Person&)> person_filter(const std::vector<std::string>&
 
 // The weighted eligible population against the crowd's measured values: KS per sex.
 void print_population_match(const PeopleTable& table, const std::vector<int>& eligible, const fs::path& labels) {
-  const std::string text = read_text_file(labels);
-  std::stringstream ss(text);
-  std::string line;
-  std::getline(ss, line);
-  std::vector<std::string> header;
-  {
-    std::stringstream h(line);
-    std::string c;
-    while (std::getline(h, c, ',')) header.push_back(c);
-  }
+  const std::vector<CsvRecord> rows = read_csv_file(labels);
+  if (rows.empty()) return;
+  const std::vector<std::string>& header = rows[0].fields;
   auto col = [&](const std::string& name) {
     return static_cast<int>(std::find(header.begin(), header.end(), name) - header.begin());
   };
   std::map<std::string, std::map<std::string, std::vector<double>>> crowd;  // sex → label → values
-  while (std::getline(ss, line)) {
-    std::vector<std::string> cells;
-    std::stringstream r(line);
-    std::string c;
-    while (std::getline(r, c, ',')) cells.push_back(c);
-    if (!line.empty() && line.back() == ',') cells.emplace_back();  // getline drops a last empty cell
+  for (size_t k = 1; k < rows.size(); ++k) {
+    const std::vector<std::string>& cells = rows[k].fields;
     if (cells.size() < header.size()) continue;
     for (const char* m : {"height_cm", "weight_kg"})
       if (!cells[col(m)].empty()) crowd[cells[col("sex")]][m].push_back(std::stod(cells[col(m)]));

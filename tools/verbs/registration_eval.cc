@@ -19,6 +19,7 @@
 #include "core/error.h"
 #include "core/geometry.h"
 #include "core/io/atomic_write.h"
+#include "core/io/csv.h"
 #include "core/io/file_names.h"
 #include "core/io/mesh_io.h"
 #include "core/io/pose_csv.h"
@@ -106,15 +107,11 @@ BODYMODEL_VERB(add_eval_registration_verb) {
       throw InputError("'" + a->reg + "': expected a registration folder, it does not exist");
     std::vector<std::string> ids;
     {
-      std::istringstream in(read_text_file(db / "scans.csv"));
-      std::string line;
-      std::getline(in, line);
-      for (int lineno = 2; std::getline(in, line); ++lineno) {
-        if (!line.empty() && line.back() == '\r') line.pop_back();
-        if (line.empty()) continue;
-        ids.push_back(line.substr(0, line.find(',')));
+      const std::vector<CsvRecord> rows = read_csv_file(db / "scans.csv");
+      for (size_t r = 1; r < rows.size(); ++r) {
+        ids.push_back(rows[r].fields[0]);
         // The id names files read from DB/truth/ and REG/: one plain name.
-        check_file_name(ids.back(), (db / "scans.csv").string() + ":" + std::to_string(lineno), "scan id");
+        check_file_name(ids.back(), (db / "scans.csv").string() + ":" + std::to_string(rows[r].line), "scan id");
       }
     }
     MakeHuman mh = MakeHuman::load();
@@ -197,7 +194,7 @@ BODYMODEL_VERB(add_eval_registration_verb) {
       if (!a->hole_csv.empty())
         for (Eigen::Index i = 0; i < t.V.rows(); ++i)
           if (e.hole_vertex[i] && e.surface_errors(i) > 10.0)
-            hole_rows += fmt::format("{},{},{},{},{:.2f},{:.2f}\n", id, i, vertex_region[i],
+            hole_rows += fmt::format("{},{},{},{},{:.2f},{:.2f}\n", csv_field(id), i, vertex_region[i],
                                      sk.names[vertex_bone[i]], e.surface_errors(i),
                                      e.vertex_errors(i));
       int flipped_hands = 0, flipped_truth_folded = 0, folded_registration = 0;
@@ -260,7 +257,7 @@ BODYMODEL_VERB(add_eval_registration_verb) {
       flipped_unseen_total += e.flipped_unseen;
       folded_registration_total += folded_registration;
       csv += fmt::format("{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{:.3f},{:.3f},{},{:.3f},{:.3f},{:.3f},{},{},{},{}\n",
-                         id, e.correspondence_mean, percentile(verr, 0.95),
+                         csv_field(id), e.correspondence_mean, percentile(verr, 0.95),
                          e.correspondence_max, e.surface_mean, e.surface_max, e.hole_vertices,
                          e.hole_mean, e.hole_max, e.flipped_triangles, jmed, jmax, fmed, flipped_hands,
                          flipped_truth_folded, folded_registration, e.flipped_unseen);

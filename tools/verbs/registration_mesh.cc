@@ -12,6 +12,8 @@
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/io/csv.h"
+#include "core/io/json_text.h"
 #include "core/io/mesh_io.h"
 #include "core/landmarks.h"
 #include "core/up_axis.h"
@@ -226,12 +228,12 @@ BODYMODEL_VERB(add_register_mesh_verb) {
       rec.pose = r.pose.pose;
       write_mesh(out / (stem + ".ply"), r.V, tpl.mesh.F);
       write_pose_csv(out / (stem + ".pose.csv"), tpl.skeleton.names, rec);
-      if (r.shape) write_text_file(out / (stem + ".shape.json"), r.shape->to_json().dump(2) + "\n");
+      if (r.shape) write_text_file(out / (stem + ".shape.json"), json_text(r.shape->to_json(), 2) + "\n");
       write_text_file(
           out / (stem + ".register-mesh.csv"),
           fmt::format("{},{},{},{:.6f},{},{:.4f},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},"
                       "{:.4f},{},{},{:.4f},{:.2f}\n",
-                      stem, scan.P.rows(), landmarks.size(), r.pose.scale, s.pose.icp_iterations,
+                      csv_field(stem), scan.P.rows(), landmarks.size(), r.pose.scale, s.pose.icp_iterations,
                       s.pose.rms, s.nonrigid.iterations, s.nonrigid.data_rms, s.nonrigid.landmark_rms,
                       d.registered_to_scan_mean, d.scan_to_registered_mean, d.two_sided_mean,
                       d.registered_to_scan_p95, d.scan_to_registered_p95, d.folded_triangles,

@@ -14,7 +14,9 @@
 #include "core/data_path.h"
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/io/csv.h"
 #include "core/io/file_names.h"
+#include "core/io/json_text.h"
 #include "core/io/mesh_io.h"
 #include "core/landmarks.h"
 #include "core/makehuman.h"
@@ -48,23 +50,18 @@ struct RegisterArgs {
 };
 
 std::vector<std::string> read_scan_ids(const fs::path& csv) {
-  std::istringstream in(read_text_file(csv));
-  std::string line;
+  const std::vector<CsvRecord> rows = read_csv_file(csv);
   std::vector<std::string> ids;
-  int lineno = 0;
-  while (std::getline(in, line)) {
-    ++lineno;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (lineno == 1) {
-      if (line.rfind("scan_id", 0) != 0)
-        throw InputError(csv.string() + ":1: expected a header starting with 'scan_id', found '" +
-                         line + "'");
+  for (size_t r = 0; r < rows.size(); ++r) {
+    if (r == 0) {
+      if (rows[r].fields[0] != "scan_id")
+        throw InputError(csv.string() + ":" + std::to_string(rows[r].line) +
+                         ": expected a header starting with 'scan_id', found '" + csv_row(rows[r].fields) + "'");
       continue;
     }
-    if (line.empty()) continue;
-    std::string id = line.substr(0, line.find(','));
+    const std::string& id = rows[r].fields[0];
     // The id names files read (DB/scans/<id>.ply) and written (OUT/<id>.ply): one plain name.
-    check_file_name(id, csv.string() + ":" + std::to_string(lineno), "scan id");
+    check_file_name(id, csv.string() + ":" + std::to_string(rows[r].line), "scan id");
     ids.push_back(id);
   }
   return ids;
@@ -282,7 +279,7 @@ BODYMODEL_VERB(add_register_verb) {
       std::string shape_cols = ",0,0,,,,,,,";
       if (r.shape) {
         const MacroSettings& m = *r.shape;
-        write_text_file(out / (id + ".shape.json"), m.to_json().dump(2) + "\n");
+        write_text_file(out / (id + ".shape.json"), json_text(m.to_json(), 2) + "\n");
         shape_cols = fmt::format(",{},{:.2f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f}",
                                  s.shape_rounds, s.shape_seconds, m.gender, m.age, m.muscle,
                                  m.weight, m.height, m.proportions, m.cup);
@@ -291,7 +288,7 @@ BODYMODEL_VERB(add_register_verb) {
           out / (id + ".summary.csv"),
           fmt::format("{},{},{},{},{},{:.4f},{:.4f},{:.6f},{},{:.4f},{:.4f},{},{},{:.2f},{:.2f},"
                       "{:.2f},{:.3f},{},{}{}\n",
-                      id, scan.P.rows(), s.scan.normals_estimated ? 1 : 0, landmarks.size(),
+                      csv_field(id), scan.P.rows(), s.scan.normals_estimated ? 1 : 0, landmarks.size(),
                       s.pose.icp_iterations, s.pose.rms, s.pose.landmark_rms, r.pose.scale,
                       s.nonrigid.iterations, s.nonrigid.data_rms, s.nonrigid.landmark_rms,
                       s.nonrigid.matched_vertices, s.nonrigid.plane_matches, s.pose.seconds,

@@ -18,6 +18,7 @@
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/io/csv.h"
 #include "core/io/npz.h"
 #include "core/makehuman.h"
 #include "core/measure.h"
@@ -80,13 +81,6 @@ std::string default_unit(const std::string& label) {
   if (it != units.end()) return it->second;
   const auto u = label.rfind('_');
   return u == std::string::npos ? "" : label.substr(u + 1);
-}
-
-std::string csv_field(const std::string& s) {
-  if (s.find_first_of(",\"\n") == std::string::npos) return s;
-  std::string q = "\"";
-  for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
-  return q + "\"";
 }
 
 

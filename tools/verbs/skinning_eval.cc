@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "core/io/atomic_write.h"
+#include "core/io/csv.h"
 #include "core/io/mesh_io.h"
 #include "skinning/sequence_evaluation.h"
 #include "tools/console.h"
@@ -294,8 +295,8 @@ void run_eval(const EvalArgs& a) {
         }
       for (size_t k = 0; k < cands.size(); ++k) {
         const CvCandidate& c = cands[k];
-        cv_csv += fmt::format("{},{},\"{}\",{:.8g},{:.4g},{:.4g},{},{},{}\n", fold, skinning_model_name(opt.methods[m]),
-                              c.setting, c.error, c.standard_error, c.paired_standard_error, c.example_errors.size(),
+        cv_csv += fmt::format("{},{},{},{:.8g},{:.4g},{:.4g},{},{},{}\n", fold, skinning_model_name(opt.methods[m]),
+                              csv_field(c.setting), c.error, c.standard_error, c.paired_standard_error, c.example_errors.size(),
                               c.setting == last.fits[m].cv.chosen_setting ? 1 : 0, by[k]);
       }
     }
@@ -365,7 +366,7 @@ void run_eval(const EvalArgs& a) {
   for (auto m : opt.methods) frames_csv += ",mean_geometric_" + skinning_model_name(m);
   frames_csv += "\n";
   for (int f = 0; f < nf; ++f) {
-    frames_csv += seq.names[static_cast<size_t>(f)] + "," + frame_split[static_cast<size_t>(f)];
+    frames_csv += csv_field(seq.names[static_cast<size_t>(f)]) + "," + frame_split[static_cast<size_t>(f)];
     for (size_t m = 0; m < M; ++m) frames_csv += fmt::format(",{:.8g}", frame_err[m][static_cast<size_t>(f)]);
     frames_csv += "\n";
   }
