@@ -12,6 +12,8 @@
 #include "core/data_path.h"
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/io/csv.h"
+#include "core/io/file_names.h"
 #include "core/io/mesh_io.h"
 #include "population/fit_measurements.h"
 #include "population/people.h"
@@ -66,15 +68,8 @@ std::string csv_number(double v, int decimals = 2) {
   return std::isfinite(v) ? fmt::format("{:.{}f}", v, decimals) : std::string();
 }
 
-std::string csv_text(const std::string& s) {
-  if (s.find_first_of(",\"\n") == std::string::npos) return s;
-  std::string q = "\"";
-  for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
-  return q + "\"";
-}
-
 std::string fit_csv_header(const MakeHuman& mh) {
-  std::string h = "id,line,sex,age_years,ethnicity,reached,extrapolated,reason,fitted";
+  std::string h = "id,mesh,line,sex,age_years,ethnicity,reached,extrapolated,reason,fitted";
   for (const auto& m : recorded_measurement_names()) h += fmt::format(",{0}_recorded,{0}_measured,{0}_residual", m);
   for (const char* s : {"gender", "age", "muscle", "weight", "height", "proportions", "cup", "firmness", "african",
                         "asian", "caucasian"})
@@ -84,13 +79,15 @@ std::string fit_csv_header(const MakeHuman& mh) {
   return h;
 }
 
-std::string fit_csv_row(const Person& p, const std::string& id, const PersonSpec& spec,
+// The person's id as the file has it, and the mesh written for them (ids need not be unique
+// nor plain file names).
+std::string fit_csv_row(const Person& p, const std::string& mesh, const PersonSpec& spec,
                         const MeasurementFit& f) {
   std::vector<std::string> fitted;
   for (const auto& t : spec.targets) fitted.push_back(t.name);
-  std::string r = fmt::format("{},{},{},{},{},{},{},{},{}", id, p.line, p.sex == Sex::male ? "male" : "female",
-                              csv_number(p.age_years, 0), p.ethnicity, f.reached ? 1 : 0, f.extrapolated ? 1 : 0,
-                              csv_text(f.reason), fmt::join(fitted, ";"));
+  std::string r = fmt::format("{},{},{},{},{},{},{},{},{},{}", csv_field(p.id), csv_field(mesh), p.line,
+                              p.sex == Sex::male ? "male" : "female", csv_number(p.age_years, 0), p.ethnicity,
+                              f.reached ? 1 : 0, f.extrapolated ? 1 : 0, csv_field(f.reason), fmt::join(fitted, ";"));
   for (const auto& m : recorded_measurement_names()) {
     const double rec = p.measurement(m), got = measurement_value(f.measured, m);
     r += fmt::format(",{},{},{}", csv_number(rec), csv_number(got), csv_number(got - rec));
@@ -182,7 +179,6 @@ void run_batch(const FitArgs& a) {
   // Every person's targets are checked before anything is fitted or written.
   std::vector<PersonSpec> specs;
   std::vector<std::string> ids;
-  std::map<std::string, int> seen;
   for (int i : rows) {
     const Person& p = table.people[i];
     PersonSpec spec = person_spec(p, measurements);
@@ -192,9 +188,11 @@ void run_batch(const FitArgs& a) {
       throw InputError(fmt::format("'{}' line {} (person {}): {}", table.source, p.line, p.id, e.what()));
     }
     specs.push_back(std::move(spec));
-    const int n = ++seen[p.id];
-    ids.push_back(n == 1 ? p.id : fmt::format("{}_{}", p.id, n));
+    ids.push_back(p.id);
   }
+  // Ids are data: a mesh is named after one only through unique_file_names (never outside the
+  // folder, never two people on one file).
+  const std::vector<std::string> stems = unique_file_names(ids, "person");
   StagedFolder out(a.out, a.force);
   cli::info(fmt::format("fitting {} people ({}; {} space) into {}", rows.size(), fmt::join(measurements, ", "),
                         a.space, a.out));
@@ -211,12 +209,12 @@ void run_batch(const FitArgs& a) {
   arena.execute([&] {
     tbb::parallel_for(0, static_cast<int>(rows.size()), [&](int k) {
       const MeasurementFit f = fit_measurements(mh, specs[k], o);
-      write_mesh(out / (ids[k] + ".obj"), f.V, mh.body_faces());
-      lines[k] = fit_csv_row(table.people[rows[k]], ids[k], specs[k], f);
+      write_mesh(out / (stems[k] + ".obj"), f.V, mh.body_faces());
+      lines[k] = fit_csv_row(table.people[rows[k]], stems[k] + ".obj", specs[k], f);
       reached[k] = f.reached;
       const int d = ++done;
       std::lock_guard<std::mutex> lock(mutex);
-      report_progress(progress, static_cast<double>(d) / rows.size(), ids[k]);
+      report_progress(progress, static_cast<double>(d) / rows.size(), stems[k]);
     });
   });
   std::string csv = fit_csv_header(mh) + "\n";
@@ -243,7 +241,9 @@ BODYMODEL_VERB(add_fit_measurements_verb) {
       "body and the reason (exit code 2 for a single fit; a per-person reason in fit.csv for --people).\n"
       "Batch: --people FILE (NHANES column names accepted: SEQN, RIAGENDR, RIDAGEYR, BMXHT, BMXWT,\n"
       "BMXWAIST, BMXHIP, BMXARMC, BMXARML, BMXLEG, WTMECPRP, RIDRETH3) writes OUT/<SEQN or row>.obj and\n"
-      "OUT/fit.csv (recorded, measured and residual per measurement, sliders, roughness).\n\n" +
+      "OUT/fit.csv (id, mesh file, recorded, measured and residual per measurement, sliders, roughness).\n"
+      "An id that is no plain file name (separators, '..', control or non-UTF-8 bytes) or repeats\n"
+      "gets a sanitised, unique mesh name; fit.csv's mesh column says which.\n\n" +
           definitions_help());
   cmd->add_option("--sex", a->sex, "female|male (single fit)")->check(CLI::IsMember({"female", "male"}));
   cmd->add_option("--age", a->age, "Age in years (single fit)");
