@@ -5,11 +5,14 @@
 // bodies (FAUST, SCAPE) can be registered the way scans are. One mesh and an --out ending in
 // .ply: that scan (and <out stem>.landmarks.json with --landmarks). Otherwise --out is a scan
 // database folder for `bodymodel register`: scans.csv, scans/<stem>.ply and
-// scans/<stem>.landmarks.json (empty {} without --landmarks).
+// scans/<stem>.landmarks.json (empty {} without --landmarks). A database that exists is added
+// to: its scans.csv keeps its rows and gains the new ones; a scan id it already lists (or a
+// scan file it does not list) is refused unless --force, which replaces that scan.
 #include <fmt/format.h>
 
 #include <atomic>
 #include <filesystem>
+#include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <regex>
@@ -18,6 +21,9 @@
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/io/csv.h"
+#include "core/io/file_names.h"
+#include "core/io/json_text.h"
 #include "core/io/mesh_io.h"
 #include "core/landmarks.h"
 #include "core/up_axis.h"
@@ -37,7 +43,47 @@ struct ScanifyArgs {
   double noise_mm = 1.0, scale = 1.0, landmark_noise_mm = 0.0;
   unsigned seed = 1;
   int points = ScannerOptions{}.min_points, jobs = 1;
+  bool force = false;
 };
+
+// The scans.csv of a database scanify adds to (header and rows, by scan id).
+struct ExistingScans {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
+  std::map<std::string, size_t> row_of;  // scan id → row
+  std::vector<int> lines;                 // per row, its line in scans.csv
+};
+
+// Reads `db`/scans.csv when `db` exists; refuses a folder that holds files but no scans.csv
+// (not a scan database, or one whose table was lost) unless `force`.
+ExistingScans existing_scans(const fs::path& db, bool force) {
+  ExistingScans e;
+  std::error_code ec;
+  if (!fs::exists(db, ec)) return e;
+  if (!fs::is_directory(db, ec)) throw InputError("--out '" + db.string() + "' exists and is not a folder");
+  const fs::path csv = db / "scans.csv";
+  if (!fs::exists(csv, ec)) {
+    if (!force && fs::directory_iterator(db, ec) != fs::directory_iterator())
+      throw InputError("--out '" + db.string() +
+                       "' holds files but no scans.csv: not a scan database to add to (use --force to add to it "
+                       "anyway, or another folder)");
+    return e;
+  }
+  const std::vector<CsvRecord> records = read_csv_file(csv);
+  if (records.empty() || records[0].fields.empty() || records[0].fields[0] != "scan_id")
+    throw InputError("'" + csv.string() + "': expected a header starting with 'scan_id' (a scan database's table)");
+  e.header = records[0].fields;
+  for (size_t r = 1; r < records.size(); ++r) {
+    std::vector<std::string> row = records[r].fields;
+    if (row.size() != e.header.size())
+      throw InputError(fmt::format("'{}' line {}: {} fields, the header has {}", csv.string(), records[r].line,
+                                   row.size(), e.header.size()));
+    e.row_of[row[0]] = e.rows.size();
+    e.rows.push_back(std::move(row));
+    e.lines.push_back(records[r].line);
+  }
+  return e;
+}
 
 }  // namespace
 
@@ -51,6 +97,8 @@ BODYMODEL_VERB(add_scanify_verb) {
       "One mesh and --out X.ply: that scan (and X.landmarks.json with --landmarks). Otherwise\n"
       "--out is a scan database for `bodymodel register`: OUT/scans.csv, OUT/scans/<stem>.ply,\n"
       "OUT/scans/<stem>.landmarks.json (landmark positions from vertex indices of the mesh).\n"
+      "An existing database is added to: scans.csv keeps its scans and gains the new ones; a scan\n"
+      "id it already has (or an unlisted scan file of that name) is refused unless --force.\n"
       "Example (FAUST, in metres):\n"
       "  bodymodel scanify faust/*.off --scale 1000 --landmarks registration/landmarks/faust.json "
       "--out faust-scans/");
@@ -88,6 +136,9 @@ BODYMODEL_VERB(add_scanify_verb) {
                   "Regular expression on a mesh's stem whose first group is the subject id "
                   "written to scans.csv (default: the stem)");
   cmd->add_option("--jobs", a->jobs, "Meshes scanned in parallel")->capture_default_str();
+  cmd->add_flag("--force", a->force,
+                "Replace scans of the same id already in the --out database (and add to a folder without "
+                "scans.csv)");
   cmd->callback([a] {
     if (!(a->noise_mm >= 0) || !std::isfinite(a->noise_mm))
       throw InputError("--noise-mm must be 0 or more");
@@ -118,6 +169,9 @@ BODYMODEL_VERB(add_scanify_verb) {
       if (!fs::is_regular_file(m))
         throw InputError("'" + m + "': expected a mesh file (OBJ/PLY/OFF), it does not exist");
       const std::string stem = fs::path(m).stem().string();
+      // The stem is the database's scan id, which `register` takes for a plain file name (and
+      // writes into JSON and CSV): refused here, naming the mesh, rather than there.
+      if (!single) check_file_name(stem, "'" + m + "'", "scan id (the file's stem)");
       if (std::find(stems.begin(), stems.end(), stem) != stems.end())
         throw InputError("'" + m + "': two meshes share the name '" + stem + "'");
       stems.push_back(stem);
@@ -125,7 +179,24 @@ BODYMODEL_VERB(add_scanify_verb) {
     if (!a->landmarks.empty() && !fs::is_regular_file(a->landmarks))
       throw InputError("--landmarks '" + a->landmarks + "': file not found");
     const fs::path out = a->out;
-    if (!single) ensure_directory(out / "scans");
+    // Adding to a database: every clash is found before anything is scanned or written.
+    ExistingScans existing;
+    if (!single) {
+      existing = existing_scans(out, a->force);
+      for (size_t k = 0; k < stems.size() && !a->force; ++k) {
+        const auto it = existing.row_of.find(stems[k]);
+        std::error_code ec;
+        if (it != existing.row_of.end())
+          throw InputError(fmt::format("'{}': scan id '{}' is already in '{}' (line {}); use --force to replace it, "
+                                       "or another --out",
+                                       a->meshes[k], stems[k], (out / "scans.csv").string(), existing.lines[it->second]));
+        if (fs::exists(out / "scans" / (stems[k] + ".ply"), ec))
+          throw InputError(fmt::format("'{}': '{}' exists but scans.csv does not list it (left by an interrupted "
+                                       "run?); use --force to replace it, or another --out",
+                                       a->meshes[k], (out / "scans" / (stems[k] + ".ply")).string()));
+      }
+      ensure_directory(out / "scans");
+    }
 
     ScanifyOptions options;
     options.scanner.noise_sigma_mm = a->noise_mm;
@@ -134,7 +205,8 @@ BODYMODEL_VERB(add_scanify_verb) {
     cli::ProgressBar bar(fmt::format("scanify {} meshes", a->meshes.size()));
     std::mutex mutex;
     std::atomic<int> done{0};
-    std::vector<std::string> rows(a->meshes.size()), failures;
+    std::vector<std::vector<std::string>> rows(a->meshes.size());  // scans.csv cells; empty: failed
+    std::vector<std::string> failures;
     tbb::task_arena arena(a->jobs);
     arena.execute([&] {
       tbb::parallel_for(size_t(0), a->meshes.size(), size_t(1), [&](size_t k) {
@@ -161,7 +233,7 @@ BODYMODEL_VERB(add_scanify_verb) {
           const fs::path scan_path = single ? out : out / "scans" / (stem + ".ply");
           const fs::path lm_path = scan_path.parent_path() / (scan_path.stem().string() + ".landmarks.json");
           write_point_cloud(scan_path, scan);
-          if (!single || !landmarks.empty()) write_text_file(lm_path, lm.dump(1) + "\n");
+          if (!single || !landmarks.empty()) write_text_file(lm_path, json_text(lm, 1) + "\n");
           std::string subject = stem;
           std::smatch m;
           if (!a->subject_regex.empty()) {
@@ -170,7 +242,7 @@ BODYMODEL_VERB(add_scanify_verb) {
                                stem + "' with a capture group");
             subject = m[1].str();
           }
-          rows[k] = fmt::format("{},{},{},{},{}\n", stem, subject, stem, scan.P.rows(), path);
+          rows[k] = {stem, subject, stem, std::to_string(scan.P.rows()), path};
           std::lock_guard<std::mutex> lock(mutex);
           bar.update(double(++done) / double(a->meshes.size()), stem);
         } catch (const std::exception& e) {
@@ -181,8 +253,26 @@ BODYMODEL_VERB(add_scanify_verb) {
     });
     bar.finish(fmt::format("{} scanned, {} failed", done.load(), failures.size()));
     if (!single) {
-      std::string csv = "scan_id,subject_id,pose,points,source\n";
-      for (const auto& r : rows) csv += r;
+      // The earlier rows first (a replaced scan keeps its place), then the new ones; columns by
+      // name, so a synth-db table (no source column) gains one.
+      std::vector<std::string> header = existing.header;
+      const std::vector<std::string> ours = {"scan_id", "subject_id", "pose", "points", "source"};
+      for (const auto& c : ours)
+        if (std::find(header.begin(), header.end(), c) == header.end()) header.push_back(c);
+      std::vector<std::vector<std::string>> table = existing.rows;
+      for (auto& r : table) r.resize(header.size());
+      for (size_t k = 0; k < rows.size(); ++k) {
+        if (rows[k].empty()) continue;  // failed
+        const std::vector<std::string>& cells = rows[k];
+        std::vector<std::string> row(header.size());
+        for (size_t c = 0; c < ours.size(); ++c)
+          row[std::find(header.begin(), header.end(), ours[c]) - header.begin()] = cells[c];
+        const auto it = existing.row_of.find(stems[k]);
+        if (it != existing.row_of.end()) table[it->second] = std::move(row);
+        else table.push_back(std::move(row));
+      }
+      std::string csv = csv_row(header) + "\n";
+      for (const auto& r : table) csv += csv_row(r) + "\n";
       write_text_file(out / "scans.csv", csv);
     }
     if (!failures.empty())
