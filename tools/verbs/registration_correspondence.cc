@@ -3,8 +3,8 @@
 //
 // FAUST's correspondence protocol (registration/correspondence.h; docs/evaluation.md) on a data
 // set whose meshes share one topology with ground-truth correspondence (FAUST, SCAPE): every
-// registration REG/<stem>.ply (template topology, mm, +y up) is paired with TRUTH/<stem>.off
-// (or .ply/.obj). Writes DIR/pairs.csv (per ordered pair), DIR/meshes.csv (per mesh: two-sided
+// registration REG/<stem>.ply (or .obj/.off; template topology, mm, +y up) is paired with
+// TRUTH/<stem>.off (or .ply/.obj); a registration without a truth is refused, not skipped. Writes DIR/pairs.csv (per ordered pair), DIR/meshes.csv (per mesh: two-sided
 // surface distance to its truth, folded triangles) and DIR/summary.csv (inter- and
 // intra-subject pooled errors, cm).
 #include <fmt/format.h>
@@ -16,6 +16,7 @@
 #include "core/error.h"
 #include "core/geometry.h"
 #include "core/io/atomic_write.h"
+#include "core/io/csv.h"
 #include "core/io/mesh_io.h"
 #include "core/makehuman.h"
 #include "core/up_axis.h"
@@ -55,7 +56,8 @@ BODYMODEL_VERB(add_eval_correspondence_verb) {
       "Example (FAUST, in metres; tr_reg_NNN: subject = NNN div 10):\n"
       "  bodymodel eval-correspondence reg/ --truth faust/ --truth-scale 1000 \\\n"
       "      --subject-regex 'tr_reg_(\\d\\d)\\d' --out eval/");
-  cmd->add_option("reg", a->reg, "Folder of registrations <stem>.ply (template topology, mm)")
+  cmd->add_option("reg", a->reg,
+                  "Folder of registrations <stem>.ply|.obj|.off (template topology, mm); each needs its truth")
       ->required();
   cmd->add_option("--truth", a->truth,
                   "Folder of truth meshes <stem>.off|.ply|.obj, one vertex numbering: vertex i the same "
@@ -104,17 +106,37 @@ BODYMODEL_VERB(add_eval_correspondence_verb) {
       for (auto& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
       if (ext == ".off" || ext == ".ply" || ext == ".obj") truths[e.path().stem().string()] = e.path();
     }
+    // Every registration is evaluated or the run refuses: one left out without a word would
+    // change the pooled errors silently.
     std::vector<std::pair<std::string, fs::path>> found;  // stem, registration
+    std::map<std::string, fs::path> by_stem;
+    std::vector<fs::path> without_truth;
     for (const auto& e : fs::directory_iterator(reg_dir)) {
-      if (e.path().extension() != ".ply") continue;
+      std::string ext = e.path().extension().string();
+      for (auto& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+      if (ext != ".ply" && ext != ".obj" && ext != ".off") continue;
       const std::string stem = e.path().stem().string();
-      if (stem.find('.') != std::string::npos) continue;  // <stem>.detailed.ply and the like
+      // <stem>.detailed.ply and the like are derived outputs; '.'-names are temporaries.
+      if (stem.empty() || stem[0] == '.' || stem.find('.') != std::string::npos) continue;
+      const auto [it, inserted] = by_stem.emplace(stem, e.path());
+      if (!inserted)
+        throw InputError("'" + e.path().string() + "' and '" + it->second.string() +
+                         "': two registrations of '" + stem + "'; keep one");
       if (truths.count(stem)) found.emplace_back(stem, e.path());
+      else without_truth.push_back(e.path());
     }
     std::sort(found.begin(), found.end());
+    std::sort(without_truth.begin(), without_truth.end());
+    if (!without_truth.empty())
+      throw InputError("'" + without_truth.front().string() + "': no truth <stem>.off|.ply|.obj for it in '" +
+                       a->truth + "'" +
+                       (without_truth.size() > 1 ? fmt::format(" ({} of {} registrations have none)",
+                                                                without_truth.size(), by_stem.size())
+                                                 : std::string()) +
+                       "; every registration in '" + a->reg + "' is evaluated: add its truth or move it out");
     if (found.size() < 2)
       throw InputError("'" + a->reg + "': found " + std::to_string(found.size()) +
-                       " registrations <stem>.ply with a truth <stem>.off|.ply|.obj in '" +
+                       " registrations <stem>.ply|.obj|.off with a truth <stem>.off|.ply|.obj in '" +
                        a->truth + "'; need at least two");
 
     MakeHuman mh = MakeHuman::load();
@@ -187,7 +209,7 @@ BODYMODEL_VERB(add_eval_correspondence_verb) {
       flipped[k] = d.flipped_against_scan;
       two_sided[k] = d.two_sided_mean;
       mesh_csv += fmt::format("{},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{},{}\n",
-                              meshes[k].id, meshes[k].subject, d.registered_to_scan_mean,
+                              csv_field(meshes[k].id), csv_field(meshes[k].subject), d.registered_to_scan_mean,
                               d.scan_to_registered_mean, d.two_sided_mean,
                               d.registered_to_scan_p95, d.scan_to_registered_p95,
                               report.location_distance_mean[k], folded[k], flipped[k]);
@@ -197,8 +219,8 @@ BODYMODEL_VERB(add_eval_correspondence_verb) {
 
     std::string pair_csv = "a,b,subject_a,subject_b,kind,mean_cm,median_cm,p95_cm,max_cm\n";
     for (const auto& p : report.pairs)
-      pair_csv += fmt::format("{},{},{},{},{},{},{},{},{}\n", meshes[p.a].id, meshes[p.b].id,
-                              meshes[p.a].subject, meshes[p.b].subject,
+      pair_csv += fmt::format("{},{},{},{},{},{},{},{},{}\n", csv_field(meshes[p.a].id), csv_field(meshes[p.b].id),
+                              csv_field(meshes[p.a].subject), csv_field(meshes[p.b].subject),
                               p.inter ? "inter" : "intra", cm(p.stats.mean), cm(p.stats.median),
                               cm(p.stats.p95), cm(p.stats.max));
     std::string summary = "kind,pairs,errors,mean_cm,median_cm,p95_cm,max_cm\n";
