@@ -17,6 +17,7 @@
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/io/json_text.h"
 #include "model/morph.h"
 #include "model/shape_preview.h"
 #include "skinning/gltf_export.h"
@@ -226,9 +227,11 @@ class MorphService {
   std::thread preview_thread_;
 };
 
+// Never throws: a message quoting a request's bytes that are not UTF-8 (a parse error's "last
+// read") is written with U+FFFD, not thrown from here as a type_error into cpp-httplib.
 void error_reply(httplib::Response& res, int status, const std::string& message) {
   res.status = status;
-  res.set_content(json{{"error", message}}.dump(), "application/json");
+  res.set_content(json_text(json{{"error", message}}), "application/json");
 }
 
 // Runs f(parsed body), mapping failures to statuses: 400 bad JSON / bad values (the message
@@ -266,13 +269,19 @@ void run_serve(const ServeArgs& a) {
                      "' (scripts/setup.sh installs it into the build folder; or give --three FILE / BODYMODEL_THREE)");
   const std::string three_js = read_text_file(three);
   auto service = std::make_shared<MorphService>(model, a.max_decodes, a.preview);
-  const std::string describe = service->describe().dump();
+  const std::string describe = json_text(service->describe());
 
   httplib::Server svr;
   svr.set_payload_max_length(a.max_body);  // larger bodies: 413 before any parsing
   svr.set_read_timeout(a.timeout, 0);
   svr.set_write_timeout(a.timeout, 0);
   svr.set_keep_alive_max_count(20);
+  // An exception that escapes a handler: without this, cpp-httplib answers 500 with the
+  // exception's text in an EXCEPTION_WHAT header. Internal text stays inside the server.
+  svr.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr) {
+    res.status = 500;
+    res.set_content(R"({"error": "internal error"})", "application/json");
+  });
   const int threads = a.threads;
   svr.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<size_t>(threads)); };
   // cpp-httplib compresses what the client accepts compressed; Debian's build has brotli, at a
@@ -295,7 +304,7 @@ void run_serve(const ServeArgs& a) {
     res.set_content(describe, "application/json");
   });
   svr.Post("/api/body", [service](const httplib::Request& req, httplib::Response& res) {
-    handle(req, res, [&](const json& body) { res.set_content(service->to_json(service->make(body)).dump(), "application/json"); });
+    handle(req, res, [&](const json& body) { res.set_content(json_text(service->to_json(service->make(body))), "application/json"); });
   });
   svr.Post("/api/body.obj", [service](const httplib::Request& req, httplib::Response& res) {
     handle(req, res, [&](const json& body) {
