@@ -412,6 +412,18 @@ TEST(Round3Slow, IdsWithCommasKeepEveryTableWellFormed) {
   ASSERT_TRUE(run({"eval-population", model, "--population", (dir / "six.csv").string(), "--count", "4", "--seed", "2",
                    "--out", (dir / "real").string()}));
   expect_rectangular(dir / "real" / "realism.csv");
+  // 15: an id that is not UTF-8 goes into generate.json (the crowd's people): was
+  // "[json.exception.type_error.316]" and an empty output folder; now written as U+FFFD, and
+  // a rerun with the same settings still resumes.
+  write_text_file(dir / "bad.csv", "SEQN,RIAGENDR,RIDAGEYR,BMXHT,BMXWT,WTMECPRP\nx\xffy,2,40,165,65,1000\n"
+                                   "2,1,50,178,80,1000\n");
+  const std::vector<std::string> gen = {"generate", model, "--population", (dir / "bad.csv").string(), "--match",
+                                        "height_cm", "--count", "2", "--out", (dir / "gen_bad").string()};
+  ASSERT_TRUE(run(gen));
+  EXPECT_TRUE(valid_utf8(read_text_file(dir / "gen_bad" / "generate.json")));
+  std::string again;
+  EXPECT_EQ(run_bodymodel(gen, dir / "log", &again), 0) << again;
+  EXPECT_NE(again.find("skipped 2 existing"), std::string::npos) << again;
 }
 
 }  // namespace
