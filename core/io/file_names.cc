@@ -132,8 +132,8 @@ std::vector<std::string> unique_file_names(const std::vector<std::string>& names
       const std::string suffix = "_" + std::to_string(k);
       // Stay within the length limit (cut at a UTF-8 boundary).
       std::string stem = base.substr(0, std::min(base.size(), kMaxName - suffix.size()));
-      while (stem.size() < base.size() && !stem.empty() && (static_cast<unsigned char>(base[stem.size()]) & 0xc0) == 0x80)
-        stem.pop_back();
+      auto continuation = [&](size_t at) { return (static_cast<unsigned char>(base[at]) & 0xc0) == 0x80; };
+      while (stem.size() < base.size() && !stem.empty() && continuation(stem.size())) stem.pop_back();
       name = stem + suffix;
     }
     taken.insert(lower(name));

@@ -37,8 +37,9 @@ TEST(Csv, FieldsAreQuotedOnlyWhenTheyMustBe) {
 }
 
 TEST(Csv, EveryFieldRoundTrips) {
-  const std::vector<std::string> hostile = {"smith, j", "\"", "\"\"", "a\"b", "multi\nline\r\nfield", " lead",
-                                            "trail ", ",", "", "\xff\xfe", std::string("nul\0x", 5), "\xEF\xBB\xBF" "bom"};
+  const std::vector<std::string> hostile = {
+      "smith, j", "\"", "\"\"", "a\"b", "multi\nline\r\nfield", " lead", "trail ", ",", "", "\xff\xfe",
+      std::string("nul\0x", 5), "\xEF\xBB\xBF" "bom"};
   std::string text = csv_row({"id", "value"}) + "\n";
   for (const auto& h : hostile) text += csv_row({h, "1"}) + "\n";
   const auto rows = parse_csv(text, "t.csv");

@@ -173,7 +173,8 @@ GenerateCrowdSummary write_crowd(std::shared_ptr<const BodyModel> model,
     auto num = [](double v) { return std::isfinite(v) ? fmt::format("{:.2f}", v) : std::string(); };
     const Roughness rough = roughness(g.V, model->tmpl->faces(), o.roughness_region);
     const int crossing = self_intersecting_triangle_pairs(g.V, model->tmpl->faces());
-    std::string row = fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}", i, csv_field(summary.files[i]),
+    std::string row = fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}", i,
+                                  csv_field(summary.files[i]),
                                   o.people.empty() ? sex : o.people[i].sex, num(m.height_cm), num(m.weight_kg),
                                   num(m.volume_l), num(m.waist_cm), num(m.hips_cm), num(m.chest_cm), num(m.neck_cm),
                                   num(m.body_fat_pct), g.satisfied ? 1 : 0, g.summary.iterations, g.attempts, flipped,

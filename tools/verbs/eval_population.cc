@@ -182,7 +182,8 @@ BODYMODEL_VERB(add_eval_population_verb) {
       const Person& p = table.people[drawn[k]];
       const Row& r = rows[k];
       converged += r.converged;
-      csv += fmt::format("{},{},{:.0f},{:.1f},{:.1f},{:.2f},{:.2f},{}", csv_field(p.id), p.sex == Sex::male ? "male" : "female",
+      csv += fmt::format("{},{},{:.0f},{:.1f},{:.1f},{:.2f},{:.2f},{}", csv_field(p.id),
+                         p.sex == Sex::male ? "male" : "female",
                          p.age_years, p.measurement("height_cm"), p.measurement("weight_kg"), r.m.height_cm,
                          r.m.weight_kg, r.converged ? 1 : 0);
       for (size_t g = 0; g < girths.size(); ++g) {

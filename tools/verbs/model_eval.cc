@@ -92,14 +92,16 @@ void write_reports(const StagedFolder& out, const std::vector<QualityRow>& rows,
   std::string q = "model,components,generalisation_mean_mm,generalisation_p95_mm,generalisation_max_mm,"
                   "specificity_mean_mm,specificity_std_mm,compactness\n";
   for (const auto& r : rows)
-    q += fmt::format("{},{},{},{},{},{},{},{}\n", csv_field(r.model), r.components, csv_number(r.generalisation_mean_mm),
+    q += fmt::format("{},{},{},{},{},{},{},{}\n", csv_field(r.model), r.components,
+                     csv_number(r.generalisation_mean_mm),
                      csv_number(r.generalisation_p95_mm), csv_number(r.generalisation_max_mm),
                      csv_number(r.specificity_mean_mm), csv_number(r.specificity_std_mm), csv_number(r.compactness));
   write_text_file(out / "quality.csv", q);
   std::string g = "fold,model,mesh,components,mean_mm,p95_mm,max_mm,fit_seconds\n";
   for (const auto& [fold, f] : folds)
     for (const auto& m : f.per_mesh)
-      g += fmt::format("{},{},{},{},{},{},{},{:.3f}\n", csv_field(fold), csv_field(m.model), csv_field(m.mesh), m.components, csv_number(m.mean_mm),
+      g += fmt::format("{},{},{},{},{},{},{},{:.3f}\n", csv_field(fold), csv_field(m.model), csv_field(m.mesh),
+                       m.components, csv_number(m.mean_mm),
                        csv_number(m.p95_mm), csv_number(m.max_mm), m.seconds);
   write_text_file(out / "generalisation.csv", g);
   // Plot: three panels, the rotation-invariant model (blue) and vertex PCA (orange).

@@ -164,7 +164,8 @@ BODYMODEL_VERB(add_model_sweep_verb) {
     for (const auto& r : rows) {
       const PlausibilityReport& p = r.plausibility;
       const bool ref = !a->no_reference;
-      csv += fmt::format("{:g},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", r.value, csv_field(r.file), r.summary.converged ? 1 : 0,
+      csv += fmt::format("{:g},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", r.value, csv_field(r.file),
+                         r.summary.converged ? 1 : 0,
                          num(p.measured.height_cm), num(p.measured.weight_kg), num(p.measured.waist_iliac_cm),
                          num(p.measured.hips_cm), num(p.roughness.p95_deg), num(p.roughness.max_deg),
                          ref ? num(p.reference.p95_deg) : "", ref ? num(p.reference.max_deg) : "",

@@ -4,9 +4,10 @@
 // FAUST's correspondence protocol (registration/correspondence.h; docs/evaluation.md) on a data
 // set whose meshes share one topology with ground-truth correspondence (FAUST, SCAPE): every
 // registration REG/<stem>.ply (or .obj/.off; template topology, mm, +y up) is paired with
-// TRUTH/<stem>.off (or .ply/.obj); a registration without a truth is refused, not skipped. Writes DIR/pairs.csv (per ordered pair), DIR/meshes.csv (per mesh: two-sided
-// surface distance to its truth, folded triangles) and DIR/summary.csv (inter- and
-// intra-subject pooled errors, cm).
+// TRUTH/<stem>.off (or .ply/.obj); a registration without a truth is refused, not skipped.
+// Writes DIR/pairs.csv (per ordered pair), DIR/meshes.csv (per mesh: two-sided surface distance
+// to its truth, folded triangles) and DIR/summary.csv (inter- and intra-subject pooled errors,
+// cm).
 #include <fmt/format.h>
 
 #include <filesystem>

@@ -189,7 +189,8 @@ BODYMODEL_VERB(add_scanify_verb) {
         if (it != existing.row_of.end())
           throw InputError(fmt::format("'{}': scan id '{}' is already in '{}' (line {}); use --force to replace it, "
                                        "or another --out",
-                                       a->meshes[k], stems[k], (out / "scans.csv").string(), existing.lines[it->second]));
+                                       a->meshes[k], stems[k], (out / "scans.csv").string(),
+                                       existing.lines[it->second]));
         if (fs::exists(out / "scans" / (stems[k] + ".ply"), ec))
           throw InputError(fmt::format("'{}': '{}' exists but scans.csv does not list it (left by an interrupted "
                                        "run?); use --force to replace it, or another --out",

@@ -304,7 +304,9 @@ void run_serve(const ServeArgs& a) {
     res.set_content(describe, "application/json");
   });
   svr.Post("/api/body", [service](const httplib::Request& req, httplib::Response& res) {
-    handle(req, res, [&](const json& body) { res.set_content(json_text(service->to_json(service->make(body))), "application/json"); });
+    handle(req, res, [&](const json& body) {
+      res.set_content(json_text(service->to_json(service->make(body))), "application/json");
+    });
   });
   svr.Post("/api/body.obj", [service](const httplib::Request& req, httplib::Response& res) {
     handle(req, res, [&](const json& body) {

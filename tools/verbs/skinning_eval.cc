@@ -296,7 +296,8 @@ void run_eval(const EvalArgs& a) {
       for (size_t k = 0; k < cands.size(); ++k) {
         const CvCandidate& c = cands[k];
         cv_csv += fmt::format("{},{},{},{:.8g},{:.4g},{:.4g},{},{},{}\n", fold, skinning_model_name(opt.methods[m]),
-                              csv_field(c.setting), c.error, c.standard_error, c.paired_standard_error, c.example_errors.size(),
+                              csv_field(c.setting), c.error, c.standard_error, c.paired_standard_error,
+                              c.example_errors.size(),
                               c.setting == last.fits[m].cv.chosen_setting ? 1 : 0, by[k]);
       }
     }
