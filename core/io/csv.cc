@@ -70,7 +70,10 @@ std::string_view without_bom(std::string_view text) {
 }
 
 std::string csv_field(std::string_view s) {
-  const bool quote = s.find_first_of(",\"\r\n") != std::string_view::npos || (!s.empty() && s.back() == ' ');
+  // A trailing space would be trimmed on reading, a leading byte-order mark dropped (in a file's
+  // first cell): quoted, both stay.
+  const bool quote = s.find_first_of(",\"\r\n") != std::string_view::npos || (!s.empty() && s.back() == ' ') ||
+                     s.substr(0, kBom.size()) == kBom;
   if (!quote) return std::string(s);
   std::string q = "\"";
   for (char c : s) {

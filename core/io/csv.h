@@ -1,6 +1,7 @@
 // The one CSV dialect of the project, for every table it reads or writes (RFC 4180):
-//   - write: fields joined by ','; a field holding ',', '"', CR or LF (or ending in a space, which
-//     a read would trim) is written in double quotes with each '"' doubled; rows end in "\n";
+//   - write: fields joined by ','; a field holding ',', '"', CR or LF (or ending in a space, or
+//     starting with a byte-order mark, which a read would drop) is written in double quotes with
+//     each '"' doubled; rows end in "\n";
 //   - read: quoted fields (which may hold commas, doubled quotes and line ends), LF or CRLF line
 //     ends, a UTF-8 byte-order mark before the first field dropped (spreadsheets write one),
 //     unquoted cells trimmed of trailing spaces and CR, a trailing comma an empty last cell.

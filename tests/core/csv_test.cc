@@ -34,6 +34,7 @@ TEST(Csv, FieldsAreQuotedOnlyWhenTheyMustBe) {
   EXPECT_EQ(csv_field("cr\r"), "\"cr\r\"");
   EXPECT_EQ(csv_field("trailing "), "\"trailing \"") << "a read trims unquoted trailing spaces";
   EXPECT_EQ(csv_row({"a", "b,c", ""}), "a,\"b,c\",");
+  EXPECT_EQ(csv_field("\xEF\xBB\xBF" "x"), "\"\xEF\xBB\xBF" "x\"") << "a mark a read would drop";
 }
 
 TEST(Csv, EveryFieldRoundTrips) {
