@@ -123,7 +123,7 @@ std::vector<ScanTableRow> read_scan_table(const fs::path& path) {
   std::vector<ScanTableRow> out;
   for (size_t r = 1; r < rows.size(); ++r) {
     // A scan id names files (REG/<id>.ply, DB/truth/<id>.pose.csv): it must stay in its folder.
-    check_file_name(rows[r][a], fmt::format("'{}' line {}", path.string(), r + 1), "scan id");
+    check_file_name(rows[r][a], fmt::format("{}:{}", path.string(), r + 1), "scan id");
     out.push_back({rows[r][a], rows[r][b], rows[r][c]});
   }
   return out;

@@ -204,7 +204,7 @@ std::vector<Case> quick_cases() {
                  fs::create_directories(b.in / "reg");
                },
                {"build", "{in}/reg", "--db", "{in}/db", "--out", "{out}/model.npz"}, 2,
-               {"scans.csv' line 2", "scan id '../x'"}, {"{out}"}});
+               {"scans.csv:2", "scan id '../x'"}, {"{out}"}});
   c.push_back({"eval_registration_scan_ids_with_paths",
                [](const Sandbox& b) {
                  write_database(b.in / "db", {"a/../../b"});
