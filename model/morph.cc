@@ -636,6 +636,31 @@ int flipped_triangle_count(const BodyModel& model, const Eigen::MatrixX3d& V) {
   return flipped;
 }
 
+FoldRepairOptions body_fold_repair_options() {
+  FoldRepairOptions f;
+  f.passes = 8;
+  return f;
+}
+
+MorphedBody morph_body(const ShapeMorpher& morpher, const Eigen::MatrixX3d* V,
+                       const std::vector<LabelCondition>& conditions, const MorphOptions& options,
+                       const FoldRepairOptions& repair) {
+  MorphedBody out;
+  const BodyModel& model = morpher.model();
+  out.V = V ? morpher.morph(*V, conditions, options, &out.summary)
+            : morpher.morph_encoding(model.shape.pca.mean, conditions, options, &out.summary);
+  out.folds = repair_body_folds(model, out.V, repair);
+  return out;
+}
+
+std::string unmet_labels(const MorphSummary& summary) {
+  std::string missed;
+  for (const auto& l : summary.labels)
+    if (!l.satisfied)
+      missed += fmt::format("{}{} = {:.4g} (reached {:.4g})", missed.empty() ? "" : ", ", l.label, l.target, l.achieved);
+  return missed;
+}
+
 FoldRepairSummary repair_body_folds(const BodyModel& model, Eigen::MatrixX3d& V, const FoldRepairOptions& options) {
   return repair_folds(V, template_on_body(model, V), model.tmpl->faces(), options);
 }

@@ -161,6 +161,10 @@ class ShapeMorpher {
   std::shared_ptr<ResponseCache> response_cache_;
 };
 
+// The fold repair bodies get after decoding (generation and morphing): 8 passes, regions up to
+// 2 + 7 rings, because the under-bust triangles of a full-breasted body need the wider regions.
+FoldRepairOptions body_fold_repair_options();
+
 // Random bodies from the shape-only model (§5.2).
 struct GenerateOptions {
   // Coefficients ~ N(0, eigenvalues) scaled by this (1 = the data's spread). When a sex
@@ -179,11 +183,7 @@ struct GenerateOptions {
   // (30-160 mm², turned 90-120° against the template's) need the wider regions; 3 passes left
   // 4 of 200 bodies of a 40-subject model with 6-10 (the re-solve moves them up to ~50 mm and
   // the weight by up to 0.3 kg, which the measurement after the repair sees).
-  FoldRepairOptions fold_repair = [] {
-    FoldRepairOptions f;
-    f.passes = 8;
-    return f;
-  }();
+  FoldRepairOptions fold_repair = body_fold_repair_options();
   // Morph settings; generation accepts 1 kg / 1 cm around exact targets (every decode costs,
   // and a crowd "of 65 kg" is checked at ± 2 kg), morphing keeps the tighter 0.25.
   MorphOptions morph = [] {
@@ -232,6 +232,21 @@ int flipped_triangle_count(const BodyModel& model, const Eigen::MatrixX3d& V);
 //   V #V by 3 (mm, modified in place).
 FoldRepairSummary repair_body_folds(const BodyModel& model, Eigen::MatrixX3d& V,
                                     const FoldRepairOptions& options = {});
+
+// A morph as a user asks for it (`bodymodel morph`, Python's Model.morph): from the body V (#V by
+// 3, mm) or, when V is null, from the model's mean body (template-aligned), then the fold repair
+// generation applies, so both front ends return the same body.
+struct MorphedBody {
+  Eigen::MatrixX3d V;
+  MorphSummary summary;
+  FoldRepairSummary folds;
+};
+MorphedBody morph_body(const ShapeMorpher& morpher, const Eigen::MatrixX3d* V,
+                       const std::vector<LabelCondition>& conditions, const MorphOptions& options,
+                       const FoldRepairOptions& repair = body_fold_repair_options());
+
+// "height_cm = 250 (reached 212.3), …": the labels a morph did not meet.
+std::string unmet_labels(const MorphSummary& summary);
 
 // Root-mean-square vertex distance between two bodies after a rigid fit of b onto a (mm).
 double rms_vertex_distance(const Eigen::MatrixX3d& a, const Eigen::MatrixX3d& b);

@@ -104,31 +104,30 @@ class PyModel {
         throw InputError(fmt::format("mask: {} values, expected one per triangle ({})", o.triangle_mask.size(),
                                      model_->tmpl->triangle_count()));
     }
-    MorphSummary sum;
-    Eigen::MatrixX3d out;
-    if (V.is_none()) {
-      // The model's mean body (encoding 0 relative to the mean), template-aligned.
-      const ShapeMorpher& mo = morpher();
-      pyb::gil_scoped_release nogil;
-      out = mo.morph_encoding(Eigen::VectorXd::Zero(model_->tmpl->encoding_size()), cond, o, &sum);
-    } else {
-      Eigen::MatrixX3d X = vertices(V, "V");
+    // As `bodymodel morph` (model/morph.h's morph_body: the same morph and fold repair), from V or
+    // from the model's mean body (template-aligned).
+    Eigen::MatrixX3d X;
+    if (!V.is_none()) {
+      X = vertices(V, "V");
       model_->tmpl->check_vertices(X, "V");
+    }
+    MorphedBody morphed;
+    {
       const ShapeMorpher& mo = morpher();
       pyb::gil_scoped_release nogil;
-      out = mo.morph(X, cond, o, &sum);
+      morphed = morph_body(mo, V.is_none() ? nullptr : &X, cond, o);
     }
-    // As `bodymodel morph`: a target the model cannot meet is an error unless the closest body is
-    // asked for.
+    const MorphSummary& sum = morphed.summary;
+    const Eigen::MatrixX3d& out = morphed.V;
+    // A target the model cannot meet is an error unless the closest body is asked for.
     if (!sum.converged && !closest) {
-      std::string missed;
-      for (const auto& l : sum.labels)
-        if (!l.satisfied)
-          missed += fmt::format("{}{} = {:.4g} (reached {:.4g})", missed.empty() ? "" : ", ", l.label, l.target, l.achieved);
+      const std::string missed = unmet_labels(sum);
       throw InputError(fmt::format("morph: the model cannot meet {} from '{}' after {} iterations (closest=True returns "
                                    "the closest body)", missed, V.is_none() ? "the mean body" : "V", sum.iterations));
     }
-    return pyb::make_tuple(to_array(Eigen::MatrixXd(out)), summary_dict(sum));
+    pyb::dict d = summary_dict(sum);
+    d["folds_repaired"] = morphed.folds.flipped_before - morphed.folds.flipped_after;
+    return pyb::make_tuple(to_array(Eigen::MatrixXd(out)), d);
   }
 
   // As `bodymodel fit` (tools/verbs/model_fit.cc) on a mesh whose vertices are V: the same checks
