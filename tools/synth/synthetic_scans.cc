@@ -24,6 +24,7 @@
 #include <set>
 #include <sstream>
 
+#include "core/random_subject.h"
 #include "core/error.h"
 #include "core/geometry.h"
 #include "core/io/atomic_write.h"
@@ -133,26 +134,6 @@ const std::vector<std::string>& perturbed_bones() {
 
 
 }  // namespace
-
-MacroSettings random_synthetic_subject(std::mt19937_64& rng, bool male) {
-  std::uniform_real_distribution<double> u(0, 1);
-  auto in = [&](double a, double b) { return a + (b - a) * u(rng); };
-  MacroSettings s;
-  s.gender = male ? in(0.85, 1.0) : in(0.0, 0.15);
-  s.age = in(0.45, 0.85);          // about 23 to 70 years
-  s.muscle = in(0.15, 0.85);
-  s.weight = in(0.15, 0.85);
-  s.height = in(0.15, 0.85);
-  s.proportions = in(0.25, 0.75);
-  s.cup = in(0.3, 0.7);
-  s.firmness = in(0.3, 0.7);
-  std::gamma_distribution<double> g(2.0, 1.0);
-  double a = g(rng), b = g(rng), c = g(rng), sum = a + b + c;
-  s.african = a / sum;
-  s.asian = b / sum;
-  s.caucasian = c / sum;
-  return s;
-}
 
 PointCloud simulate_scan(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
                          const ScannerOptions& o, std::mt19937_64& rng) {
@@ -626,7 +607,7 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
       subj = people[s];
     } else {
       bool male = (s % 2) == 1;
-      subj.sliders = random_synthetic_subject(rng, male);
+      subj.sliders = random_makehuman_subject(rng, male);
       subj.sex = subj.sliders.gender >= 0.5 ? "male" : "female";
       subj.age_years = subj.sliders.age_years();
     }

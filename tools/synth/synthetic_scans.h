@@ -56,7 +56,7 @@ struct SyntheticDatabaseOptions {
   // NHANES); `subjects` adults with sex, age and every `population_measurements` value are drawn
   // by survey weight (seeded, sample_population) and each subject's truth body is the MakeHuman
   // body fitted to the person's recorded measurements (fit_measurements, `fit`). Empty = the
-  // uniform slider draw (random_synthetic_subject).
+  // uniform slider draw (random_makehuman_subject, core/makehuman.h).
   std::string population;
   std::vector<std::string> population_measurements = {"height_cm", "weight_kg", "waist_iliac_cm", "hips_cm",
                                                       "arm_circumference_cm"};
@@ -125,10 +125,5 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& makehuman,
                                                      const std::string& out_dir,
                                                      const SyntheticDatabaseOptions& options,
                                                      const ProgressCallback& progress = {});
-
-// Slider values of one random adult subject, as `synth-db` draws them: sex by `male`, macro
-// sliders inside [0.15, 0.85], ethnic mix from normalised Gamma(2) draws. Also used by
-// `eval-regressors --synthetic`, so both see the same population.
-MacroSettings random_synthetic_subject(std::mt19937_64& rng, bool male);
 
 }  // namespace bodymodel
