@@ -5,6 +5,8 @@
 // tests/model/label_ranges_test.cc).
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
 #include "fuzz/tiny_files.h"
@@ -163,6 +165,49 @@ TEST(Round3Ranges, EvalPopulationNeedsPeopleForItsBaseline) {
                   "--count", "2", "--out", (dir / "r").string()},
                  dir / "log", {"people.csv", "baseline", "at least 20", "found 0"});
   EXPECT_FALSE(fs::exists(dir / "r"));
+}
+
+// ---- 16. contradictory targets, each within its range ------------------------------------------
+
+// A closed cylinder of `radius` and `height` (mm) whose upper half is bent by `angle` about z.
+Mesh bent_cylinder(double radius, double height, double angle) {
+  Mesh m = fixtures::cylinder(radius, height, 12, 10);
+  const double pivot = 0.5 * height;
+  for (int i = 0; i < m.V.rows(); ++i) {
+    Eigen::Vector3d p = m.V.row(i).transpose();
+    if (p.y() <= pivot) continue;
+    const double w = std::min(1.0, (p.y() - pivot) / (0.2 * height)) * angle;
+    const Eigen::Vector3d o(0, pivot, 0);
+    m.V.row(i) = (o + Eigen::AngleAxisd(w, Eigen::Vector3d::UnitZ()) * (p - o)).transpose();
+  }
+  return m;
+}
+
+TEST(Round3Ranges, ContradictoryTargetsNameTheLabels) {
+  // A model of five bent cylinders (built in a fraction of a second), whose measured girths all
+  // lie in 62 … 92 cm: a thick neck and hips over a thin chest and waist turn the body inside out.
+  fixtures::TempDir dir;
+  fs::create_directories(dir / "reg");
+  std::string rows = "mesh,subject,pose\n";
+  for (int s = 0; s < 5; ++s)
+    for (int p = 0; p < 3; ++p) {
+      const std::string name = "c" + std::to_string(s) + "_" + std::to_string(p);
+      write_mesh(dir / "reg" / (name + ".ply"), bent_cylinder(100 + 12 * s, 1500 + 60 * (s % 3), 0.25 * p - 0.1 * (s % 2)));
+      rows += name + ",s" + std::to_string(s) + ",p" + std::to_string(p) + "\n";
+    }
+  write_text_file(dir / "subjects.csv", rows);
+  std::string out;
+  ASSERT_EQ(run_bodymodel({"build", (dir / "reg").string(), "--subjects", (dir / "subjects.csv").string(),
+                           "--standard-pose", "p0", "--full-variance", "1", "--out", (dir / "m.npz").string()},
+                          dir / "log", &out),
+            0)
+      << out;
+  expect_refused({"morph", (dir / "m.npz").string(), "--set", "neck_cm=92", "--set", "chest_cm=62", "--set",
+                  "hips_cm=92", "--set", "waist_cm=62", "--out", (dir / "o.obj").string()},
+                 dir / "log",
+                 {"the targets neck_cm = 92, chest_cm = 62, hips_cm = 92, waist_cm = 62 ask for a body the model "
+                  "cannot make"});
+  EXPECT_FALSE(fs::exists(dir / "o.obj"));
 }
 
 // ---- minors: scanify's options and --subject-regex -------------------------------------------------
