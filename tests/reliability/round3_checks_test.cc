@@ -106,6 +106,15 @@ TEST(Round3Units, CharacterJudgePosesAreCheckedForUnitAndBones) {
   expect_refused({"character", model, "--judge-poses", (dir / "reg.obj").string(), "--out", (dir / "c").string()},
                  dir / "log", {"reg.pose.csv", "elbow.L", "unknown bone"});
   EXPECT_FALSE(fs::exists(dir / "c"));
+  // The scan a judge pose was registered to, in metres while register-mesh.json says mm.
+  fs::remove(dir / "reg.pose.csv");
+  fs::create_directories(dir / "scans");
+  write_mesh(dir / "scans" / "reg.off", 1.7 * tiny::tetra_vertices(), tiny::tetra_faces());
+  write_text_file(dir / "register-mesh.json", R"({"scale": 1, "up": "y"})");
+  expect_refused({"character", model, "--judge-poses", (dir / "reg.obj").string(), "--judge-scans",
+                  (dir / "scans").string(), "--out", (dir / "c").string()},
+                 dir / "log", {"--judge-scans", "reg.off", "register-mesh.json", "looks like it is in metres"});
+  EXPECT_FALSE(fs::exists(dir / "c"));
 }
 
 // ---- 9. labels of `build --subjects` --------------------------------------------------------------

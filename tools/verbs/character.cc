@@ -116,8 +116,8 @@ Mesh judge_scan_for(const std::string& mesh, const std::string& dir) {
   Mesh m = read_mesh(scan);
   m.V = to_project_frame(m.V, j["scale"].get<double>(), up_axis_rotation(j["up"].get<std::string>(), "'" +
                          settings.string() + "' up"));
-  check_body_size(m.V, "--judge-scans '" + scan.string() + "'", "the \"scale\" of '" + settings.string() + "'",
-                  j["scale"].get<double>());
+  check_body_size(m.V, "--judge-scans '" + scan.string() + "' (unit and axes from '" + settings.string() + "')",
+                  "register-mesh --scale", j["scale"].get<double>());
   return m;
 }
 
