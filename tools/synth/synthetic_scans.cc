@@ -429,8 +429,8 @@ std::optional<std::pair<double, double>> stored_fit_range(const std::string& col
   return std::nullopt;
 }
 
-// A value cell of a fit.csv: a finite number within stored_fit_range. A slider of 7 made a
-// 1 111 cm body without a word, and 'nan' failed later naming no file.
+// A value cell of a fit.csv: a finite number within stored_fit_range. A slider far out of
+// range made a giant body without a word, and 'nan' failed later naming no file.
 double stored_fit_value(const std::string& cell, const fs::path& path, int line, const std::string& column) {
   const auto range = stored_fit_range(column);
   double v = 0;

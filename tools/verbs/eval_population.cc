@@ -135,7 +135,7 @@ BODYMODEL_VERB(add_eval_population_verb) {
                                    "--exclude database's people)",
                                    a->population, e.eligible.size(), e.eligible.size() - candidates.size()));
     // The baseline has 5 coefficients: fitted on fewer people than this it predicts nothing (on
-    // none it predicted 0 cm and the ratios compared the model with that).
+    // none it predicted 0 and the ratios compared the model with that).
     if (static_cast<int>(training.size()) < kMinBaselinePeople)
       throw InputError(fmt::format(
           "'{}': the height/weight baseline regression needs at least {} eligible adults besides the {} drawn for "

@@ -32,7 +32,7 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr double kMaxNoiseMm = 100;  // σ per coordinate; a body scanner's is about 1 mm
-constexpr int kMaxPoints = 10'000'000;  // per mesh, with normals: about a gigabyte while scanning
+constexpr int kMaxPoints = 10'000'000;  // per mesh: points, normals and their index must fit in memory
 
 struct ScanifyArgs {
   std::vector<std::string> meshes;
