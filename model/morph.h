@@ -216,6 +216,12 @@ void prepare_generation(const ShapeMorpher& morpher, const std::vector<LabelCond
 GeneratedBody generate_body(const ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
                             uint64_t seed, const GenerateOptions& options = {});
 
+// morpher.measure(V, sex) of a body morphed for `conditions`. A body that cannot be measured
+// (targets each within its label's range but contradictory together turn the body inside out)
+// is an InputError naming those targets.
+BodyMeasurements measure_morphed(const ShapeMorpher& morpher, const Eigen::MatrixX3d& V, Sex sex,
+                                 const std::vector<LabelCondition>& conditions);
+
 // The cheap part of core/measure.h's measure_body, with its definitions: height = extent
 // along +y (cm), volume (L), weight = volume × density (kg); girths and body fat NaN.
 //   V #V by 3 (mm), F #F by 3.

@@ -4,6 +4,7 @@
 
 #include <mutex>
 
+#include "core/body_size.h"
 #include "core/error.h"
 #include "model/body_model.h"
 #include "model/fit.h"
@@ -110,6 +111,7 @@ class PyModel {
     if (!V.is_none()) {
       X = vertices(V, "V");
       model_->tmpl->check_vertices(X, "V");
+      check_body_size(X, "V");
     }
     MorphedBody morphed;
     {
@@ -146,6 +148,7 @@ class PyModel {
     if (components > sub.component_count())
       throw InputError(fmt::format("--components {}: the {} model has {} components", components,
                                    full ? "full" : "shape", sub.component_count()));
+    const double scale_given = scale;
     if (scale == 0) {
       scale = 1;
       if (bm.metadata.contains("source") && bm.metadata["source"].contains("mm_per_unit"))
@@ -154,6 +157,7 @@ class PyModel {
     const Eigen::MatrixX3d Y = vertices(V, "V") * scale;
     const Eigen::MatrixX3i F = bm.tmpl->faces();
     bm.check_topology(Y, F, "V");
+    check_body_size(Y, "V", "--scale", scale, scale_given == 0);
     ModelFitOptions o;
     o.components = components;
     o.max_iterations = iterations;
@@ -306,6 +310,8 @@ morph() and generate() use. Encodings are 15 values per triangle relative to enc
       .def("predict_labels", [](const PyModel& p, const pyb::handle& V) {
              Eigen::MatrixX3d X = vertices(V, "V");
              const BodyModel& bm = p.model();
+             bm.tmpl->check_vertices(X, "V");
+             check_body_size(X, "V");
              Eigen::VectorXd c = bm.shape.pca.project(bm.encode(X, "V").values);
              return to_array(Eigen::VectorXd(bm.shape.regression.predict(c)));
            }, "V"_a, "predict_labels(V) -> (L,): the eq. 10 regression's labels of body V (label_names' order).")

@@ -21,6 +21,7 @@
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -377,30 +378,93 @@ struct StoredFit {
   std::string reason;
 };
 
-std::map<std::string, StoredFit> read_stored_fits(const fs::path& path, const MakeHuman& mh) {
+// RFC 4180 cells: the reason is quoted.
+std::vector<std::string> split_quoted(const std::string& line) {
+  std::vector<std::string> cells(1);
+  bool quoted = false;
+  for (size_t i = 0; i < line.size(); ++i) {
+    const char ch = line[i];
+    if (quoted && ch == '"' && i + 1 < line.size() && line[i + 1] == '"') {
+      cells.back() += '"';
+      ++i;
+    } else if (ch == '"') {
+      quoted = !quoted;
+    } else if (ch == ',' && !quoted) {
+      cells.emplace_back();
+    } else if (ch != '\r') {
+      cells.back() += ch;
+    }
+  }
+  return cells;
+}
+
+// The range fit-measurements writes a column in (its extended space included), or none (a
+// column that is not a value checked here).
+std::optional<std::pair<double, double>> stored_fit_range(const std::string& column) {
+  const FitMeasurementsOptions f;
+  if (column == "slider_weight") return std::pair{0.0, std::max(1.0, f.weight_max)};
+  if (column == "slider_muscle") return std::pair{std::min(0.0, f.muscle_min), 1.0};
+  if (column.rfind("slider_", 0) == 0) return std::pair{0.0, 1.0};
+  if (column.rfind("modifier_", 0) == 0) return std::pair{-std::max(1.0, f.modifier_limit), std::max(1.0, f.modifier_limit)};
+  if (column == "age_years") return std::pair{0.0, 150.0};
+  return std::nullopt;
+}
+
+// A value cell of a fit.csv: a finite number within stored_fit_range. A slider far out of
+// range made a giant body without a word, and 'nan' failed later naming no file.
+double stored_fit_value(const std::string& cell, const fs::path& path, int line, const std::string& column) {
+  const auto range = stored_fit_range(column);
+  double v = 0;
+  size_t used = 0;
+  try {
+    v = std::stod(cell, &used);
+  } catch (const std::logic_error&) {
+    used = 0;
+  }
+  if (cell.empty() || used != cell.size())
+    throw InputError(fmt::format("'{}' line {}, column '{}': '{}' is not a number", path.string(), line, column, cell));
+  const std::string ranges = fmt::format("MakeHuman's macro sliders are 0 … 1; fit-measurements' extended space "
+                                         "reaches weight {}, modifiers ±{}",
+                                         FitMeasurementsOptions{}.weight_max, FitMeasurementsOptions{}.modifier_limit);
+  if (!std::isfinite(v))
+    throw InputError(fmt::format("'{}' line {}, column '{}': '{}' is not a finite number ({})", path.string(), line,
+                                 column, cell, ranges));
+  if (range && !(v >= range->first && v <= range->second))
+    throw InputError(fmt::format("'{}' line {}, column '{}': {} is outside {} … {} ({})", path.string(), line, column,
+                                 cell, range->first, range->second, ranges));
+  return v;
+}
+
+}  // namespace
+
+void check_stored_fits(const std::string& fits) {
+  const fs::path path(fits);
   std::ifstream in(path);
   if (!in) throw InputError("cannot open '" + path.string() + "'");
-  auto split = [](const std::string& line) {  // RFC 4180 cells: the reason is quoted
-    std::vector<std::string> cells(1);
-    bool quoted = false;
-    for (size_t i = 0; i < line.size(); ++i) {
-      const char ch = line[i];
-      if (quoted && ch == '"' && i + 1 < line.size() && line[i + 1] == '"') {
-        cells.back() += '"';
-        ++i;
-      } else if (ch == '"') {
-        quoted = !quoted;
-      } else if (ch == ',' && !quoted) {
-        cells.emplace_back();
-      } else if (ch != '\r') {
-        cells.back() += ch;
-      }
-    }
-    return cells;
-  };
   std::string line;
   std::getline(in, line);
-  const std::vector<std::string> header = split(line);
+  const std::vector<std::string> header = split_quoted(line);
+  int line_no = 1;
+  while (std::getline(in, line)) {
+    ++line_no;
+    const std::vector<std::string> c = split_quoted(line);
+    if (c.size() != header.size())
+      throw InputError(fmt::format("'{}' line {}: {} cells for {} columns", path.string(), line_no, c.size(),
+                                   header.size()));
+    for (size_t k = 0; k < header.size(); ++k)
+      if (stored_fit_range(header[k])) stored_fit_value(c[k], path, line_no, header[k]);
+  }
+}
+
+namespace {
+
+std::map<std::string, StoredFit> read_stored_fits(const fs::path& path, const MakeHuman& mh) {
+  check_stored_fits(path.string());
+  std::ifstream in(path);
+  if (!in) throw InputError("cannot open '" + path.string() + "'");
+  std::string line;
+  std::getline(in, line);
+  const std::vector<std::string> header = split_quoted(line);
   auto col = [&](const std::string& name) {
     const auto it = std::find(header.begin(), header.end(), name);
     if (it == header.end())
@@ -418,14 +482,14 @@ std::map<std::string, StoredFit> read_stored_fits(const fs::path& path, const Ma
   int line_no = 1;
   while (std::getline(in, line)) {
     ++line_no;
-    const std::vector<std::string> c = split(line);
+    const std::vector<std::string> c = split_quoted(line);
     if (c.size() != header.size())
       throw InputError(fmt::format("'{}' line {}: {} cells for {} columns", path.string(), line_no, c.size(),
                                    header.size()));
-    try {
+    {
       StoredFit f;
       f.sex = c[sex];
-      f.age_years = std::stod(c[age]);
+      f.age_years = stored_fit_value(c[age], path, line_no, header[age]);
       f.fitted = c[fitted];
       f.reached = c[reached] == "1";
       f.extrapolated = c[extrapolated] == "1";
@@ -433,12 +497,12 @@ std::map<std::string, StoredFit> read_stored_fits(const fs::path& path, const Ma
       double* v[] = {&f.sliders.gender, &f.sliders.age,     &f.sliders.muscle,  &f.sliders.weight,
                      &f.sliders.height, &f.sliders.proportions, &f.sliders.cup, &f.sliders.firmness,
                      &f.sliders.african, &f.sliders.asian,  &f.sliders.caucasian};
-      for (size_t k = 0; k < slider_cols.size(); ++k) *v[k] = std::stod(c[slider_cols[k]]);
+      for (size_t k = 0; k < slider_cols.size(); ++k)
+        *v[k] = stored_fit_value(c[slider_cols[k]], path, line_no, header[slider_cols[k]]);
       f.modifiers.resize(static_cast<Eigen::Index>(modifier_cols.size()));
-      for (size_t k = 0; k < modifier_cols.size(); ++k) f.modifiers(k) = std::stod(c[modifier_cols[k]]);
+      for (size_t k = 0; k < modifier_cols.size(); ++k)
+        f.modifiers(k) = stored_fit_value(c[modifier_cols[k]], path, line_no, header[modifier_cols[k]]);
       fits[c[id]] = std::move(f);
-    } catch (const std::logic_error&) {  // stod: not a number
-      throw InputError(fmt::format("'{}' line {}: a slider, modifier or age is not a number", path.string(), line_no));
     }
   }
   return fits;
@@ -580,6 +644,8 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
   if (o.poses_per_subject < 0) throw InputError("--poses-per-subject must be 0 or more");
   auto t0 = std::chrono::steady_clock::now();
   const fs::path dir(out);
+  // The stored fits are checked before any folder is made: nothing half-written on a bad file.
+  if (!o.population.empty() && !o.fits.empty()) check_stored_fits(o.fits);
   ensure_directory(dir / "scans");
   ensure_directory(dir / "truth");
 

@@ -70,6 +70,12 @@ struct SyntheticDatabaseOptions {
   bool truth_only = false;
 };
 
+// Checks the values of a fit-measurements fit.csv (SyntheticDatabaseOptions::fits) without
+// MakeHuman's data: every slider_*, modifier_* and age_years cell a finite number in the range
+// fit-measurements writes (macro sliders 0 … 1, weight up to FitMeasurementsOptions::weight_max,
+// modifiers ±modifier_limit). InputError naming the file, line and column.
+void check_stored_fits(const std::string& fits);
+
 // What a subject is: slider values and measured labels (measured on the standard-pose mesh).
 struct SyntheticSubject {
   std::string id;

@@ -2,6 +2,7 @@
 // bodymodel morph model.npz --set sex=female --set age_years=40 --set height_cm=165 --set weight_kg=80 --out body.obj
 #include <fmt/format.h>
 
+#include "core/body_size.h"
 #include "core/data_path.h"
 #include "core/io/mesh_io.h"
 #include "core/plausibility.h"
@@ -81,6 +82,7 @@ void run_morph(MorphArgs& a) {
   } else {
     body = read_mesh(a.in);
     model->check_topology(body.V, body.F, "'" + a.in + "'");
+    check_body_size(body.V, "'" + a.in + "'");
     if (!a.mask.empty())
       o.triangle_mask = triangle_mask_from_vertices(model->tmpl->faces(), body_region_vertex_mask(model->rig, a.mask));
   }

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <mutex>
 
+#include "core/body_size.h"
 #include "core/data_path.h"
 #include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
@@ -136,6 +137,7 @@ void run_sweep(SweepArgs& a) {
   if (!a.in.empty()) {
     start = read_mesh(a.in);
     model->check_topology(start.V, start.F, "'" + a.in + "'");
+    check_body_size(start.V, "'" + a.in + "'");
   } else if (!a.keep.empty()) {
     throw InputError("--keep needs a start body (--in)");
   }

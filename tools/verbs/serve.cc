@@ -174,7 +174,7 @@ class MorphService {
       }
       b.decode_ms = ms_since(t0);
       const auto t1 = std::chrono::steady_clock::now();
-      b.measured = quick ? measure_height_and_weight(b.V, model_->tmpl->faces()) : morpher_.measure(b.V, sex);
+      b.measured = quick ? measure_height_and_weight(b.V, model_->tmpl->faces()) : measure_morphed(morpher_, b.V, sex, cond);
       b.measure_ms = ms_since(t1);
     }
     b.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
