@@ -531,6 +531,7 @@ struct GenerationSetup {
 
 GenerationSetup generation_setup(const ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
                                  const GenerateOptions& o) {
+  check_generate_options(o);
   const SubModel& sm = morpher.model().shape;
   GenerationSetup g;
   int sex_label = sm.regression.find("sex");
@@ -554,6 +555,13 @@ GenerationSetup generation_setup(const ShapeMorpher& morpher, const std::vector<
 }
 
 }  // namespace
+
+void check_generate_options(const GenerateOptions& o) {
+  // A negative spread flips the random coefficients' signs and NaN makes NaN bodies: refused
+  // here, so every caller (CLI, Python, server) says the same.
+  if (!(std::isfinite(o.spread) && o.spread >= 0))
+    throw InputError(fmt::format("generate: spread must be a finite number ≥ 0, got {}", o.spread));
+}
 
 void prepare_generation(const ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
                         const GenerateOptions& options) {

@@ -212,6 +212,10 @@ struct GeneratedBody {
 void prepare_generation(const ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
                         const GenerateOptions& options);
 
+// Throws InputError naming the option when `options` cannot generate bodies (a spread that is
+// negative or not finite). generate_body, prepare_generation and the crowd call it.
+void check_generate_options(const GenerateOptions& options);
+
 // One body; `seed` makes it reproducible. Conditions may use "sex" with 0 = female, 1 = male.
 GeneratedBody generate_body(const ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
                             uint64_t seed, const GenerateOptions& options = {});
