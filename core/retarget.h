@@ -27,7 +27,7 @@
 //     along its length like a back instead of folding at its lowest bone. spine05, the top of
 //     the pelvis, moves with the hips (as in rig/cmu_mb.mhskel: Hips → root, spine05): 02_02's
 //     abdomen bends up to 35° against the hips, and all of it at spine05 stretched the groin
-//     4.9 × its rest length with the template weights (2.9 × now, smoothed weights).
+//     far beyond its rest length (docs/benchmarks.md#figures-behind-code-comments).
 //     The chain's last bone ends where it did.
 //  3. Root translation: scaled by (hm08 thigh+shin length / source thigh+shin length), with
 //     the horizontal travel measured from frame 0 and the height from the source's rest hip

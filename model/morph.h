@@ -71,8 +71,8 @@ struct MorphOptions {
   // labels with respect to the requested (eq. 11) change, by finite differences at the model's
   // mean body (1 + #measured-labels decodes, once per morpher and label set, cached), and each
   // iteration requests J⁻¹·(target − measured). The regression's slope is not the measured one
-  // (weight is a volume, height an extent): with a unit slope a 65 kg request typically lands
-  // 0.6–0.7× as far as asked and needs a third decode. Worth it when many bodies share the
+  // (weight is a volume, height an extent): with a unit slope a 65 kg request typically falls
+  // short and needs a third decode (docs/results.md#generated-crowds). Worth it when many bodies share the
   // label set (generation), not for one morph.
   bool calibrated_response = false;
   // With calibrated_response: the shape coefficients of the body where the response is
@@ -85,10 +85,9 @@ struct MorphOptions {
   // anchor (a population crowd at --spread 0: every body of a sex starts at its subjects'
   // mean) takes the anchor's measured values as its start; another start the regression's
   // prediction corrected by its error measured at the anchor (an approximation: the correction
-  // is exact at the anchor only). Measured on 200 population bodies: the regression is off by
-  // +0.6 cm (men) / +1.3 cm (women) in height at the anchor, and weight responds ≈ 1.1× as far
-  // as the mean's slope says 80 kg above it, and −0.04 kg per year of age; this model cut the
-  // decodes per body from 1.82 to 1.04 (docs/population.md).
+  // is exact at the anchor only). On population bodies the regression is off in height at
+  // the anchor, weight responds non-linearly far from the mean and also changes with age; this
+  // model cut the decodes per body to about one (measured in docs/population.md#figures).
   Eigen::VectorXd response_anchor;
 };
 

@@ -56,9 +56,8 @@ struct RegistrationOptions {
   bool proportions_with_shape = false;
   // When the alternation stops unconverged (the last shape fit moved a slider), one more pose
   // fit on the last shape, so the pose and the shape handed to the non-rigid fit belong together
-  // (without it the pose was fitted on the shape before). 100 database scans, full register:
-  // joint median 5.03 → 4.85°, correspondence 4.82 / 14.5 → 4.75 / 13.9 mm, flipped triangles
-  // 1 932 → 1 816; wall 1 482 → 1 898 s at --jobs 2 (partly beside a test build).
+  // (without it the pose was fitted on the shape before). Better on every registration figure
+  // for one more pose fit per scan (measured in docs/registration.md#history).
   bool final_pose_fit = true;
   // After the first shape fit, the pose fits keep the shape fit's global scale (the height
   // slider carries the size) instead of fitting their own.
