@@ -344,8 +344,11 @@ def run_help(exe, words):
 
 def parse_help(text):
     """(subcommand names, long options) of one CLI11 --help text."""
-    subcommands, options, in_subcommands = [], [], False
+    subcommands, options, in_subcommands, started = [], [], False, False
     for line in text.splitlines():
+        if not started:  # the description comes first; options and subcommands follow "Usage:"
+            started = line.startswith("Usage:")
+            continue
         if re.match(r"^\S.*:\s*$", line):  # a group heading: "Options:", "Subcommands:", ...
             in_subcommands = line.strip().lower().startswith("subcommands")
             continue
