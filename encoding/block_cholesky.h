@@ -19,7 +19,7 @@
 // operations in the same order). The solve for three right-hand sides has an AVX2/FMA variant
 // (run-time dispatch, like the GEMM kernel). It replaced a 3×3-block up-looking factorisation
 // and CHOLMOD in the decoder because it takes less CPU than either on the body's system
-// (bench/encoding_bench; figures in docs/benchmarks.md).
+// (bench/encoding_bench; figures in docs/results.md#encoding-speed and docs/benchmarks.md).
 //
 // Thread safety: the analysis is immutable; factorize() and solve() are const and write only
 // to the caller's Factor / right-hand side, so one BlockCholesky3 serves concurrent callers.
