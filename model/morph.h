@@ -171,13 +171,13 @@ struct GenerateOptions {
   // of a body's time); false = height, volume and weight only (the rest NaN).
   bool measure_girths = true;
   // Fold repair after decoding (repair_body_folds): a decoded body can fold a few tiny
-  // triangles (toes, eyelids: 0.1-5 mm², a median of 4 and up to 42 per body); they are
+  // triangles (toes, eyelids: docs/results.md#generated-crowds); they are
   // re-solved from the template's local shape, and the labels are measured AFTER the repair.
   bool repair_folds = true;
   // 8 passes (regions up to 2 + 7 rings): the under-bust triangles of a full-breasted body
   // (30-160 mm², turned 90-120° against the template's) need the wider regions; 3 passes left
-  // 4 of 200 bodies of a 40-subject model with 6-10 (the re-solve moves them up to ~50 mm and
-  // the weight by up to 0.3 kg, which the measurement after the repair sees).
+  // some bodies folded (docs/benchmarks.md#figures-behind-code-comments; the re-solve moves vertices and the
+  // weight, which the measurement after the repair sees).
   FoldRepairOptions fold_repair = [] {
     FoldRepairOptions f;
     f.passes = 8;

@@ -70,8 +70,8 @@ struct RegistrationOptions {
   // ≤ 0 rings: off.
   int repair_flipped_rings = 2;
   // Repair passes while folds remain, pass p growing the region by p more rings. 6 (rings up to
-  // 7): a face fold of 58 triangles (15-scan database, s001_p3) needs the 5th pass; with 3 it was
-  // left whole (83 flipped against truth → 23 with 6, the moved vertices' error 12.3 → 4.9 mm).
+  // 7): a large face fold (15-scan database, s001_p3) needs the 5th pass; with 3 it was left
+  // whole (docs/benchmarks.md#figures-behind-code-comments).
   int repair_flipped_passes = 6;
   // Evaluation only (diagnosis of the non-rigid stage on synthetic data; never for real scans):
   // skip the pose fit and start the non-rigid fit from

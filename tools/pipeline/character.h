@@ -124,8 +124,8 @@ struct CharacterOptions {
   bool fold_reference_skinned = true;
   // In-betweens decoded with the pose morph's constraints (limb tips, torso) for the slerped pose
   // (model/pose_edit.h blend_pose_morphs); false = the interpolated encoding decoded freely and
-  // placed rigidly, whose hands and feet end up to 160–200 mm from where the skeleton puts them
-  // (the demo character's held-out maximum of every rig, 163 mm, was such an in-between).
+  // placed rigidly, whose hands and feet end far from where the skeleton puts them (the demo
+  // character's held-out maximum of every rig was such an in-between: docs/results.md).
   bool constrain_blends = true;
   int max_influences = 4;           // slots per vertex (the template weights' largest ones)
   // The SSD rig Animation Space and MWE build on (their prior / delta-space base): the template's

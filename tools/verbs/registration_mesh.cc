@@ -40,8 +40,8 @@ struct RegisterMeshArgs {
   int jobs = 1, samples = MeshScanOptions{}.samples;
   int fast_steps = NonrigidOptions{}.fast_steps;
   // Stiffer end than `register` (1): a captured mesh has less detail than the template, and at
-  // β = 1 the fit folded 86 triangles of frame 1 of vlasic-jumping (eyelids, armpits) against
-  // 31 at β = 3; those left are smoothed away (unfold_triangles): 8.6 mm two-sided, 0 folds.
+  // β = 1 the fit folded far more triangles of vlasic-jumping (eyelids, armpits) than at β = 3;
+  // those left are smoothed away (unfold_triangles). Measured: docs/results.md (Vlasic "jumping").
   double fast_k_end = 3.0;
   bool no_shape_fit = false;
   bool force = false, detail = false, pose_only = false, no_proportions = false,
@@ -122,8 +122,8 @@ BODYMODEL_VERB(add_register_mesh_verb) {
   cmd->add_flag("--no-shape-fit", a->no_shape_fit,
                 "Keep the default MakeHuman body's shape (global scale and landmark proportions "
                 "only) instead of fitting its macro sliders (gender, age, muscle, weight, height, "
-                "proportions, cup) in the pose stage (vlasic frames 1 and 64: 7.63/9.11 mm "
-                "two-sided without, 7.22/6.60 with)");
+                "proportions, cup) in the pose stage (the shape fit lowers the two-sided distance on "
+                "real meshes: docs/results.md)");
   cmd->add_option("--pose-iterations", a->pose_iterations,
                   "ICP iterations of the pose fit (0: landmarks only)")
       ->capture_default_str();
