@@ -167,7 +167,7 @@ struct GenerateOptions {
   // plus a random Gaussian combination of their deviations (the within-sex distribution).
   double spread = 1.0;
   int max_attempts = 4;   // fresh samples when the conditions cannot be met
-  // GeneratedBody::measured with the girths (measure_body, convex-hull sections: about a third
+  // GeneratedBody::measured with the girths (measure_body, convex-hull sections: a large share
   // of a body's time); false = height, volume and weight only (the rest NaN).
   bool measure_girths = true;
   // Fold repair after decoding (repair_body_folds): a decoded body can fold a few tiny
