@@ -83,10 +83,10 @@ struct PoseMorphOptions {
   int torso_anchors = 64;
   // As the tips: the lowest error of 1e2–1e4 (docs/benchmarks.md#figures-behind-code-comments).
   double torso_anchor_weight = 1e4;
-  // Volume (beyond the paper). A pose change from the model changes the body's volume: on 40
-  // held-out posed scans the decoded morph was at 0.948–1.026 of the rest volume (the training
-  // scans' own skinned pose changes are at 0.956–1.030), and a generated character's CMU-frame
-  // morphs lost 8–15 %. When set, a result whose volume is more than volume_tolerance off the
+  // Volume (beyond the paper). A pose change from the model changes the body's volume, more
+  // than the training scans' own skinned pose changes do, and a generated character's CMU-frame
+  // morphs lost several per cent (docs/results.md#pose-morphs;
+  // docs/benchmarks.md#figures-behind-code-comments). When set, a result whose volume is more than volume_tolerance off the
   // input body's is offset along its vertex normals by the uniform distance that brings it to
   // the edge of that band (restore_volume; ≈ 0.5 mm per percent on an adult).
   bool preserve_volume = true;
