@@ -73,7 +73,7 @@ struct RetargetOptions {
   bool start_at_origin = true;        // horizontal translation relative to frame 0
   // Which chains get a rest correction of their own (step 2). `limbs`: arm and leg chains
   // (default). `all_chains`: every chain except root, pelvis, fingers and toes (the behaviour
-  // before session 3, kept for comparison).
+  // before 336b371, kept for comparison).
   enum class RestCorrection { limbs, all_chains };
   RestCorrection rest_correction = RestCorrection::limbs;
   // The two options below are off by default (the synthetic database, `skin apply` and the
