@@ -71,8 +71,8 @@ struct MorphOptions {
   // labels with respect to the requested (eq. 11) change, by finite differences at the model's
   // mean body (1 + #measured-labels decodes, once per morpher and label set, cached), and each
   // iteration requests J⁻¹·(target − measured). The regression's slope is not the measured one
-  // (weight is a volume, height an extent): with a unit slope a 65 kg request typically lands
-  // 0.6–0.7× as far as asked and needs a third decode. Worth it when many bodies share the
+  // (weight is a volume, height an extent): with a unit slope a 65 kg request typically falls
+  // short and needs a third decode (docs/results.md#generated-crowds). Worth it when many bodies share the
   // label set (generation), not for one morph.
   bool calibrated_response = false;
   // With calibrated_response: the shape coefficients of the body where the response is
@@ -85,10 +85,9 @@ struct MorphOptions {
   // anchor (a population crowd at --spread 0: every body of a sex starts at its subjects'
   // mean) takes the anchor's measured values as its start; another start the regression's
   // prediction corrected by its error measured at the anchor (an approximation: the correction
-  // is exact at the anchor only). Measured on 200 population bodies: the regression is off by
-  // +0.6 cm (men) / +1.3 cm (women) in height at the anchor, and weight responds ≈ 1.1× as far
-  // as the mean's slope says 80 kg above it, and −0.04 kg per year of age; this model cut the
-  // decodes per body from 1.82 to 1.04 (docs/population.md).
+  // is exact at the anchor only). On population bodies the regression is off in height at
+  // the anchor, weight responds non-linearly far from the mean and also changes with age; this
+  // model cut the decodes per body to about one (measured in docs/population.md#figures).
   Eigen::VectorXd response_anchor;
 };
 
@@ -172,17 +171,17 @@ struct GenerateOptions {
   // plus a random Gaussian combination of their deviations (the within-sex distribution).
   double spread = 1.0;
   int max_attempts = 4;   // fresh samples when the conditions cannot be met
-  // GeneratedBody::measured with the girths (measure_body, convex-hull sections: about a third
+  // GeneratedBody::measured with the girths (measure_body, convex-hull sections: a large share
   // of a body's time); false = height, volume and weight only (the rest NaN).
   bool measure_girths = true;
   // Fold repair after decoding (repair_body_folds): a decoded body can fold a few tiny
-  // triangles (toes, eyelids: 0.1-5 mm², a median of 4 and up to 42 per body); they are
+  // triangles (toes, eyelids: docs/results.md#generated-crowds); they are
   // re-solved from the template's local shape, and the labels are measured AFTER the repair.
   bool repair_folds = true;
   // 8 passes (regions up to 2 + 7 rings): the under-bust triangles of a full-breasted body
   // (30-160 mm², turned 90-120° against the template's) need the wider regions; 3 passes left
-  // 4 of 200 bodies of a 40-subject model with 6-10 (the re-solve moves them up to ~50 mm and
-  // the weight by up to 0.3 kg, which the measurement after the repair sees).
+  // some bodies folded (docs/benchmarks.md#figures-behind-code-comments; the re-solve moves vertices and the
+  // weight, which the measurement after the repair sees).
   FoldRepairOptions fold_repair = body_fold_repair_options();
   // Morph settings; generation accepts 1 kg / 1 cm around exact targets (every decode costs,
   // and a crowd "of 65 kg" is checked at ± 2 kg), morphing keeps the tighter 0.25.

@@ -63,7 +63,7 @@ struct SyntheticDatabaseOptions {
   FitMeasurementsOptions fit;
   // A fit-measurements batch's fit.csv whose bodies are reused: a drawn person listed there with
   // the same sex, age and fitted measurements gets that row's sliders and modifiers (stored to 4
-  // decimals) instead of a new fit (~10-20 s each). Empty = fit every person.
+  // decimals) instead of a new fit (seconds of CPU each). Empty = fit every person.
   std::string fits;
   // Write the truth meshes, poses and tables only, without simulating the scanner: what `build`
   // reads (it builds from truth/), for model studies where registration is not the question.

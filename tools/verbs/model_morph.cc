@@ -36,7 +36,7 @@ void add_morph_options(CLI::App* cmd, MorphArgs& a) {
       ->check(CLI::IsMember({"smallest", "likely"}));
   cmd->add_flag("--reference", a.reference,
                 "Also fit MakeHuman to the output's height, weight, waist and hip and print that body's "
-                "roughness (the plausibility reference, ~2 s)");
+                "roughness (the plausibility reference; one more MakeHuman fit)");
   cmd->add_option("--set", a.set, "LABEL=VALUE, repeatable (e.g. height_cm=185, sex=female)");
   cmd->add_option("--keep", a.keep, "LABEL to hold at its current value, repeatable");
   cmd->add_option("--mask", a.mask,
