@@ -878,9 +878,10 @@ namespace {
 // surface but not the inner joints with weight and muscle (a fat belly leaves spine01 where it
 // was), so an exact fit needs large cancelling weights that would amplify vertex noise on a
 // registered mesh. λ = 1e-3 · trace/128 trades that off: ‖w‖₂ ≤ 2.3 (1 mm of vertex noise
-// gives ≤ 2.3 mm of joint noise) for joint errors of ~1-2 mm on average and up to ~4 cm at
-// the chest joints of extreme bodies (measured in makehuman_test). Joints defined by body
-// vertices alone are copied exactly.
+// gives ≤ 2.3 mm of joint noise) for joint errors that are small on average and largest at
+// the chest joints of extreme bodies (makehuman_test;
+// docs/benchmarks.md#figures-behind-code-comments). Joints defined by body vertices alone are
+// copied exactly.
 Eigen::SparseMatrix<double, Eigen::RowMajor> fit_body_joint_regressor(const MakeHuman& mh,
                                                                       const MakeHuman::Impl& m) {
   constexpr int kSamples = 160, kCandidates = 128;

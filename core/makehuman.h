@@ -8,7 +8,7 @@
 //   motion/poses/*.bvh                 static poses for the default skeleton (§7.1)
 // Everything this class returns is in MILLIMETRES (file decimetres × 100).
 //
-// Load once (≈ 0.3 s of CPU: 564 target files, ~350 distinct (hard links are parsed once),
+// Load once (a fraction of a second of CPU: 564 target files, ~350 distinct (hard links are parsed once),
 // read in parallel with a hand-written exact decimal parser), then build many bodies: one
 // body (vertices + skeleton) costs a few milliseconds.
 // Copies of a MakeHuman share the loaded data (cheap to copy, safe to use from many threads).
@@ -119,8 +119,8 @@ class MakeHuman {
   // that has no helper geometry: each joint is a fixed combination (weights summing to 1, so
   // it moves rigidly with the mesh) of 128 body vertices around it, fitted by regularised
   // least squares to reproduce skeleton() over 160 random MakeHuman bodies (fitted once, on
-  // first use, ~1 s). On unseen MakeHuman bodies: mean head error ~2 mm, worst ~4 cm (chest
-  // joints of extreme builds: MakeHuman's weight targets move the surface, not the joints).
+  // first use). On unseen MakeHuman bodies the worst joints are the chest joints of extreme builds
+  // (MakeHuman's weight targets move the surface, not the joints; figures: docs/benchmarks.md#figures-behind-code-comments).
   Skeleton skeleton_from_body(const Eigen::MatrixX3d& body_vertices) const;
   // That regressor: #joints by 13380 (rows sum to 1). Thread-safe.
   const Eigen::SparseMatrix<double, Eigen::RowMajor>& body_joint_regressor() const;

@@ -290,6 +290,16 @@ BodyMeasurements measure_body(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i&
                               const MeasureOptions& o) {
   if (V.rows() == 0 || F.rows() == 0) throw InputError("measure: the mesh is empty");
   if (o.up_axis < 0 || o.up_axis > 2) throw InputError("measure: up axis must be 0, 1 or 2");
+  if (!(std::isfinite(o.mm_per_unit) && o.mm_per_unit > 0))
+    throw InputError("measure: mm_per_unit must be a finite number > 0, got " + std::to_string(o.mm_per_unit));
+  if (!(std::isfinite(o.density_kg_per_l) && o.density_kg_per_l > 0))
+    throw InputError("measure: density_kg_per_l must be a finite number > 0, got " + std::to_string(o.density_kg_per_l));
+  if (!V.allFinite()) throw InputError("measure: the vertices contain NaN or infinite values");
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k)
+      if (F(f, k) < 0 || F(f, k) >= V.rows())
+        throw InputError("measure: triangle " + std::to_string(f) + " has vertex index " + std::to_string(F(f, k)) +
+                         ", the mesh has " + std::to_string(V.rows()) + " vertices");
   const double to_cm = o.mm_per_unit / 10.0;
   BodyMeasurements m;
   const double lo = V.col(o.up_axis).minCoeff(), hi = V.col(o.up_axis).maxCoeff();

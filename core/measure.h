@@ -46,10 +46,10 @@ struct MeasureOptions {
   double mm_per_unit = 1.0;         // mesh unit in millimetres (bodies here are in mm)
   int slices_per_band = 40;         // cuts per girth band
   // Each cut looks only at the triangles whose vertical extent contains its height (listed once
-  // per band) instead of at every triangle: the same sections, about 4x faster on a 27k-triangle
-  // body. `false` cuts the whole mesh every time (the reference the tests compare against).
+  // per band) instead of at every triangle: the same sections, several times faster
+  // (docs/benchmarks.md#figures-behind-code-comments). `false` cuts the whole mesh every time (the reference the tests compare against).
   bool cut_band_triangles_only = true;
-  // Neck, chest, natural waist and the band hip (and so body fat); false = NaN, about 5x faster
+  // Neck, chest, natural waist and the band hip (and so body fat); false = NaN, several times faster
   // (fit-measurements' inner loop, which needs only height, weight and the survey measures).
   bool band_girths = true;
   // The survey measurements (header comment) on template-topology bodies; false = NaN.

@@ -117,7 +117,7 @@ int self_intersecting_triangle_pairs(const Eigen::MatrixX3d& V, const Eigen::Mat
   // Broad phase: a uniform grid of cells about twice a triangle's mean box extent; every pair of
   // triangles whose (closed) boxes overlap shares the cell of its overlap's lowest corner and is
   // tested there, once. The same pairs as CGAL's box_self_intersection_d (the narrow phase is
-  // the same), in ~0.6–0.7× its CPU on population bodies (bench/plausibility_bench.cc).
+  // the same), in less CPU on population bodies (bench/plausibility_bench.cc; docs/population.md).
   const int nf = static_cast<int>(F.rows());
   if (nf < 2) return 0;
   if (!V.allFinite()) return self_intersecting_triangle_pairs_box_d(V, F);

@@ -27,7 +27,7 @@
 //     along its length like a back instead of folding at its lowest bone. spine05, the top of
 //     the pelvis, moves with the hips (as in rig/cmu_mb.mhskel: Hips → root, spine05): 02_02's
 //     abdomen bends up to 35° against the hips, and all of it at spine05 stretched the groin
-//     4.9 × its rest length with the template weights (2.9 × now, smoothed weights).
+//     far beyond its rest length (docs/benchmarks.md#figures-behind-code-comments).
 //     The chain's last bone ends where it did.
 //  3. Root translation: scaled by (hm08 thigh+shin length / source thigh+shin length), with
 //     the horizontal travel measured from frame 0 and the height from the source's rest hip
@@ -73,7 +73,7 @@ struct RetargetOptions {
   bool start_at_origin = true;        // horizontal translation relative to frame 0
   // Which chains get a rest correction of their own (step 2). `limbs`: arm and leg chains
   // (default). `all_chains`: every chain except root, pelvis, fingers and toes (the behaviour
-  // before session 3, kept for comparison).
+  // before 336b371, kept for comparison).
   enum class RestCorrection { limbs, all_chains };
   RestCorrection rest_correction = RestCorrection::limbs;
   // The two options below are off by default (the synthetic database, `skin apply` and the

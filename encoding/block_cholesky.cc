@@ -249,7 +249,7 @@ BlockCholesky3::BlockCholesky3(int n, const std::vector<std::pair<int, int>>& lo
   fund_first.push_back(n);
 
   // (Relaxed amalgamation, CHOLMOD-style merging with explicit zeros, was measured on the body:
-  // 20–60 % more flops and a slower solve for no faster factorisation, so supernodes stay
+  // more flops and a slower solve for no faster factorisation, so supernodes stay
   // fundamental.)
   super_first_ = fund_first;
   const int ns = nfund;
@@ -807,7 +807,7 @@ void BlockCholesky3::solve_panel(const Factor& factor, double* z) const {
   }
 #endif
   // The fixed width lets the compiler keep a block row of the panel in registers (the
-  // run-time-width substitution is ≈ 3× slower per column).
+  // run-time-width substitution is several times slower per column).
   substitute<kPanel>(supernode_count(), super_first_, rows_begin_, rows_, value_offset_, factor.values.data(),
                      kPanel, z);
 }

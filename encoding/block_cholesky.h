@@ -17,9 +17,9 @@
 // its inverse. Disjoint subtrees of the supernodal elimination tree run in parallel (TBB); the
 // result is bit-identical to the serial order (each panel is always computed by the same
 // operations in the same order). The solve for three right-hand sides has an AVX2/FMA variant
-// (run-time dispatch, like the GEMM kernel). Measured on the 26 756-triangle body (265 MFlop):
-// factorisation 0.75× and solve 0.69× the CPU of the 3×3-block up-looking factorisation it
-// replaces (same process), 0.25× / 0.6–0.7× CHOLMOD's simplicial refactorisation (bench/).
+// (run-time dispatch, like the GEMM kernel). It replaced a 3×3-block up-looking factorisation
+// and CHOLMOD in the decoder because it takes less CPU than either on the body's system
+// (bench/encoding_bench; figures in docs/results.md#encoding-speed and docs/benchmarks.md).
 //
 // Thread safety: the analysis is immutable; factorize() and solve() are const and write only
 // to the caller's Factor / right-hand side, so one BlockCholesky3 serves concurrent callers.

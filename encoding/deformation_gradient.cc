@@ -63,7 +63,7 @@ std::vector<Eigen::Matrix3d> inverse_rest_frames(const Eigen::MatrixX3d& V_rest,
 PolarDecomposition polar_decomposition(const Eigen::Matrix3d& U) {
   // Fast path (the usual case: det U > 0, singular values within a factor 100): eigen-
   // decomposition of UᵀU in closed form, S = Q Σ Qᵀ, R = U S⁻¹, then one Newton step of the
-  // polar iteration, which makes R orthonormal to rounding; S = Rᵀ U symmetrised. About 4× faster
+  // polar iteration, which makes R orthonormal to rounding; S = Rᵀ U symmetrised. Several times faster
   // than the SVD below, which handles everything else (reflections, rank deficiency).
   const double det = U.determinant();
   if (det > 0 && U.allFinite()) {

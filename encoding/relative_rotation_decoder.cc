@@ -28,7 +28,7 @@ double ms_since(Clock::time_point t0) {
 
 // CHOLMOD's simplicial LLᵀ for the per-decode refactorisation of the rotation system: on this
 // machine (ATLAS BLAS, 2 cores) it factorises the 3·#F system faster than the supernodal
-// variant (≈ 190 vs 350 ms CPU for the body). Its solve uses workspace inside the object, so
+// variant (docs/benchmarks.md#figures-behind-code-comments). Its solve uses workspace inside the object, so
 // each concurrent caller gets its own (RotationPool).
 using Cholesky = Eigen::CholmodSimplicialLLT<SparseMatrixd, Eigen::Lower>;
 // Factorisations shared by concurrent callers: Eigen's own simplicial Cholesky, whose solve is
@@ -118,7 +118,7 @@ struct RelativeRotationDecoder::Impl {
   mutable std::vector<std::unique_ptr<Cholesky>> rotation_pool;  // analysed, idle
   mutable std::shared_ptr<const PoissonFactor> constrained_poisson;  // last constraint set
   // Block-Cholesky factors of earlier calls, idle: a factor is tens of MB, and a fresh one is
-  // zero-filled page by page (memset and page faults were 5–8 % of a population crowd's CPU),
+  // zero-filled page by page (memset and page faults showed in a population crowd's profile),
   // while factorize() overwrites every panel anyway.
   mutable std::vector<BlockCholesky3::Factor> factor_pool;
   mutable DecodeTiming last;

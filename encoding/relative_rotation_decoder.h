@@ -93,7 +93,7 @@ struct DecoderOptions {
   bool orient_to_constraints = true;
   // Weight of a soft positional constraint when PositionConstraints::weights is empty,
   // relative to the cotangent weights (dimensionless). 1e4 makes the constraints near-hard
-  // (a 50 mm handle move lands within ~0.1 mm on a body).
+  // (handles moved 50 mm land within a small fraction of a millimetre: docs/results.md#summary).
   double constraint_weight = 1e4;
 
   // Throws InputError describing the first invalid field.

@@ -42,6 +42,34 @@ bool parse_double(const std::string& s, double& v) {
   return end && *end == '\0';
 }
 
+// Larger label values are no body's (heights in cm, weights in kg, ages, percentages) and
+// overflow the regression's sums of squares.
+constexpr double kMaxLabelMagnitude = 1e6;
+
+std::string unit_of(const std::string& name);
+
+// A label cell: empty = unknown (NaN); otherwise a finite number of a body's range, else an
+// InputError naming the file, line and column (inf or 1e308 used to reach the model file, or
+// fail in the regression naming nothing).
+double label_value(const std::string& cell, const fs::path& path, size_t line, const std::string& column) {
+  if (cell.empty()) return std::numeric_limits<double>::quiet_NaN();
+  double v = 0;
+  if (!parse_double(cell, v))
+    throw InputError(fmt::format("'{}' line {}, column '{}': '{}' is not a number", path.string(), line, column, cell));
+  if (!std::isfinite(v))
+    throw InputError(fmt::format("'{}' line {}, column '{}': '{}' is not a finite number (leave the cell empty for "
+                                 "an unknown value)",
+                                 path.string(), line, column, cell));
+  if (std::abs(v) > kMaxLabelMagnitude)
+    throw InputError(fmt::format("'{}' line {}, column '{}': {} is outside the range of a body's label (|value| ≤ {:g})",
+                                 path.string(), line, column, cell, kMaxLabelMagnitude));
+  const std::string unit = unit_of(column);
+  if (v < 0 && (unit == "cm" || unit == "kg" || unit == "L" || unit == "years"))
+    throw InputError(fmt::format("'{}' line {}, column '{}': {} is negative, a length, mass, volume or age is not",
+                                 path.string(), line, column, cell));
+  return v;
+}
+
 std::string unit_of(const std::string& name) {
   auto ends = [&](const std::string& suf) {
     return name.size() >= suf.size() && name.compare(name.size() - suf.size(), suf.size(), suf) == 0;
@@ -105,11 +133,7 @@ SubjectTable read_subject_table(const fs::path& path) {
         throw InputError(fmt::format("'{}' line {}: sex must be female or male, got '{}'", path.string(), r + 1, s));
       ++k;
     }
-    for (int c : cols) {
-      double v = std::numeric_limits<double>::quiet_NaN();
-      if (!rows[r][c].empty()) parse_double(rows[r][c], v);
-      t.values(r - 1, k++) = v;
-    }
+    for (int c : cols) t.values(r - 1, k++) = label_value(rows[r][c], path, r + 1, h[c]);
   }
   return t;
 }
@@ -121,7 +145,7 @@ std::vector<ScanTableRow> read_scan_table(const fs::path& path) {
   std::vector<ScanTableRow> out;
   for (size_t r = 1; r < rows.size(); ++r) {
     // A scan id names files (REG/<id>.ply, DB/truth/<id>.pose.csv): it must stay in its folder.
-    check_file_name(rows[r][a], fmt::format("'{}' line {}", path.string(), r + 1), "scan id");
+    check_file_name(rows[r][a], fmt::format("{}:{}", path.string(), r + 1), "scan id");
     out.push_back({rows[r][a], rows[r][b], rows[r][c]});
   }
   return out;
@@ -222,10 +246,7 @@ ModelBuildInput read_registered_folder(const fs::path& reg, const fs::path& csv,
         throw InputError(fmt::format("'{}' line {}: sex must be female or male, got '{}'", csv.string(), r + 1, s));
       ++k;
     }
-    for (int c : label_cols) {
-      if (!rows[r][c].empty()) parse_double(rows[r][c], v(k));
-      ++k;
-    }
+    for (int c : label_cols) v(k++) = label_value(rows[r][c], csv, r + 1, h[c]);
     auto it = subject_values.find(subj);
     if (it == subject_values.end()) {
       subject_values[subj] = v;

@@ -24,6 +24,9 @@ struct DatabaseReadSummary {
 // *_pct %, *_years years, muscle %), plus "sex" (0 female, 1 male) from the sex column; pose
 // labels "pose:<bone>:rx|ry|rz" (rotation-vector components, radians) from the pose files
 // (standard-pose scans without a file get 0, other scans without one NaN = unknown).
+// A label cell is empty (unknown) or a finite number of at most 1e6 in magnitude, not negative
+// for a length, mass, volume or age (units cm, kg, L, years); InputError naming the file, line
+// and column otherwise (read_registered_folder's table too).
 // Throws InputError naming the file and line for malformed tables, a mesh whose topology
 // differs from the first one's, or when no listed scan has a mesh.
 ModelBuildInput read_registered_database(const std::filesystem::path& registered_dir,

@@ -1,5 +1,7 @@
 #include "model/fit.h"
 
+#include "core/statistics.h"
+
 #include <Eigen/CholmodSupport>
 #include <Eigen/Dense>
 #include <Eigen/SparseCore>
@@ -53,14 +55,6 @@ Eigen::Matrix3d stretch_of(const double* s6) {
   return S;
 }
 
-double percentile(std::vector<double> v, double p) {  // numpy's default (linear)
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const double pos = p / 100.0 * static_cast<double>(v.size() - 1);
-  const size_t lo = static_cast<size_t>(std::floor(pos));
-  const size_t hi = std::min(lo + 1, v.size() - 1);
-  return v[lo] + (pos - static_cast<double>(lo)) * (v[hi] - v[lo]);
-}
 
 // One unknown's block row of the Jacobian's right-hand-side panel (3 rows × 12: column 4c + j
 // is column c of coefficient j): Z += Σ_t Σ_e b_t,e,j M_t,e over `count` terms, M_t the 27

@@ -53,6 +53,7 @@ void generate_crowd_bodies_for(std::shared_ptr<const BodyModel> model,
                                const std::vector<int>& indices, const GenerateCrowdOptions& o,
                                const std::function<void(CrowdBody&&)>& on_body, const ProgressCallback& progress) {
   if (o.threads < 0) throw InputError(fmt::format("generate: {} threads", o.threads));
+  check_generate_options(o.generate);
   const ShapeMorpher morpher(model);
   // Calibrate each distinct label set and sex's measured response first, with every core (in
   // the loop below the first body to need one would calibrate it alone while other workers

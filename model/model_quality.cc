@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/error.h"
+#include "core/statistics.h"
 #include "encoding/relative_rotation_decoder.h"
 #include "model/format.h"
 
@@ -41,14 +42,6 @@ double nearest_training_distance(const Eigen::MatrixX3d& sample, const std::vect
 
 }  // namespace
 
-double percentile_of(std::vector<double> v, double p) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::sort(v.begin(), v.end());
-  const double pos = p / 100.0 * static_cast<double>(v.size() - 1);
-  const size_t lo = static_cast<size_t>(std::floor(pos));
-  const size_t hi = std::min(lo + 1, v.size() - 1);
-  return v[lo] + (pos - static_cast<double>(lo)) * (v[hi] - v[lo]);
-}
 
 Eigen::MatrixX3d VertexPcaModel::mesh(const Eigen::VectorXd& c) const {
   return unflatten(pca.mean + pca.basis.leftCols(c.size()) * c);
@@ -204,14 +197,14 @@ ModelQuality evaluate_model_quality(const BodyModel& model, const std::vector<Ei
     for (size_t t = 0; t < test.size(); ++t) {
       const Eigen::VectorXd& e = errors[j][t];
       std::vector<double> ev(e.data(), e.data() + e.size());
-      TestMeshError pm{job.model, names[t], job.K, e.mean(), percentile_of(ev, 95), e.maxCoeff(), seconds[j][t]};
+      TestMeshError pm{job.model, names[t], job.K, e.mean(), percentile(ev, 95), e.maxCoeff(), seconds[j][t]};
       mean_sum += pm.mean_mm;
       max_all = std::max(max_all, pm.max_mm);
       pooled.insert(pooled.end(), ev.begin(), ev.end());
       out.per_mesh.push_back(pm);
     }
     row.generalisation_mean_mm = mean_sum / static_cast<double>(test.size());
-    row.generalisation_p95_mm = percentile_of(pooled, 95);
+    row.generalisation_p95_mm = percentile(pooled, 95);
     row.generalisation_max_mm = max_all;
     out.pooled_errors[j].assign(pooled.begin(), pooled.end());
     // Compactness.
@@ -285,7 +278,7 @@ std::vector<QualityRow> pool_model_quality(const std::vector<ModelQuality>& fold
                        : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
     };
     r.generalisation_mean_mm = mean(a.means);
-    r.generalisation_p95_mm = percentile_of(a.pooled, 95);
+    r.generalisation_p95_mm = percentile(a.pooled, 95);
     r.generalisation_max_mm = a.max;
     r.specificity_mean_mm = mean(a.spec);
     double var = 0;

@@ -114,7 +114,5 @@ ModelQuality evaluate_model_quality(const BodyModel& model, const std::vector<Ei
 // over folds. Rows are matched by (model, K); a K missing from a fold is skipped there.
 std::vector<QualityRow> pool_model_quality(const std::vector<ModelQuality>& folds);
 
-// numpy-style percentile (linear interpolation), p in [0, 100].
-double percentile_of(std::vector<double> values, double p);
 
 }  // namespace bodymodel

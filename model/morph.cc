@@ -161,6 +161,18 @@ double tolerance_for(const LabelInfo& info, const MorphOptions& o) {
   return o.tolerance_other * std::max(info.stddev, 1e-9);
 }
 
+// The targets of `conditions` as text: "height_cm = 150, waist_cm 60 … 70, weight_kg kept".
+std::string targets_text(const std::vector<LabelCondition>& conditions) {
+  std::string s;
+  for (const auto& c : conditions) {
+    s += s.empty() ? "" : ", ";
+    if (c.keep) s += c.label + " kept";
+    else if (c.lo == c.hi) s += fmt::format("{} = {:.4g}", c.label, c.lo);
+    else s += fmt::format("{} {:.4g} … {:.4g}", c.label, c.lo, c.hi);
+  }
+  return s;
+}
+
 // The conditions' label values of a body: measured on V where a mesh can tell (height and
 // weight/volume only: the fast measure_height_and_weight), else the regression's prediction
 // from the coefficients c.
@@ -183,7 +195,7 @@ Eigen::VectorXd label_values(const ShapeMorpher& morpher, const std::vector<Labe
     // sections: height = extent along +y, weight = enclosed volume × density.
     meas = measure_height_and_weight(V, morpher.model().tmpl->faces());
   } else if (any_measured) {
-    meas = morpher.measure(V, sex);
+    meas = measure_morphed(morpher, V, sex, conditions);
   }
   for (int i = 0; i < m; ++i) {
     std::optional<double> mv;
@@ -484,7 +496,8 @@ namespace {
 
 // The measured labels of a summary re-measured on V (after a fold repair moved vertices):
 // achieved and satisfied as measured on the body that is returned.
-void remeasure_labels(const ShapeMorpher& morpher, const Eigen::MatrixX3d& V, Sex sex, MorphSummary& summary) {
+void remeasure_labels(const ShapeMorpher& morpher, const Eigen::MatrixX3d& V, Sex sex, MorphSummary& summary,
+                      const std::vector<LabelCondition>& conditions) {
   bool any = false, only_extent_and_volume = true;
   for (auto& l : summary.labels)
     if (l.measured) {
@@ -493,7 +506,7 @@ void remeasure_labels(const ShapeMorpher& morpher, const Eigen::MatrixX3d& V, Se
     }
   if (!any) return;
   const BodyMeasurements meas = only_extent_and_volume ? measure_height_and_weight(V, morpher.model().tmpl->faces())
-                                                       : morpher.measure(V, sex);
+                                                       : measure_morphed(morpher, V, sex, conditions);
   for (auto& l : summary.labels) {
     if (!l.measured) continue;
     if (auto mv = measured_label(l.label, meas)) {
@@ -518,6 +531,7 @@ struct GenerationSetup {
 
 GenerationSetup generation_setup(const ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
                                  const GenerateOptions& o) {
+  check_generate_options(o);
   const SubModel& sm = morpher.model().shape;
   GenerationSetup g;
   int sex_label = sm.regression.find("sex");
@@ -541,6 +555,13 @@ GenerationSetup generation_setup(const ShapeMorpher& morpher, const std::vector<
 }
 
 }  // namespace
+
+void check_generate_options(const GenerateOptions& o) {
+  // A negative spread flips the random coefficients' signs and NaN makes NaN bodies: refused
+  // here, so every caller (CLI, Python, server) says the same.
+  if (!(std::isfinite(o.spread) && o.spread >= 0))
+    throw InputError(fmt::format("generate: spread must be a finite number ≥ 0, got {}", o.spread));
+}
 
 void prepare_generation(const ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
                         const GenerateOptions& options) {
@@ -580,7 +601,7 @@ GeneratedBody generate_body(const ShapeMorpher& morpher, const std::vector<Label
     g.V = morpher.morph_encoding(Eigen::VectorXd(), conditions, mo, &g.summary, &g.encoding, &c);
     if (o.repair_folds) {
       g.folds = repair_body_folds(model, g.V, o.fold_repair);
-      if (g.folds.vertices_moved > 0) remeasure_labels(morpher, g.V, mo.sex, g.summary);
+      if (g.folds.vertices_moved > 0) remeasure_labels(morpher, g.V, mo.sex, g.summary, conditions);
     }
     g.satisfied = true;
     double missed = 0;
@@ -595,9 +616,21 @@ GeneratedBody generate_body(const ShapeMorpher& morpher, const std::vector<Label
     }
     if (best.satisfied) break;
   }
-  best.measured = o.measure_girths ? morpher.measure(best.V, mo.sex)
+  best.measured = o.measure_girths ? measure_morphed(morpher, best.V, mo.sex, conditions)
                                    : measure_height_and_weight(best.V, model.tmpl->faces());
   return best;
+}
+
+// The error names the targets that asked for the body, not only the measurement's complaint.
+BodyMeasurements measure_morphed(const ShapeMorpher& morpher, const Eigen::MatrixX3d& V, Sex sex,
+                                 const std::vector<LabelCondition>& conditions) {
+  try {
+    return morpher.measure(V, sex);
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("morph: the targets {} ask for a body the model cannot make: the body it "
+                                 "decodes for them cannot be measured ({}); relax one of them",
+                                 targets_text(conditions), e.what()));
+  }
 }
 
 BodyMeasurements measure_height_and_weight(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F) {
@@ -634,6 +667,31 @@ int flipped_triangle_count(const BodyModel& model, const Eigen::MatrixX3d& V) {
   for (int f = 0; f < F.rows(); ++f)
     if (n1.row(f).dot(n0.row(f)) < 0) ++flipped;
   return flipped;
+}
+
+FoldRepairOptions body_fold_repair_options() {
+  FoldRepairOptions f;
+  f.passes = 8;
+  return f;
+}
+
+MorphedBody morph_body(const ShapeMorpher& morpher, const Eigen::MatrixX3d* V,
+                       const std::vector<LabelCondition>& conditions, const MorphOptions& options,
+                       const FoldRepairOptions& repair) {
+  MorphedBody out;
+  const BodyModel& model = morpher.model();
+  out.V = V ? morpher.morph(*V, conditions, options, &out.summary)
+            : morpher.morph_encoding(model.shape.pca.mean, conditions, options, &out.summary);
+  out.folds = repair_body_folds(model, out.V, repair);
+  return out;
+}
+
+std::string unmet_labels(const MorphSummary& summary) {
+  std::string missed;
+  for (const auto& l : summary.labels)
+    if (!l.satisfied)
+      missed += fmt::format("{}{} = {:.4g} (reached {:.4g})", missed.empty() ? "" : ", ", l.label, l.target, l.achieved);
+  return missed;
 }
 
 FoldRepairSummary repair_body_folds(const BodyModel& model, Eigen::MatrixX3d& V, const FoldRepairOptions& options) {

@@ -71,8 +71,8 @@ struct MorphOptions {
   // labels with respect to the requested (eq. 11) change, by finite differences at the model's
   // mean body (1 + #measured-labels decodes, once per morpher and label set, cached), and each
   // iteration requests J⁻¹·(target − measured). The regression's slope is not the measured one
-  // (weight is a volume, height an extent): with a unit slope a 65 kg request typically lands
-  // 0.6–0.7× as far as asked and needs a third decode. Worth it when many bodies share the
+  // (weight is a volume, height an extent): with a unit slope a 65 kg request typically falls
+  // short and needs a third decode (docs/results.md#generated-crowds). Worth it when many bodies share the
   // label set (generation), not for one morph.
   bool calibrated_response = false;
   // With calibrated_response: the shape coefficients of the body where the response is
@@ -85,10 +85,9 @@ struct MorphOptions {
   // anchor (a population crowd at --spread 0: every body of a sex starts at its subjects'
   // mean) takes the anchor's measured values as its start; another start the regression's
   // prediction corrected by its error measured at the anchor (an approximation: the correction
-  // is exact at the anchor only). Measured on 200 population bodies: the regression is off by
-  // +0.6 cm (men) / +1.3 cm (women) in height at the anchor, and weight responds ≈ 1.1× as far
-  // as the mean's slope says 80 kg above it, and −0.04 kg per year of age; this model cut the
-  // decodes per body from 1.82 to 1.04 (docs/population.md).
+  // is exact at the anchor only). On population bodies the regression is off in height at
+  // the anchor, weight responds non-linearly far from the mean and also changes with age; this
+  // model cut the decodes per body to about one (measured in docs/population.md#figures).
   Eigen::VectorXd response_anchor;
 };
 
@@ -161,6 +160,10 @@ class ShapeMorpher {
   std::shared_ptr<ResponseCache> response_cache_;
 };
 
+// The fold repair bodies get after decoding (generation and morphing): 8 passes, regions up to
+// 2 + 7 rings, because the under-bust triangles of a full-breasted body need the wider regions.
+FoldRepairOptions body_fold_repair_options();
+
 // Random bodies from the shape-only model (§5.2).
 struct GenerateOptions {
   // Coefficients ~ N(0, eigenvalues) scaled by this (1 = the data's spread). When a sex
@@ -168,22 +171,18 @@ struct GenerateOptions {
   // plus a random Gaussian combination of their deviations (the within-sex distribution).
   double spread = 1.0;
   int max_attempts = 4;   // fresh samples when the conditions cannot be met
-  // GeneratedBody::measured with the girths (measure_body, convex-hull sections: about a third
+  // GeneratedBody::measured with the girths (measure_body, convex-hull sections: a large share
   // of a body's time); false = height, volume and weight only (the rest NaN).
   bool measure_girths = true;
   // Fold repair after decoding (repair_body_folds): a decoded body can fold a few tiny
-  // triangles (toes, eyelids: 0.1-5 mm², a median of 4 and up to 42 per body); they are
+  // triangles (toes, eyelids: docs/results.md#generated-crowds); they are
   // re-solved from the template's local shape, and the labels are measured AFTER the repair.
   bool repair_folds = true;
   // 8 passes (regions up to 2 + 7 rings): the under-bust triangles of a full-breasted body
   // (30-160 mm², turned 90-120° against the template's) need the wider regions; 3 passes left
-  // 4 of 200 bodies of a 40-subject model with 6-10 (the re-solve moves them up to ~50 mm and
-  // the weight by up to 0.3 kg, which the measurement after the repair sees).
-  FoldRepairOptions fold_repair = [] {
-    FoldRepairOptions f;
-    f.passes = 8;
-    return f;
-  }();
+  // some bodies folded (docs/benchmarks.md#figures-behind-code-comments; the re-solve moves vertices and the
+  // weight, which the measurement after the repair sees).
+  FoldRepairOptions fold_repair = body_fold_repair_options();
   // Morph settings; generation accepts 1 kg / 1 cm around exact targets (every decode costs,
   // and a crowd "of 65 kg" is checked at ± 2 kg), morphing keeps the tighter 0.25.
   MorphOptions morph = [] {
@@ -212,9 +211,19 @@ struct GeneratedBody {
 void prepare_generation(const ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
                         const GenerateOptions& options);
 
+// Throws InputError naming the option when `options` cannot generate bodies (a spread that is
+// negative or not finite). generate_body, prepare_generation and the crowd call it.
+void check_generate_options(const GenerateOptions& options);
+
 // One body; `seed` makes it reproducible. Conditions may use "sex" with 0 = female, 1 = male.
 GeneratedBody generate_body(const ShapeMorpher& morpher, const std::vector<LabelCondition>& conditions,
                             uint64_t seed, const GenerateOptions& options = {});
+
+// morpher.measure(V, sex) of a body morphed for `conditions`. A body that cannot be measured
+// (targets each within its label's range but contradictory together turn the body inside out)
+// is an InputError naming those targets.
+BodyMeasurements measure_morphed(const ShapeMorpher& morpher, const Eigen::MatrixX3d& V, Sex sex,
+                                 const std::vector<LabelCondition>& conditions);
 
 // The cheap part of core/measure.h's measure_body, with its definitions: height = extent
 // along +y (cm), volume (L), weight = volume × density (kg); girths and body fat NaN.
@@ -232,6 +241,21 @@ int flipped_triangle_count(const BodyModel& model, const Eigen::MatrixX3d& V);
 //   V #V by 3 (mm, modified in place).
 FoldRepairSummary repair_body_folds(const BodyModel& model, Eigen::MatrixX3d& V,
                                     const FoldRepairOptions& options = {});
+
+// A morph as a user asks for it (`bodymodel morph`, Python's Model.morph): from the body V (#V by
+// 3, mm) or, when V is null, from the model's mean body (template-aligned), then the fold repair
+// generation applies, so both front ends return the same body.
+struct MorphedBody {
+  Eigen::MatrixX3d V;
+  MorphSummary summary;
+  FoldRepairSummary folds;
+};
+MorphedBody morph_body(const ShapeMorpher& morpher, const Eigen::MatrixX3d* V,
+                       const std::vector<LabelCondition>& conditions, const MorphOptions& options,
+                       const FoldRepairOptions& repair = body_fold_repair_options());
+
+// "height_cm = 250 (reached 212.3), …": the labels a morph did not meet.
+std::string unmet_labels(const MorphSummary& summary);
 
 // Root-mean-square vertex distance between two bodies after a rigid fit of b onto a (mm).
 double rms_vertex_distance(const Eigen::MatrixX3d& a, const Eigen::MatrixX3d& b);

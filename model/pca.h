@@ -58,8 +58,8 @@ struct Pca {
 // PCA of the COLUMNS of X (D by N, one sample per column, N ≥ 2). Throws InputError for fewer
 // than two samples or non-finite values. With PcaEigenSolver::automatic the partial solver is
 // used when N ≥ kPartialEigenMinSamples and max_components ≤ N / kPartialEigenMinRatio:
-// measured there (bench/model_bench.cc BM_PcaEigen, docs/benchmarks.md) the whole fit takes
-// 0.5× the CPU at N = 200 and 0.18× at N = 2000, with the same eigenpairs to ~1e-14.
+// there the whole fit takes a fraction of the full solver's CPU with the same eigenpairs
+// (bench/model_bench.cc BM_PcaEigen; measured in docs/benchmarks.md).
 inline constexpr int kPartialEigenMinSamples = 200;
 inline constexpr int kPartialEigenMinRatio = 10;
 Pca fit_pca(const Eigen::MatrixXd& X, const PcaOptions& options = {}, PcaSummary* summary = nullptr);

@@ -72,20 +72,21 @@ struct PoseMorphOptions {
   // the examples missed. 0 = the paper's linear regression only.
   int transfer_neighbours = 8;
   // Torso placement (beyond the paper). With only the limb tips constrained, the decoder places
-  // the torso wherever the tips pull it: on 40 held-out posed scans it sat 16 mm (mean; up to
-  // 55 mm) and 5.4° (up to 17°) from where skinning the body puts it, which was most of the
-  // error against the true posed mesh. When set, the pose-changed body is first decoded without
+  // the torso wherever the tips pull it: on held-out posed scans far from where skinning the
+  // body puts it, which was most of the error against the true posed mesh
+  // (docs/results.md#pose-morphs). When set, the pose-changed body is first decoded without
   // constraints, fitted rigidly onto the torso (root, spine*, pelvis* bones, weight ≥ 0.9) of
   // the skinned body, and torso_anchors of its torso vertices (spread evenly) are kept at those
   // places as soft positional constraints with the tips: the torso keeps the model's shape
   // and is placed by the skeleton's root and spine.
   bool anchor_torso = true;
   int torso_anchors = 64;
-  double torso_anchor_weight = 1e4;  // as the tips (1e3: 9.0 mm mean error, 1e2: 9.0, 1e4: 8.8)
-  // Volume (beyond the paper). A pose change from the model changes the body's volume: on 40
-  // held-out posed scans the decoded morph was at 0.948–1.026 of the rest volume (the training
-  // scans' own skinned pose changes are at 0.956–1.030), and a generated character's CMU-frame
-  // morphs lost 8–15 %. When set, a result whose volume is more than volume_tolerance off the
+  // As the tips: the lowest error of 1e2–1e4 (docs/benchmarks.md#figures-behind-code-comments).
+  double torso_anchor_weight = 1e4;
+  // Volume (beyond the paper). A pose change from the model changes the body's volume, more
+  // than the training scans' own skinned pose changes do, and a generated character's CMU-frame
+  // morphs lost several per cent (docs/results.md#pose-morphs;
+  // docs/benchmarks.md#figures-behind-code-comments). When set, a result whose volume is more than volume_tolerance off the
   // input body's is offset along its vertex normals by the uniform distance that brings it to
   // the edge of that band (restore_volume; ≈ 0.5 mm per percent on an adult).
   bool preserve_volume = true;
@@ -145,7 +146,8 @@ PositionConstraints pose_morph_constraints(const BodyModel& model, RelativeRotat
 // at t (relative rotations, encoding/), decoded with pose_morph's constraints for `pose` (the
 // in-between pose, e.g. per-bone slerp) and its volume kept like pose_morph's. Without the
 // constraints the limbs of an in-between of two distant poses end far from where the skeleton
-// puts them (up to 160–200 mm at the hands and feet of a demo character's held-out in-betweens).
+// puts them (the hands and feet of a demo character's held-out in-betweens:
+// docs/results.md#characters-and-animation).
 Eigen::MatrixX3d blend_pose_morphs(const BodyModel& model, RelativeRotationDecoder& decoder,
                                    const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& A, const Eigen::MatrixX3d& B,
                                    double t, const Pose& pose, const PoseMorphOptions& options = {});

@@ -66,8 +66,22 @@ SemanticRegression fit_semantic_regression(const Eigen::MatrixXd& C, const Eigen
       X.row(i) = C.row(rows[i]);
       y(i) = Y(rows[i], l);
     }
-    // Eq. 10 (regression/linear.h), with a tiny ridge for stability.
-    LinearFit fit = fit_linear(X, y, options.relative_ridge * mean_var * rows.size());
+    // Eq. 10 (regression/linear.h), with a tiny ridge for stability. A failure names the label:
+    // huge values (1e308) overflow the solve and the statistics, and a model holding them is
+    // one no reader takes back.
+    const auto refuse = [&](const std::string& why) {
+      return InputError(fmt::format("semantic regression: label '{}' (values {:.4g} … {:.4g}): {}; check its "
+                                    "column in the labels table",
+                                    labels[l].name, y.minCoeff(), y.maxCoeff(), why));
+    };
+    LinearFit fit;
+    try {
+      fit = fit_linear(X, y, options.relative_ridge * mean_var * rows.size());
+    } catch (const NumericalError&) {
+      throw refuse("the regression produced non-finite coefficients");
+    }
+    if (!std::isfinite(fit.offset) || !fit.gradient.allFinite())
+      throw refuse("the regression produced non-finite coefficients");
     r.offsets(l) = fit.offset;
     r.gradients.col(l) = fit.gradient;
     LabelInfo& info = labels[l];
@@ -75,6 +89,8 @@ SemanticRegression fit_semantic_regression(const Eigen::MatrixXd& C, const Eigen
     info.stddev = std::sqrt((y.array() - info.mean).square().sum() / std::max<double>(1, y.size() - 1));
     info.min = y.minCoeff();
     info.max = y.maxCoeff();
+    if (!std::isfinite(info.mean) || !std::isfinite(info.stddev))
+      throw refuse("its mean or spread is not finite");
   }
   r.labels = std::move(labels);
   return r;

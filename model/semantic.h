@@ -49,7 +49,8 @@ struct SemanticRegressionOptions {
 
 // C N by K coefficients of the training samples; Y N by L label values (NaN = unknown for that
 // sample: the sample is left out of that label's fit); labels L (names/units; statistics are
-// filled in here). Throws InputError on mismatched sizes or a label with < 2 known values.
+// filled in here). Throws InputError on mismatched sizes, a label with < 2 known values, or a
+// label whose regression or statistics are not finite (values too large: names the label).
 SemanticRegression fit_semantic_regression(const Eigen::MatrixXd& C, const Eigen::MatrixXd& Y,
                                            std::vector<LabelInfo> labels,
                                            const SemanticRegressionOptions& options = {});

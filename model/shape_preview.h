@@ -6,7 +6,7 @@
 //     V(x0 + basis·z) ≈ V(x0) + Σ_k J_k z_k,   J_k = (V(x0 + σ_k b_k) − V(x0 − σ_k b_k)) / 2σ_k
 // with σ_k the component's standard deviation (a secant over ±1σ fits the typical request
 // better than the tangent). Building it costs 2·K decodes once; a preview then costs one
-// 3#V by K product (milliseconds instead of a decode's ~100 ms). How far it lies from the exact
+// 3#V by K product (milliseconds, far below a decode: docs/viewer.md#measured). How far it lies from the exact
 // decode is measured by bench/serve_roundtrip.py and bounded in the serve test (docs/viewer.md).
 #pragma once
 

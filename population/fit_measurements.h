@@ -16,7 +16,7 @@
 // default proportions). The Jacobian is by forward differences of the measured values (the
 // measures are convex-hull perimeters and an arg-max level, not differentiable in closed
 // form), refreshed every few steps with Broyden updates between; each evaluation builds the body
-// (~1 ms) and measures it (~3 ms). The start is the best of a coarse (muscle, weight) grid.
+// and measures it (milliseconds, measuring the larger part). The start is the best of a coarse (muscle, weight) grid.
 //
 // REACH. MakeHuman's sliders in [0, 1] and modifiers in [−1, 1] do not reach heavy people (a
 // 160 cm woman at weight 1, muscle 0 measures BMI ≈ 33). The EXTENDED space lets a few sliders

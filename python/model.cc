@@ -4,6 +4,7 @@
 
 #include <mutex>
 
+#include "core/body_size.h"
 #include "core/error.h"
 #include "model/body_model.h"
 #include "model/fit.h"
@@ -104,31 +105,31 @@ class PyModel {
         throw InputError(fmt::format("mask: {} values, expected one per triangle ({})", o.triangle_mask.size(),
                                      model_->tmpl->triangle_count()));
     }
-    MorphSummary sum;
-    Eigen::MatrixX3d out;
-    if (V.is_none()) {
-      // The model's mean body (encoding 0 relative to the mean), template-aligned.
-      const ShapeMorpher& mo = morpher();
-      pyb::gil_scoped_release nogil;
-      out = mo.morph_encoding(Eigen::VectorXd::Zero(model_->tmpl->encoding_size()), cond, o, &sum);
-    } else {
-      Eigen::MatrixX3d X = vertices(V, "V");
+    // As `bodymodel morph` (model/morph.h's morph_body: the same morph and fold repair), from V or
+    // from the model's mean body (template-aligned).
+    Eigen::MatrixX3d X;
+    if (!V.is_none()) {
+      X = vertices(V, "V");
       model_->tmpl->check_vertices(X, "V");
+      check_body_size(X, "V");
+    }
+    MorphedBody morphed;
+    {
       const ShapeMorpher& mo = morpher();
       pyb::gil_scoped_release nogil;
-      out = mo.morph(X, cond, o, &sum);
+      morphed = morph_body(mo, V.is_none() ? nullptr : &X, cond, o);
     }
-    // As `bodymodel morph`: a target the model cannot meet is an error unless the closest body is
-    // asked for.
+    const MorphSummary& sum = morphed.summary;
+    const Eigen::MatrixX3d& out = morphed.V;
+    // A target the model cannot meet is an error unless the closest body is asked for.
     if (!sum.converged && !closest) {
-      std::string missed;
-      for (const auto& l : sum.labels)
-        if (!l.satisfied)
-          missed += fmt::format("{}{} = {:.4g} (reached {:.4g})", missed.empty() ? "" : ", ", l.label, l.target, l.achieved);
+      const std::string missed = unmet_labels(sum);
       throw InputError(fmt::format("morph: the model cannot meet {} from '{}' after {} iterations (closest=True returns "
                                    "the closest body)", missed, V.is_none() ? "the mean body" : "V", sum.iterations));
     }
-    return pyb::make_tuple(to_array(Eigen::MatrixXd(out)), summary_dict(sum));
+    pyb::dict d = summary_dict(sum);
+    d["folds_repaired"] = morphed.folds.flipped_before - morphed.folds.flipped_after;
+    return pyb::make_tuple(to_array(Eigen::MatrixXd(out)), d);
   }
 
   // As `bodymodel fit` (tools/verbs/model_fit.cc) on a mesh whose vertices are V: the same checks
@@ -147,6 +148,7 @@ class PyModel {
     if (components > sub.component_count())
       throw InputError(fmt::format("--components {}: the {} model has {} components", components,
                                    full ? "full" : "shape", sub.component_count()));
+    const double scale_given = scale;
     if (scale == 0) {
       scale = 1;
       if (bm.metadata.contains("source") && bm.metadata["source"].contains("mm_per_unit"))
@@ -155,6 +157,7 @@ class PyModel {
     const Eigen::MatrixX3d Y = vertices(V, "V") * scale;
     const Eigen::MatrixX3i F = bm.tmpl->faces();
     bm.check_topology(Y, F, "V");
+    check_body_size(Y, "V", "--scale", scale, scale_given == 0);
     ModelFitOptions o;
     o.components = components;
     o.max_iterations = iterations;
@@ -307,6 +310,8 @@ morph() and generate() use. Encodings are 15 values per triangle relative to enc
       .def("predict_labels", [](const PyModel& p, const pyb::handle& V) {
              Eigen::MatrixX3d X = vertices(V, "V");
              const BodyModel& bm = p.model();
+             bm.tmpl->check_vertices(X, "V");
+             check_body_size(X, "V");
              Eigen::VectorXd c = bm.shape.pca.project(bm.encode(X, "V").values);
              return to_array(Eigen::VectorXd(bm.shape.regression.predict(c)));
            }, "V"_a, "predict_labels(V) -> (L,): the eq. 10 regression's labels of body V (label_names' order).")

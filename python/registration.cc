@@ -1,7 +1,5 @@
-// bodymodel.register_scan: the registration of one scan (registration/register_scan.h) with the
-// template and options of `bodymodel register` (tools/pipeline/registration_setup.h, compiled
-// into the module) and the same per-scan steps as the verb: optional local fold repair, then the
-// plausibility check that fails a scan that is not a body.
+// bodymodel.register_scan: the registration of one scan as `bodymodel register` runs it
+// (registration/job.h: the same template, options, fold repair and plausibility check).
 #include <fmt/format.h>
 
 #include <map>
@@ -12,10 +10,8 @@
 #include "core/error.h"
 #include "core/landmarks.h"
 #include "python/common.h"
-#include "registration/fit_check.h"
-#include "registration/local_fold_repair.h"
-#include "registration/register_scan.h"
-#include "tools/pipeline/registration_setup.h"
+#include "registration/evaluation.h"
+#include "registration/job.h"
 
 namespace bodymodel::py {
 
@@ -23,50 +19,39 @@ namespace {
 
 using namespace pybind11::literals;
 
-// The template and options: the verbs' (MakeHuman's default body) or MakeHuman's body of the given
-// macro sliders. Kept for the next call (MakeHuman's data takes ≈ 0.5 s to load): the verbs' set-up
+// The macro sliders of a `template` argument (None: MakeHuman's default body).
+std::optional<MacroSettings> template_sliders(const pyb::handle& tmpl) {
+  if (tmpl.is_none()) return std::nullopt;
+  if (!pyb::isinstance<pyb::dict>(tmpl))
+    throw InputError("template: expected None or a dict of MakeHuman macro sliders {gender: 0..1, ...}");
+  nlohmann::json j = nlohmann::json::object();
+  for (auto [k, v] : tmpl.cast<pyb::dict>()) {
+    const std::string name = pyb::str(k);
+    try {
+      j[name] = v.cast<double>();
+    } catch (const pyb::cast_error&) {
+      j[name] = std::string(pyb::repr(v));  // MacroSettings::from_json names it as not a number
+    }
+  }
+  return MacroSettings::from_json(j);
+}
+
+// The template, kept for the next call (loading MakeHuman's data takes a while): the default body
 // per shape_fit flag, and the last custom template.
-std::shared_ptr<const RegistrationSetup> setup(bool shape_fit, const pyb::handle& tmpl) {
+std::shared_ptr<const RegistrationTemplate> cached_template(const RegistrationJobOptions& o) {
   static std::mutex mutex;
-  static std::map<std::string, std::shared_ptr<const RegistrationSetup>> cache;
-  std::string key = shape_fit ? "shape:" : "noshape:";
-  MacroSettings settings;
-  if (!tmpl.is_none()) {
-    if (!pyb::isinstance<pyb::dict>(tmpl))
-      throw InputError("template: expected None or a dict of MakeHuman macro sliders {gender: 0..1, ...}");
-    nlohmann::json j = nlohmann::json::object();
-    for (auto [k, v] : tmpl.cast<pyb::dict>()) {
-      const std::string name = pyb::str(k);
-      try {
-        j[name] = v.cast<double>();
-      } catch (const pyb::cast_error&) {
-        j[name] = std::string(pyb::repr(v));  // MacroSettings::from_json names it as not a number
-      }
-    }
-    settings = MacroSettings::from_json(j);
-    key += settings.to_json().dump();
-  }
+  static std::map<std::string, std::shared_ptr<const RegistrationTemplate>> cache;
+  std::string key = o.shape_fit ? "shape:" : "noshape:";
+  if (o.start_shape) key += o.start_shape->to_json().dump();
   std::lock_guard lock(mutex);
-  auto& s = cache[key];
-  if (!s) {
-    RegistrationFlags flags;
-    flags.no_shape_fit = !shape_fit;
-    auto r = std::make_shared<RegistrationSetup>(makehuman_registration_setup(flags));
-    if (!tmpl.is_none()) {
-      // As makehuman_registration_setup, from another body of the same shape space.
-      std::optional<MakeHuman> loaded;  // without the shape fit the set-up keeps no MakeHuman
-      if (!r->tpl.shape_space) loaded = MakeHuman::load();
-      MakeHuman::Body body = (r->tpl.shape_space ? *r->tpl.shape_space : *loaded).body(settings);
-      r->tpl.mesh = body.mesh;
-      r->tpl.skeleton = body.skeleton;
-      r->tpl.weights = body.weights;
-      r->tpl.shape_start = settings;
-      for (auto it = cache.begin(); it != cache.end();)  // one custom template at a time
+  auto& t = cache[key];
+  if (!t) {
+    t = std::make_shared<const RegistrationTemplate>(registration_template(o));
+    if (o.start_shape)  // one custom template at a time
+      for (auto it = cache.begin(); it != cache.end();)
         it = it->first.find('{') != std::string::npos && it->first != key ? cache.erase(it) : std::next(it);
-    }
-    s = std::move(r);
   }
-  return s;
+  return t;
 }
 
 std::vector<Landmark> landmarks_from(const pyb::handle& h) {
@@ -90,15 +75,22 @@ pyb::tuple register_one(const pyb::handle& points, const pyb::handle& normals, c
                         double scan_unit_mm, bool pose_only, const std::string& pose_joints, bool hand_stage,
                         bool proportions, bool shape_fit, bool proportions_with_shape, bool repair_folds,
                         const std::string& what, const pyb::object& progress) {
-  // The verb's checks and messages (tools/verbs/registration_register.cc).
-  if (schedule != "paper" && schedule != "fast")
-    throw InputError("schedule: expected 'paper' or 'fast', got '" + schedule + "'");
-  if (pose_joints != "segment" && pose_joints != "bone" && pose_joints != "best")
-    throw InputError("pose_joints: expected 'segment', 'bone' or 'best', got '" + pose_joints + "'");
-  if (!(scan_unit_mm > 0)) throw InputError("--scan-unit-mm must be positive");
-  if (fast_steps < 1) throw InputError("--fast-steps must be at least 1");
-  if (!(fast_k_end > 0) || !(transform_length > 0))
-    throw InputError("--fast-stiffness-end and --transform-length must be positive");
+  RegistrationJobOptions job;
+  job.schedule = schedule;
+  job.fast_steps = fast_steps;
+  job.fast_k_end = fast_k_end;
+  job.transform_length = transform_length;
+  job.pose_only = pose_only;
+  job.pose_joints = pose_joints;
+  job.hand_stage = hand_stage;
+  job.proportions = proportions;
+  job.shape_fit = shape_fit;
+  job.proportions_with_shape = proportions_with_shape;
+  job.folds = repair_folds ? FoldRepair::local : FoldRepair::keep;
+  job.start_shape = template_sliders(tmpl);
+  const RegistrationSetup setup = registration_setup(job);  // validates, naming the option
+  if (!(scan_unit_mm > 0) || !std::isfinite(scan_unit_mm))
+    throw InputError(fmt::format("scan_unit_mm must be a positive number, got {}", scan_unit_mm));
   PointCloud scan;
   scan.P = vertices(points, "points");
   if (!normals.is_none()) {
@@ -111,42 +103,17 @@ pyb::tuple register_one(const pyb::handle& points, const pyb::handle& normals, c
   scan.P *= scan_unit_mm;
   for (auto& l : lm) l.target *= scan_unit_mm;
 
-  const std::shared_ptr<const RegistrationSetup> held = setup(shape_fit, tmpl);
-  const RegistrationSetup& base = *held;
-  RegistrationOptions o = base.options;
-  o.nonrigid.schedule = schedule == "paper" ? NonrigidSchedule::paper : NonrigidSchedule::fast;
-  o.nonrigid.fast_steps = fast_steps;
-  o.nonrigid.fast_k_end = fast_k_end;
-  o.skip_nonrigid = pose_only;
-  o.fit_proportions = proportions;
-  o.nonrigid.normalization_length = transform_length;
-  o.proportions_with_shape = proportions_with_shape;
-  if (pose_joints == "bone") o.pose.parameters = bone_pose_parameters();
-  if (pose_joints == "segment") o.pose.parameters = segment_pose_parameters();
-  if (pose_joints == "best") {
-    o.pose.parameters = segment_pose_parameters();
-    o.pose_alternatives.push_back(o.pose);
-    o.pose_alternatives.back().parameters = bone_pose_parameters();
-  }
-  if (hand_stage) {
-    if (o.pose.parameters.empty()) o.pose.parameters = default_pose_parameters();
-    o.pose.parameters = with_hand_stage(o.pose.parameters);
-    for (auto& alt : o.pose_alternatives) alt.parameters = with_hand_stage(alt.parameters);
-  }
-  const RegistrationTemplate& tpl = base.tpl;
+  const std::shared_ptr<const RegistrationTemplate> held = cached_template(job);
+  const RegistrationTemplate& tpl = *held;
   ProgressCallback cb = progress_callback(progress);
-  RegistrationSummary s;
-  RegistrationResult r;
-  int local_folds = 0;
+  RegistrationJobResult job_result;
   {
     pyb::gil_scoped_release nogil;
-    r = register_scan(tpl, scan, lm, o, what, &s, cb);
-    if (repair_folds && !pose_only) local_folds = repair_local_folds(r.V, r.rest.V, tpl.mesh.F).folded_before;
-    if (!pose_only) {
-      const FitCheck fc = check_registration_fit(r.V, r.pose.V, r.rest.V, tpl.mesh.F, scan);
-      if (!fc.plausible) throw InputError(what + ": registration failed: " + fc.reason);
-    }
+    job_result = run_registration_job(tpl, setup, scan, lm, what, cb);
   }
+  const RegistrationResult& r = job_result.registration;
+  const RegistrationSummary& s = job_result.summary;
+  const int local_folds = job_result.local_folds_repaired;
   pyb::dict d;
   d["faces"] = to_array(Eigen::MatrixXi(tpl.mesh.F));
   d["posed_template"] = to_array(Eigen::MatrixXd(r.pose.V));
@@ -164,7 +131,7 @@ pyb::tuple register_one(const pyb::handle& points, const pyb::handle& normals, c
   d["pose_rms_mm"] = s.pose.rms;
   d["pose_landmark_rms_mm"] = s.pose.landmark_rms;
   d["pose_two_sided_mm"] = s.pose.two_sided_mm;
-  d["pose_joints"] = pose_joints == "best" ? (s.pose_choice == 0 ? "segment" : "bone") : pose_joints;
+  d["pose_joints"] = job_result.pose_joints;
   d["nonrigid_iterations"] = s.nonrigid.iterations;
   d["data_rms_mm"] = s.nonrigid.data_rms;
   d["landmark_rms_mm"] = s.nonrigid.landmark_rms;
@@ -187,9 +154,50 @@ pyb::tuple register_one(const pyb::handle& points, const pyb::handle& normals, c
   return pyb::make_tuple(to_array(Eigen::MatrixXd(r.V)), d);
 }
 
+// The evaluator of MakeHuman's default body (the template every registration has), built once.
+const RegistrationEvaluator& template_evaluator() {
+  static const RegistrationEvaluator e = [] {
+    const MakeHuman::Body b = MakeHuman::load().body(MacroSettings{});
+    return RegistrationEvaluator(b.mesh, b.skeleton, b.weights);
+  }();
+  return e;
+}
+
+pyb::dict evaluate_registration(const pyb::handle& V, const pyb::handle& truth, const pyb::handle& scan) {
+  const Eigen::MatrixX3d R = vertices(V, "V"), T = vertices(truth, "truth");
+  const Eigen::MatrixX3d P = scan.is_none() ? T : vertices(scan, "scan");
+  ScanEvaluation e;
+  {
+    pyb::gil_scoped_release nogil;
+    e = template_evaluator().evaluate_scan(R, T, P);
+  }
+  const RegistrationErrors& x = e.errors;
+  std::map<std::string, int> regions;
+  for (const FlippedTriangle& f : e.flipped) ++regions[f.region];
+  pyb::dict by_region;
+  for (const auto& [region, count] : regions) by_region[pyb::str(region)] = count;
+  return pyb::dict("correspondence_mean_mm"_a = x.correspondence_mean, "correspondence_p95_mm"_a = e.correspondence_p95,
+                   "correspondence_max_mm"_a = x.correspondence_max, "surface_mean_mm"_a = x.surface_mean,
+                   "surface_max_mm"_a = x.surface_max, "hole_vertices"_a = x.hole_vertices,
+                   "hole_mean_mm"_a = x.hole_mean, "hole_max_mm"_a = x.hole_max,
+                   "flipped_triangles"_a = x.flipped_triangles, "flipped_unseen"_a = x.flipped_unseen,
+                   "flipped_where_truth_folded"_a = e.flipped_truth_folded, "flipped_by_region"_a = by_region,
+                   "folded_in_registration"_a = e.folded_registration, "folded_in_truth"_a = e.folded_truth,
+                   "vertex_errors_mm"_a = to_array(Eigen::VectorXd(x.vertex_errors)));
+}
+
 }  // namespace
 
 void bind_registration(pyb::module_& m) {
+  m.def("evaluate_registration", &evaluate_registration, "V"_a, "truth"_a, "scan"_a = pyb::none(),
+        R"(evaluate_registration(V, truth, scan=None) -> dict
+
+A registration of MakeHuman's template against its ground truth, as `bodymodel eval-registration`
+measures each scan (docs/evaluation.md): V and truth (13380, 3) mm in the template's topology;
+scan (n, 3) the scan's points for the hole mask (None: the truth's vertices, no holes). Returns
+correspondence_mean_mm / _p95_mm / _max_mm, surface_mean_mm / _max_mm, hole_vertices, hole_mean_mm,
+hole_max_mm, flipped_triangles (with flipped_unseen, flipped_where_truth_folded and
+flipped_by_region), folded_in_registration, folded_in_truth and vertex_errors_mm (13380,).)");
   const NonrigidOptions nr;
   m.def("register_scan", &register_one, "points"_a, "normals"_a = pyb::none(), pyb::kw_only(),
         "landmarks"_a, "template"_a = pyb::none(), "schedule"_a = "fast", "fast_steps"_a = nr.fast_steps, "fast_stiffness_end"_a = nr.fast_k_end,

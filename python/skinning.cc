@@ -6,6 +6,7 @@
 
 #include "core/error.h"
 #include "python/common.h"
+#include "skinning/method_comparison.h"
 #include "skinning/rig_io.h"
 #include "skinning/sequence_evaluation.h"
 #include "skinning/skinning_error.h"
@@ -210,6 +211,59 @@ angle between vertex normals (degrees), vertex = |x_i - y_i|.)");
         }, "X"_a, "Y"_a,
         "e_rms(X, Y) -> float: Kavan et al.'s E_RMS = 1000·|X - Y|_F / (sqrt(3·n·f)·d), frames (f, n, 3), d the diagonal of the reference frames' bounding box.");
 
+  m.def("compare_skinning", [](const pyb::handle& frames_in, const pyb::handle& F_in, const std::vector<std::string>& methods,
+                               const std::vector<int>& train, bool leave_one_out, int rest, int bones,
+                               const std::string& cv, unsigned seed, const pyb::object& progress) {
+          const std::vector<Eigen::MatrixX3d> fr = frames(frames_in, "frames");
+          if (fr.empty()) throw InputError("frames: none given");
+          const Eigen::MatrixX3i Fm = faces(F_in, "faces", fr[0].rows());
+          SequenceEvaluationOptions o;
+          o.methods.clear();
+          for (const auto& m : methods) o.methods.push_back(parse_skinning_model(m));
+          if (o.methods.empty()) throw InputError("methods: none given");
+          if (bones < 1) throw InputError(fmt::format("bones must be at least 1, got {}", bones));
+          o.recovery.bones = bones;
+          o.recovery.seed = seed;
+          FrameSplitRequest r;
+          r.leave_one_out = leave_one_out;
+          r.train = train;
+          r.rest = rest;
+          const FrameSplit split = split_frames(int(fr.size()), r);
+          o.cv = parse_cv_scheme(cv, split.forecast);
+          const ProgressCallback cb = progress_callback(progress);
+          SkinningComparison c;
+          {
+            pyb::gil_scoped_release nogil;
+            c = compare_skinning_methods(fr, Fm, split, o, cb);
+          }
+          pyb::dict out;
+          for (size_t m = 0; m < c.methods.size(); ++m) {
+            pyb::dict row;
+            for (int s = 0; s < 2; ++s) {
+              const DeviationStats& st = s == 0 ? c.train[m] : c.unseen[m];
+              row[s == 0 ? "train" : "unseen"] =
+                  pyb::dict("mean_geometric"_a = st.mean_geometric(), "max_geometric"_a = st.max_geometric,
+                            "mean_normal_deg"_a = st.mean_normal_deg(), "e_rms"_a = st.e_rms(c.last.diagonal),
+                            "frames"_a = st.frames);
+            }
+            row["frame_error"] = c.frame_error[m];
+            row["fit_cpu_s"] = c.fit_cpu[m];
+            out[pyb::str(skinning_model_name(c.methods[m]))] = row;
+          }
+          return pyb::make_tuple(out, pyb::dict("protocol"_a = split.protocol, "rest"_a = split.rest,
+                                                "frame_split"_a = c.frame_split, "cv"_a = cv_description(o.cv)));
+        }, "frames"_a, "faces"_a, pyb::kw_only(), "methods"_a = std::vector<std::string>{"ssd", "as", "mwe"},
+        "train"_a = std::vector<int>{}, "leave_one_out"_a = false, "rest"_a = -1, "bones"_a = 24, "cv"_a = "auto",
+        "seed"_a = 1u, "progress"_a = pyb::none(),
+        R"(compare_skinning(frames, faces, *, methods=['ssd', 'as', 'mwe'], train=[], leave_one_out=False, rest=-1, bones=24, cv='auto', seed=1, progress=None) -> (per_method, protocol)
+
+`bodymodel skin eval`'s comparison (docs/skinning.md) on frames (f, n, 3) sharing faces (m, 3):
+bones recovered from the training frames (train: frame indices; empty: 10 evenly spaced, at least
+one unseen; leave_one_out: every frame but the rest one held out in turn), every method fitted
+with its regularisation cross-validated on the training frames (cv: auto, none, folds:K,
+last:N). per_method: {method: {train: {...}, unseen: {mean_geometric, max_geometric,
+mean_normal_deg, e_rms, frames}, frame_error (f,), fit_cpu_s}}; protocol: the split's
+description, rest frame, each frame's split and the cross-validation scheme. Releases the GIL.)");
 }
 
 }  // namespace bodymodel::py

@@ -11,6 +11,7 @@
 #include <mutex>
 
 #include "core/error.h"
+#include "core/statistics.h"
 
 namespace bodymodel {
 
@@ -56,14 +57,6 @@ Eigen::Vector3d closest_barycentric(const Eigen::Vector3d& p, const Eigen::Vecto
   return {1 - v - w, v, w};
 }
 
-// Linear-interpolation percentile of sorted values (numpy's default).
-double percentile_sorted(const std::vector<double>& s, double q) {
-  if (s.empty()) return 0;
-  const double pos = q / 100.0 * double(s.size() - 1);
-  const size_t lo = size_t(std::floor(pos));
-  const size_t hi = std::min(s.size() - 1, lo + 1);
-  return s[lo] + (pos - double(lo)) * (s[hi] - s[lo]);
-}
 
 // Pooled statistics of many errors: exact count, sum and max; median and p95 from a histogram.
 struct Pool {

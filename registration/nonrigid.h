@@ -61,8 +61,8 @@ struct NonrigidOptions {
   // The inverse search likewise ignores a scan point lying farther sideways from its closest
   // vertex than this many mean edge lengths of the template: across a hole the closest vertex
   // of a scan point on the far rim is a hole vertex, and such pairs pull the hole's vertices
-  // into spikes. 0: off (the paper's plain inverse search; 1.5 measured no change on scan
-  // s001_p3: correspondence 16.06 vs 16.07 mm, 2465 vs 2458 flipped triangles).
+  // into spikes. 0: off (the paper's plain inverse search; 1.5 changed nothing measurable on
+  // scan s001_p3: docs/benchmarks.md#figures-behind-code-comments).
   double inverse_tangential_factor = 0.0;
   double inverse_max_tangential_offset = 0.0;  // mm; resolved from the factor when ≤ 0
   // Compare normals without sign (for scans whose normals were estimated and are unoriented).

@@ -56,9 +56,8 @@ struct RegistrationOptions {
   bool proportions_with_shape = false;
   // When the alternation stops unconverged (the last shape fit moved a slider), one more pose
   // fit on the last shape, so the pose and the shape handed to the non-rigid fit belong together
-  // (without it the pose was fitted on the shape before). 100 database scans, full register:
-  // joint median 5.03 → 4.85°, correspondence 4.82 / 14.5 → 4.75 / 13.9 mm, flipped triangles
-  // 1 932 → 1 816; wall 1 482 → 1 898 s at --jobs 2 (partly beside a test build).
+  // (without it the pose was fitted on the shape before). Better on every registration figure
+  // for one more pose fit per scan (measured in docs/registration.md#history).
   bool final_pose_fit = true;
   // After the first shape fit, the pose fits keep the shape fit's global scale (the height
   // slider carries the size) instead of fitting their own.
@@ -71,8 +70,8 @@ struct RegistrationOptions {
   // ≤ 0 rings: off.
   int repair_flipped_rings = 2;
   // Repair passes while folds remain, pass p growing the region by p more rings. 6 (rings up to
-  // 7): a face fold of 58 triangles (15-scan database, s001_p3) needs the 5th pass; with 3 it was
-  // left whole (83 flipped against truth → 23 with 6, the moved vertices' error 12.3 → 4.9 mm).
+  // 7): a large face fold (15-scan database, s001_p3) needs the 5th pass; with 3 it was left
+  // whole (docs/benchmarks.md#figures-behind-code-comments).
   int repair_flipped_passes = 6;
   // Evaluation only (diagnosis of the non-rigid stage on synthetic data; never for real scans):
   // skip the pose fit and start the non-rigid fit from

@@ -46,13 +46,26 @@ std::vector<std::pair<std::vector<int>, std::vector<int>>> fold_splits(const std
   return out;
 }
 
+namespace {
+// The rows are checked, not trusted: a groups list shorter than X once made cross_validate read
+// past its end.
+void check_rows(const std::vector<int>& idx, Eigen::Index n, const char* what) {
+  for (int i : idx)
+    if (i < 0 || i >= n)
+      throw InputError("select_rows: row " + std::to_string(i) + " of " + what + " requested, it has " +
+                       std::to_string(n) + " rows");
+}
+}  // namespace
+
 Eigen::MatrixXd select_rows(const Eigen::MatrixXd& X, const std::vector<int>& idx) {
+  check_rows(idx, X.rows(), "a matrix");
   Eigen::MatrixXd out(idx.size(), X.cols());
   for (size_t k = 0; k < idx.size(); ++k) out.row(k) = X.row(idx[k]);
   return out;
 }
 
 Eigen::VectorXd select_rows(const Eigen::VectorXd& y, const std::vector<int>& idx) {
+  check_rows(idx, y.size(), "a vector");
   Eigen::VectorXd out(idx.size());
   for (size_t k = 0; k < idx.size(); ++k) out(k) = y(idx[k]);
   return out;
@@ -60,6 +73,7 @@ Eigen::VectorXd select_rows(const Eigen::VectorXd& y, const std::vector<int>& id
 
 std::vector<int> select_rows(const std::vector<int>& groups, const std::vector<int>& idx) {
   if (groups.empty()) return {};
+  check_rows(idx, static_cast<Eigen::Index>(groups.size()), "groups");
   std::vector<int> out(idx.size());
   for (size_t k = 0; k < idx.size(); ++k) out[k] = groups[idx[k]];
   return out;
@@ -92,6 +106,11 @@ CrossValidationSummary cross_validate(const Regressor& prototype, const Eigen::M
   if (X.rows() != y.size())
     throw InputError("cross_validate: X has " + std::to_string(X.rows()) + " rows but label '" +
                      label + "' has " + std::to_string(y.size()) + " values");
+  if (!groups.empty() && static_cast<Eigen::Index>(groups.size()) != X.rows())
+    throw InputError("cross_validate: groups has " + std::to_string(groups.size()) + " entries but X has " +
+                     std::to_string(X.rows()) + " rows (expected one subject index per row, or none)");
+  if (X.cols() == 0) throw InputError("cross_validate: X has no columns (expected at least one feature)");
+  if (!X.allFinite()) throw InputError("cross_validate: X contains NaN or infinite values");
   const std::vector<int> rows = usable_label_rows(y, label, 2);
   const Eigen::MatrixXd Xu = select_rows(X, rows);
   const Eigen::VectorXd yu = select_rows(y, rows);

@@ -105,13 +105,13 @@ class FilteredLinearRegressor : public Regressor {
     // interpolation peak while the leave-one-out fits (one row fewer) are already past theirs:
     // m = #training rows components is a minimum-norm fit in every inner fold but an exact
     // interpolant of the outer training rows, so its inner score does not transfer (stacking
-    // weights that included it gave 4.6× simple linear's error on one cell).
+    // weights that included it gave several times simple linear's error on one cell).
     bool skip_interpolating_subsets = true;
     // Stacked: only counts whose inner MSE is at most this × the best count's take part. Stacking
     // may give a small weight to a candidate with a huge held-out error whose residuals happen to
     // cancel the others' (counts just below the interpolation threshold, whose error jumps
     // between the inner and the outer training size): without the screen one realistic-noise cell
-    // lost 1.45× and exact labels up to 2.9× against eq. 10 on everything; with it they tie.
+    // and the exact labels lost against eq. 10 on everything; with it they tie (docs/benchmarks.md#figures-behind-code-comments).
     // Fixed on the seed-1 synthetic database; 2 and 3 gave the same wins there, 3 the lower mean.
     double competitive_factor = 3.0;
     int max_components = 0;     // largest count tried; ≤ 0 = all features

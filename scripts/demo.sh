@@ -7,6 +7,7 @@
 # Usage: scripts/demo.sh [OUT]
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-"$here/scripts/setup.sh"
+# Only the tool the demo runs: the tests, benchmarks and Python module are scripts/test.sh's.
+"$here/scripts/setup.sh" bodymodel
 out="${1:-$here/out}"
 exec "$here/build/bodymodel" demo --out "$out" --force

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what bodymodel needs from Debian packages (idempotent: apt-get runs only when
 # something is missing), then configures and builds the project in ./build (Release).
-# Usage: scripts/setup.sh [--no-build]
+# Usage: scripts/setup.sh [--no-build] [TARGET...]
+#   TARGET: build only these CMake targets (scripts/demo.sh builds only `bodymodel`); default all.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # ccache: paths relative to the checkout, so a fresh clone elsewhere still hits the cache.
@@ -63,9 +64,11 @@ if [ ! -f "$build/npm/node_modules/three/build/three.min.js" ] && command -v npm
 fi
 
 [ "${1:-}" = "--no-build" ] && exit 0
+targets=()
+for t in "$@"; do targets+=(--target "$t"); done
 
 jobs="${BODYMODEL_JOBS:-2}"
 if [ ! -f "$build/build.ninja" ]; then
   cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
 fi
-cmake --build "$build" -j "$jobs"
+cmake --build "$build" -j "$jobs" "${targets[@]}"

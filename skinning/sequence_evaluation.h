@@ -41,9 +41,9 @@ struct SequenceEvaluationOptions {
   double alternation_tolerance = 0;
   int transform_iterations = 10;  // fixed-weight transform fit passes (every bone once) per frame
   // The same, inside each alternation round (warm-started from the previous round's maps);
-  // 0 = transform_iterations. 3 cuts the alternation's CPU by 30–45 % for +0.1 % (jumping) to
-  // +1 % (horse) of unseen SSD geometric deviation, but moved the cross-validated Animation Space
-  // ridge on the horse (λ 0.1 → 1, unseen AS +5 %): not the default (docs/skinning.md).
+  // 0 = transform_iterations. Fewer passes cut the alternation's CPU at a small cost in unseen
+  // SSD error, but moved the cross-validated Animation Space ridge on the horse: not the default
+  // (measured in docs/skinning.md#speed).
   int alternation_transform_iterations = 0;
   // The fixed-weight transform fits summed over the vertices in every pass (before issue 26's weight
   // moments; equal up to rounding): the benchmark's baseline, with lbs.pairwise_moments false.

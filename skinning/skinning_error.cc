@@ -1,5 +1,6 @@
 #include "skinning/skinning_error.h"
 
+#include <algorithm>
 #include <cmath>
 #include <list>
 #include <vector>
@@ -86,6 +87,18 @@ MeshDeviation mesh_deviation(const Eigen::MatrixX3d& X, const Eigen::MatrixX3d& 
     d.normal_deg(i) = std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
   }
   return d;
+}
+
+void DeviationStats::merge(const DeviationStats& b) {
+  count += b.count;
+  frames += b.frames;
+  sum_geometric += b.sum_geometric;
+  max_geometric = std::max(max_geometric, b.max_geometric);
+  sum_normal += b.sum_normal;
+  max_normal = std::max(max_normal, b.max_normal);
+  sum_vertex += b.sum_vertex;
+  sum_vertex_sq += b.sum_vertex_sq;
+  max_vertex = std::max(max_vertex, b.max_vertex);
 }
 
 void DeviationStats::add(const MeshDeviation& d) {

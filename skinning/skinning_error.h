@@ -48,6 +48,7 @@ struct DeviationStats {
   double sum_vertex = 0, sum_vertex_sq = 0, max_vertex = 0;
 
   void add(const MeshDeviation& d);
+  void merge(const DeviationStats& other);  // as if other's frames had been added here
   double mean_geometric() const { return count ? sum_geometric / count : 0; }
   double mean_normal_deg() const { return count ? sum_normal / count : 0; }
   double mean_vertex() const { return count ? sum_vertex / count : 0; }

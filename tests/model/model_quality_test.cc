@@ -10,6 +10,7 @@
 #include "core/io/mesh_io.h"
 #include "model/model_file.h"
 #include "model/model_quality.h"
+#include "core/statistics.h"
 #include "support/fixtures.h"
 #include "support/run_cli.h"
 
@@ -61,9 +62,9 @@ TEST(ModelQuality, VertexPcaGeneralisationHandComputed) {
   // Pooling: the mean of per-mesh means and the 95th percentile of all vertices (numpy's
   // linear interpolation): errors {1, 2, 3, 4} and {10, 10, 10, 10} → means 2.5 and 10, mean
   // 6.25; pooled sorted 1 2 3 4 10 10 10 10, position 0.95 · 7 = 6.65 → 10.
-  EXPECT_DOUBLE_EQ(percentile_of({1, 2, 3, 4, 10, 10, 10, 10}, 95), 10.0);
-  EXPECT_DOUBLE_EQ(percentile_of({1, 2, 3, 4}, 50), 2.5);
-  EXPECT_DOUBLE_EQ(percentile_of({1, 2, 3, 4}, 95), 3.85);  // position 2.85 → 3 + 0.85
+  EXPECT_DOUBLE_EQ(percentile({1, 2, 3, 4, 10, 10, 10, 10}, 95), 10.0);
+  EXPECT_DOUBLE_EQ(percentile({1, 2, 3, 4}, 50), 2.5);
+  EXPECT_DOUBLE_EQ(percentile({1, 2, 3, 4}, 95), 3.85);  // position 2.85 → 3 + 0.85
 }
 
 // ---- the verbs ------------------------------------------------------------------------------

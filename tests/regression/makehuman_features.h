@@ -11,6 +11,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include "core/random_subject.h"
 #include "core/makehuman.h"
 #include "core/measure.h"
 
@@ -23,26 +24,6 @@ struct MakeHumanFeatures {
   std::vector<std::string> label_names{"height_cm", "weight_kg", "body_fat_pct", "muscle", "waist_cm"};
   std::vector<std::string> label_units{"cm", "kg", "%", "%", "cm"};
 };
-
-inline MacroSettings random_makehuman_subject(std::mt19937_64& rng, bool male) {
-  std::uniform_real_distribution<double> u(0, 1);
-  auto in = [&](double a, double b) { return a + (b - a) * u(rng); };
-  MacroSettings s;
-  s.gender = male ? in(0.85, 1.0) : in(0.0, 0.15);
-  s.age = in(0.45, 0.85);
-  s.muscle = in(0.15, 0.85);
-  s.weight = in(0.15, 0.85);
-  s.height = in(0.15, 0.85);
-  s.proportions = in(0.25, 0.75);
-  s.cup = in(0.3, 0.7);
-  s.firmness = in(0.3, 0.7);
-  std::gamma_distribution<double> g(2.0, 1.0);
-  const double a = g(rng), b = g(rng), c = g(rng), sum = a + b + c;
-  s.african = a / sum;
-  s.asian = b / sum;
-  s.caucasian = c / sum;
-  return s;
-}
 
 // `bodies` random subjects (half male), deterministic for a seed. vertex_noise_mm > 0 adds
 // independent Gaussian noise of that σ to every vertex coordinate before the PCA (a stand-in for

@@ -79,6 +79,32 @@ TEST(GroupedFolds, FewerSubjectsThanFoldsIsAClearError) {
   }
 }
 
+// Issue 40: groups = {1} for 100 000 rows made cross_validate read far past the list (a
+// segfault); for 10 rows it built folds from whatever lay beyond it. A groups list of another
+// length than X's rows is refused, naming it; select_rows refuses rows it does not have.
+TEST(CrossValidation, RefusesGroupsOfAnotherLengthThanX) {
+  for (int rows : {10, 100000}) {
+    const Eigen::MatrixXd X = gaussian_matrix(rows, 2, 3);
+    const Eigen::VectorXd y = X.col(0) + 2 * X.col(1);
+    CrossValidationOptions cv;
+    cv.folds = 2;
+    try {
+      cross_validate(SimpleLinearRegressor(), X, y, {1}, cv);
+      FAIL() << "expected InputError for " << rows << " rows";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("groups has 1 entries but X has " + std::to_string(rows) + " rows"),
+                std::string::npos) << e.what();
+    }
+  }
+  EXPECT_THROW(select_rows(std::vector<int>{0, 1}, std::vector<int>{0, 2}), InputError);
+  EXPECT_THROW(select_rows(Eigen::VectorXd(Eigen::VectorXd::Zero(3)), std::vector<int>{-1}), InputError);
+  EXPECT_THROW(select_rows(Eigen::MatrixXd(Eigen::MatrixXd::Zero(3, 2)), std::vector<int>{3}), InputError);
+  CrossValidationOptions cv;
+  cv.folds = 2;
+  EXPECT_THROW(cross_validate(SimpleLinearRegressor(), Eigen::MatrixXd::Zero(10, 0), Eigen::VectorXd::LinSpaced(10, 0, 1),
+                              {}, cv), InputError);
+}
+
 TEST(Regressors, RecoverALinearFunction) {
   const Eigen::MatrixXd X = gaussian_matrix(120, 6, 11);
   Eigen::VectorXd s(6);

@@ -66,6 +66,9 @@ std::string expand(std::string s, const Sandbox& b) {
 
 Mesh sphere() { return fixtures::uv_sphere(100, 16, 24); }
 
+// The tiny model's tetrahedron scaled to a body's size in mm (verbs refuse a 1 mm body: issue 40).
+constexpr double kBodyMm = 1700;
+
 void write_sphere(const fs::path& p) {
   const Mesh m = sphere();
   write_mesh(p, m.V, m.F);
@@ -204,7 +207,7 @@ std::vector<Case> quick_cases() {
                  fs::create_directories(b.in / "reg");
                },
                {"build", "{in}/reg", "--db", "{in}/db", "--out", "{out}/model.npz"}, 2,
-               {"scans.csv' line 2", "scan id '../x'"}, {"{out}"}});
+               {"scans.csv:2", "scan id '../x'"}, {"{out}"}});
   c.push_back({"eval_registration_scan_ids_with_paths",
                [](const Sandbox& b) {
                  write_database(b.in / "db", {"a/../../b"});
@@ -340,14 +343,14 @@ std::vector<Case> quick_cases() {
   c.push_back({"morph_negative_height",
                [](const Sandbox& b) {
                  tiny::model_npz().save(b.in / "model.npz");
-                 write_mesh(b.in / "body.obj", tiny::tetra_vertices(), tiny::tetra_faces());
+                 write_mesh(b.in / "body.obj", kBodyMm * tiny::tetra_vertices(), tiny::tetra_faces());
                },
                {"morph", "{in}/model.npz", "--in", "{in}/body.obj", "--set", "height_cm=-5", "--out", "{out}/m.obj"}, 2,
                {"cannot meet height_cm", "nothing written", "--closest"}, {"{out}"}});
   c.push_back({"morph_absurd_height",
                [](const Sandbox& b) {
                  tiny::model_npz().save(b.in / "model.npz");
-                 write_mesh(b.in / "body.obj", tiny::tetra_vertices(), tiny::tetra_faces());
+                 write_mesh(b.in / "body.obj", kBodyMm * tiny::tetra_vertices(), tiny::tetra_faces());
                },
                {"morph", "{in}/model.npz", "--in", "{in}/body.obj", "--set", "height_cm=1e9", "--out", "{out}/m.obj"}, 2,
                {"cannot meet height_cm"}, {"{out}"}});
@@ -373,7 +376,7 @@ std::vector<Case> quick_cases() {
   c.push_back({"pose_deep_bvh",
                [](const Sandbox& b) {
                  tiny::model_npz().save(b.in / "model.npz");
-                 write_mesh(b.in / "body.obj", tiny::tetra_vertices(), tiny::tetra_faces());
+                 write_mesh(b.in / "body.obj", kBodyMm * tiny::tetra_vertices(), tiny::tetra_faces());
                  write_text_file(b.in / "deep.bvh", nested_bvh(20000));
                },
                {"pose", "{in}/model.npz", "--in", "{in}/body.obj", "--bvh", "{in}/deep.bvh", "--out", "{out}/p.obj"}, 2,

@@ -9,6 +9,7 @@
 //          file named); in serve a 500 with the exception text in a header;
 //   17     eval-correspondence dropped registrations without a truth, and .obj ones, silently.
 // Cases that load MakeHuman are in Round3Slow (CTest label long).
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <signal.h>
@@ -385,9 +386,12 @@ TEST(Round3Slow, IdsWithCommasKeepEveryTableWellFormed) {
   fixtures::TempDir dir;
   write_text_file(dir / "two.csv", "SEQN,RIAGENDR,RIDAGEYR,BMXHT,BMXWT,BMXWAIST,BMXHIP,WTMECPRP\n"
                                    "\"smith, j\",2,40,165,65,85,100,1000\n\"doe, a\",1,50,178,80,92,101,1000\n");
-  write_text_file(dir / "six.csv", read_text_file(dir / "two.csv") +
-                                       "3,2,30,160,58,78,96,1000\n4,1,45,182,90,98,104,1000\n"
-                                       "5,2,60,158,70,95,108,1000\n6,1,35,175,75,88,99,1000\n");
+  // eval-population fits its baseline on at least 20 adults besides those it draws.
+  std::string many = read_text_file(dir / "two.csv");
+  for (int i = 3; i <= 30; ++i)
+    many += fmt::format("{},{},{},{},{},{},{},1000\n", i, 1 + i % 2, 20 + 2 * i, 155 + i, 50 + 1.5 * i, 70 + i,
+                        90 + 0.5 * i);
+  write_text_file(dir / "many.csv", many);
   auto run = [&](const std::vector<std::string>& args) {
     std::string out;
     const int code = run_bodymodel(args, dir / "log", &out);
@@ -414,7 +418,7 @@ TEST(Round3Slow, IdsWithCommasKeepEveryTableWellFormed) {
   ASSERT_TRUE(run({"generate", model, "--population", (dir / "two.csv").string(), "--match", "height_cm", "--count",
                    "2", "--out", (dir / "gen").string()}));
   expect_rectangular(dir / "gen" / "labels.csv");
-  ASSERT_TRUE(run({"eval-population", model, "--population", (dir / "six.csv").string(), "--count", "4", "--seed", "2",
+  ASSERT_TRUE(run({"eval-population", model, "--population", (dir / "many.csv").string(), "--count", "4", "--seed", "2",
                    "--out", (dir / "real").string()}));
   expect_rectangular(dir / "real" / "realism.csv");
   // 15: an id that is not UTF-8 goes into generate.json (the crowd's people): was

@@ -2,7 +2,9 @@
 // MakeHuman bodies. Morphs answer with a body that measures what was asked; bad JSON, unknown
 // labels and values far outside the data get 400 with the CLI's message; oversized bodies 413;
 // a flood of 200 concurrent bad or oversized requests leaves the server answering with its
-// resident memory bounded.
+// resident memory bounded. Then the server under hostile clients (issue 40): chunked uploads
+// over --max-body, connections trickling their headers (slowloris), a second server on the same
+// port, and the exit code after a signal.
 #ifdef BODYMODEL_HAVE_HTTPLIB  // set by tests/CMakeLists.txt when cpp-httplib is found
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -18,6 +20,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <mutex>
 #include <random>
 #include <thread>
 
@@ -358,6 +361,298 @@ TEST(ServeApi, MorphsAndRefusesBadRequestsWithTheCliMessage) {
   auto after = cli.Post("/api/body", R"({"labels": {"height_cm": 168}})", "application/json");
   ASSERT_TRUE(after);
   EXPECT_EQ(after->status, 200);
+}
+
+
+// ---- the server under hostile clients --------------------------------------------------------
+
+// One model for the tests below, built once per process.
+fs::path robustness_model() {
+  static fixtures::TempDir dir;
+  static const fs::path path = [] {
+    save_model(dir / "model.npz", shape_model(MakeHuman::load()));
+    return dir / "model.npz";
+  }();
+  return path;
+}
+
+// A port of its own per test (offset), away from the first test's.
+int test_port(int offset) { return 20000 + static_cast<int>((::getpid() + 101 * offset) % 20000); }
+
+// `bodymodel serve` in a child process (no drag preview: its start-up decodes would compete with
+// the timing checks); stopped with SIGTERM and reaped when destroyed, unless reaped before.
+struct ServeProcess {
+  pid_t pid = -1;
+  int port = 0;
+  fs::path log;
+  ServeProcess(const fs::path& model, int port_, const fs::path& log_, const std::vector<std::string>& extra = {})
+      : port(port_), log(log_) {
+    std::vector<std::string> args = {BODYMODEL_EXE, "serve", model.string(), "--port", std::to_string(port), "--no-preview"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    pid = fork();
+    if (pid == 0) {
+      freopen(log.c_str(), "w", stdout);
+      freopen(log.c_str(), "a", stderr);
+      std::vector<char*> argv;
+      for (auto& a : args) argv.push_back(a.data());
+      argv.push_back(nullptr);
+      execv(argv[0], argv.data());
+      _exit(127);
+    }
+  }
+  ~ServeProcess() {
+    if (pid > 0) {
+      ::kill(pid, SIGKILL);
+      int st;
+      ::waitpid(pid, &st, 0);
+    }
+  }
+  // Waits until GET /api/model answers 200 (the server loads the model first).
+  bool ready(int seconds = 60) {
+    httplib::Client c("127.0.0.1", port);
+    c.set_connection_timeout(1, 0);
+    c.set_read_timeout(5, 0);
+    for (int i = 0; i < seconds * 10; ++i) {
+      if (auto r = c.Get("/api/model"); r && r->status == 200) return true;
+      int st;
+      if (::waitpid(pid, &st, WNOHANG) == pid) {  // it ended (its log says why)
+        pid = -1;
+        return false;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    return false;
+  }
+  // The wait status once the process ended within `seconds`, else -1 (still running).
+  int wait_exit(int seconds) {
+    for (int i = 0; i < seconds * 20; ++i) {
+      int st;
+      if (::waitpid(pid, &st, WNOHANG) == pid) {
+        pid = -1;
+        return st;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return -1;
+  }
+};
+
+int connect_loopback(int port, int timeout_s = 10) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  timeval tv{timeout_s, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+bool send_all(int fd, const std::string& s) {
+  for (size_t sent = 0; sent < s.size();) {
+    const ssize_t n = ::send(fd, s.data() + sent, s.size() - sent, MSG_NOSIGNAL);
+    if (n <= 0) return false;
+    sent += static_cast<size_t>(n);
+  }
+  return true;
+}
+
+// The status of the reply read from fd until EOF (-1: none).
+int read_status(int fd) {
+  std::string reply;
+  char buf[4096];
+  for (ssize_t n; (n = ::recv(fd, buf, sizeof buf, 0)) > 0;) reply.append(buf, static_cast<size_t>(n));
+  return reply.rfind("HTTP/1.1 ", 0) == 0 && reply.size() > 12 ? std::stoi(reply.substr(9, 3)) : -1;
+}
+
+std::string chunk(const std::string& data) {
+  char size[32];
+  std::snprintf(size, sizeof size, "%zx\r\n", data.size());
+  return size + data + "\r\n";
+}
+
+// Normal requests (GET /api/model) every 200 ms while an attack runs, and the server's resident
+// memory every 20 ms: the slowest answer and the peak memory.
+struct Probe {
+  pid_t pid;
+  int port;
+  std::atomic<bool> stop{false};
+  std::atomic<int> requests{0}, failures{0};
+  std::atomic<long> peak_rss_kb{0};
+  std::atomic<double> slowest_s{0};
+  std::thread requester, sampler;
+  Probe(pid_t pid_, int port_) : pid(pid_), port(port_) {
+    sampler = std::thread([this] {
+      while (!stop) {
+        peak_rss_kb = std::max(peak_rss_kb.load(), rss_kb(pid));
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+    });
+    requester = std::thread([this] {
+      while (!stop) {
+        httplib::Client c("127.0.0.1", port);
+        c.set_connection_timeout(3, 0);
+        c.set_read_timeout(3, 0);
+        const auto t0 = std::chrono::steady_clock::now();
+        auto r = c.Get("/api/model");
+        const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        ++requests;
+        if (!r || r->status != 200) ++failures;
+        slowest_s = std::max(slowest_s.load(), s);
+        std::this_thread::sleep_for(std::chrono::milliseconds(200));
+      }
+    });
+  }
+  void finish() {
+    stop = true;
+    if (requester.joinable()) requester.join();
+    if (sampler.joinable()) sampler.join();
+  }
+  ~Probe() { finish(); }
+};
+
+TEST(ServeApi, ChunkedBodiesAreCappedAtMaxBody) {
+  fixtures::TempDir tmp;
+  ServeProcess server(robustness_model(), test_port(1), tmp / "serve.log");
+  ASSERT_TRUE(server.ready()) << read_text_file(server.log);
+  const std::string head = "POST /api/body HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+                           "Transfer-Encoding: chunked\r\nConnection: close\r\n\r\n";
+  // Within --max-body (16 KiB), chunked: answered as any body.
+  {
+    const int fd = connect_loopback(server.port);
+    ASSERT_GE(fd, 0);
+    ASSERT_TRUE(send_all(fd, head + chunk(R"({"quick": )") + chunk("true}") + "0\r\n\r\n"));
+    EXPECT_EQ(read_status(fd), 200);
+    ::close(fd);
+  }
+  // 100 KB of valid JSON (padding spaces), chunked: 413, as the same body with a Content-Length.
+  {
+    const int fd = connect_loopback(server.port);
+    ASSERT_GE(fd, 0);
+    std::string body = head + chunk(R"({"quick": true})");
+    for (int i = 0; i < 25; ++i) body += chunk(std::string(4000, ' '));
+    ASSERT_TRUE(send_all(fd, body + "0\r\n\r\n"));
+    EXPECT_EQ(read_status(fd), 413);
+    ::close(fd);
+  }
+  // 128 MB chunked while normal requests go on: the server stops reading at the limit, its
+  // memory stays within 50 MB of idle and the normal requests are answered within 1 s.
+  const long idle_kb = rss_kb(server.pid);
+  Probe probe(server.pid, server.port);
+  int status = -2;
+  size_t sent = 0;
+  {
+    const int fd = connect_loopback(server.port, 5);
+    ASSERT_GE(fd, 0);
+    if (send_all(fd, head)) {
+      const std::string piece = chunk(std::string(64 * 1024 - 16, ' '));
+      while (sent < (size_t{128} << 20) && send_all(fd, piece)) sent += piece.size();
+      if (sent >= (size_t{128} << 20)) send_all(fd, "0\r\n\r\n");
+    }
+    status = read_status(fd);
+    ::close(fd);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+  probe.finish();
+  std::printf("chunked upload: %zu MB sent, status %d; server memory idle %ld kB, peak %ld kB; %d normal requests, "
+              "slowest %.3f s\n", sent >> 20, status, idle_kb, probe.peak_rss_kb.load(), probe.requests.load(),
+              probe.slowest_s.load());
+  EXPECT_TRUE(status == 413 || status == -1) << status;  // -1: reset before the answer was read
+  EXPECT_LT(probe.peak_rss_kb - idle_kb, 50 * 1024);
+  EXPECT_EQ(probe.failures.load(), 0);
+  EXPECT_LT(probe.slowest_s.load(), 1.0);
+}
+
+TEST(ServeApi, ConnectionsTricklingHeadersDoNotStarveOtherRequests) {
+  fixtures::TempDir tmp;
+  // The default 8 connection threads, --timeout 5: each trickled line arrives well within it
+  // (before, it bounded each read, not the request).
+  ServeProcess server(robustness_model(), test_port(2), tmp / "serve.log", {"--timeout", "5"});
+  ASSERT_TRUE(server.ready()) << read_text_file(server.log);
+  // 16 connections (twice the threads) each sending a header line every second and never the
+  // blank line that ends the headers.
+  std::vector<int> fds;
+  for (int i = 0; i < 16; ++i) {
+    const int fd = connect_loopback(server.port);
+    ASSERT_GE(fd, 0);
+    ASSERT_TRUE(send_all(fd, "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n"));
+    fds.push_back(fd);
+  }
+  const long idle_kb = rss_kb(server.pid);
+  Probe probe(server.pid, server.port);
+  std::vector<double> closed_after(fds.size(), -1);
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int second = 1; second <= 9; ++second) {
+    std::this_thread::sleep_for(std::chrono::seconds(1));
+    for (size_t i = 0; i < fds.size(); ++i) {
+      if (closed_after[i] >= 0) continue;
+      pollfd p{fds[i], POLLIN, 0};
+      // Readable: the server's 408 or its close; either ends the trickle.
+      if (::poll(&p, 1, 0) > 0 || !send_all(fds[i], "X-Trickle-" + std::to_string(second) + ": 1\r\n"))
+        closed_after[i] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    }
+  }
+  probe.finish();
+  for (int fd : fds) ::close(fd);
+  const double latest_close = *std::max_element(closed_after.begin(), closed_after.end());
+  const bool all_closed = std::count(closed_after.begin(), closed_after.end(), -1.0) == 0;
+  std::printf("slowloris: 16 trickling connections; %d normal requests, %d failed, slowest %.3f s; trickles ended "
+              "by the server after %.1f s at the latest%s; memory %ld -> %ld kB\n", probe.requests.load(),
+              probe.failures.load(), probe.slowest_s.load(), latest_close, all_closed ? "" : " (some never)", idle_kb,
+              probe.peak_rss_kb.load());
+  EXPECT_GE(probe.requests.load(), 15);
+  EXPECT_EQ(probe.failures.load(), 0);
+  EXPECT_LT(probe.slowest_s.load(), 1.0);
+  EXPECT_LT(probe.peak_rss_kb - idle_kb, 50 * 1024);
+  // A request must arrive within --timeout (5 s) of its first byte.
+  EXPECT_TRUE(all_closed) << "trickling connections the server never closed";
+  EXPECT_LT(latest_close, 8.0);
+}
+
+TEST(ServeApi, SecondServerOnABusyPortIsRefused) {
+  fixtures::TempDir tmp;
+  ServeProcess first(robustness_model(), test_port(3), tmp / "first.log");
+  ASSERT_TRUE(first.ready()) << read_text_file(first.log);
+  ServeProcess second(robustness_model(), first.port, tmp / "second.log");
+  const int st = second.wait_exit(20);
+  const std::string log = read_text_file(second.log);
+  ASSERT_NE(st, -1) << "the second server is still running; its output:\n" << log;
+  ASSERT_TRUE(WIFEXITED(st)) << st;
+  EXPECT_EQ(WEXITSTATUS(st), 2) << log;
+  size_t error_lines = 0;
+  for (size_t at = log.find("bodymodel: error: "); at != std::string::npos; at = log.find("bodymodel: error: ", at + 1))
+    ++error_lines;
+  EXPECT_EQ(error_lines, 1u) << log;
+  EXPECT_NE(log.find("bodymodel: error: cannot listen on 127.0.0.1:" + std::to_string(first.port)), std::string::npos)
+      << log;
+  EXPECT_EQ(log.find("serving"), std::string::npos) << log;
+  // The first one still answers every request.
+  httplib::Client c("127.0.0.1", first.port);
+  c.set_read_timeout(5, 0);
+  for (int i = 0; i < 10; ++i) {
+    auto r = c.Get("/api/model");
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 200);
+  }
+}
+
+TEST(ServeApi, SignalsEndTheServerWithTheDocumentedExitCodes) {
+  fixtures::TempDir tmp;
+  for (int sig : {SIGINT, SIGTERM}) {
+    ServeProcess server(robustness_model(), test_port(4), tmp / "serve.log");
+    ASSERT_TRUE(server.ready()) << read_text_file(server.log);
+    ::kill(server.pid, sig);
+    const int st = server.wait_exit(30);
+    ASSERT_NE(st, -1) << "did not stop";
+    // As the other verbs: the signal's default action, which a shell shows as 128 + signal.
+    const int code = WIFSIGNALED(st) ? 128 + WTERMSIG(st) : WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+    EXPECT_EQ(code, 128 + sig) << "signal " << sig << "; output:\n" << read_text_file(server.log);
+  }
 }
 
 }  // namespace

@@ -61,8 +61,8 @@ struct AnimateOptions {
   bool repair_vertex_rotations = false;
   FoldRepairOptions repair_options = default_animation_repair();
   // Frames with flips left after the repair are repaired again from the skinned frame with these
-  // first-ring widths (in turn, until none are left; the attempt with the fewest is kept). A
-  // 152 cm crowd character kept 1 armpit triangle in 3-4 frames of each clip with rings 2 alone.
+  // first-ring widths (in turn, until none are left; the attempt with the fewest is kept): with
+  // rings 2 alone a small crowd character kept an armpit triangle in some frames of each clip.
   std::vector<int> repair_retry_rings = {4, 1, 3, 6};
   static FoldRepairOptions default_animation_repair();
 };

@@ -82,7 +82,8 @@ Eigen::MatrixXd smooth_skin_weights(const Eigen::MatrixXd& W, const Eigen::Matri
 // and smooths its refinement D = W_mwe − W_base over the mesh: `steps` times D_v ← ½ D_v +
 // ½ (mean of the 1-ring's D for the same bone; 0 where a neighbour lacks the bone). MWE's
 // per-vertex fits are independent, so D carries vertex-to-vertex noise that unseen poses
-// amplify on short edges (fingers, toes, eyelids: 20–40 × their rest length on CMU clips).
+// amplify on short edges (fingers, toes, eyelids: stretched many times their rest length on
+// CMU clips).
 // `keep` (#V in [0, 1], optional) then scales each vertex's refinement (0 = the base alone).
 // Throws InputError when the rigs do not match.
 void smooth_mwe_refinement(SkinningRig& mwe, const SkinningRig& base, const Eigen::MatrixX3i& F, int steps,
@@ -91,8 +92,8 @@ void smooth_mwe_refinement(SkinningRig& mwe, const SkinningRig& base, const Eige
 // Per vertex (#V in [0, 1]): 1 − the weight (W #V by #B, smoothed `steps` times) of the hands,
 // feet and head (the bones `wrist.*`, `foot.*`, `head` and their descendants). These parts are
 // small and stiff; pose morphs (model/pose_edit.h) leave them as decoding noise around the
-// skinned tip constraints, which MWE fits and unseen poses amplify (toes, fingers: edges at
-// 20–90 × their rest length on CMU clips).
+// skinned tip constraints, which MWE fits and unseen poses amplify (toes, fingers: edges
+// stretched many times their rest length on CMU clips; docs/results.md#characters-and-animation).
 Eigen::VectorXd mwe_refinement_mask(const Eigen::MatrixXd& W, const Skeleton& skeleton, const Eigen::MatrixX3i& F,
                                     int steps);
 // The same with the masked bones named by prefixes (each bone whose name or an ancestor's name
@@ -103,8 +104,8 @@ Eigen::VectorXd mwe_refinement_mask(const Eigen::MatrixXd& W, const Skeleton& sk
 struct CharacterOptions {
   RangeOfMotionOptions range_of_motion;
   // The model's pose morph with its defaults (model/pose_edit.h: torso anchored where skinning
-  // places it, volume kept within 1 % of the body's), which measured 8.8 / 16.2 mm (mean / worst)
-  // against true posed scans vs 12.0 / 28.4 mm for the paper's tips-only morph.
+  // places it, volume kept within 1 % of the body's): closer to true posed scans than the paper's
+  // tips-only morph (docs/results.md#pose-morphs).
   PoseMorphOptions pose_morph;
   // Fold repair of every pose morph and in-between before any rig sees it (core/fold_repair.h,
   // repair_folds_against_normals): a triangle is flipped when its normal points against its
@@ -123,8 +124,8 @@ struct CharacterOptions {
   bool fold_reference_skinned = true;
   // In-betweens decoded with the pose morph's constraints (limb tips, torso) for the slerped pose
   // (model/pose_edit.h blend_pose_morphs); false = the interpolated encoding decoded freely and
-  // placed rigidly, whose hands and feet end up to 160–200 mm from where the skeleton puts them
-  // (the demo character's held-out maximum of every rig, 163 mm, was such an in-between).
+  // placed rigidly, whose hands and feet end far from where the skeleton puts them (the demo
+  // character's held-out maximum of every rig was such an in-between: docs/results.md).
   bool constrain_blends = true;
   int max_influences = 4;           // slots per vertex (the template weights' largest ones)
   // The SSD rig Animation Space and MWE build on (their prior / delta-space base): the template's
@@ -147,9 +148,8 @@ struct CharacterOptions {
   LbsFitOptions lbs;
   AnimationSpaceFitOptions animation_space;
   // MWE ridge s = 2e-5 (relative), 10⁴ × the horse-tuned default: the range of motion is small
-  // (≈ 32 poses) and animation clips go beyond it; on CMU 12_03 this halves the largest edge
-  // stretch of one character (40 → 19 × rest) while the held-out error stays below SSD's
-  // (36.7 vs 41.8 mm mean; 33.2 mm at the default s).
+  // (≈ 32 poses) and animation clips go beyond it; on CMU 12_03 this about halves the largest
+  // edge stretch of a character while the held-out error stays below SSD's (docs/benchmarks.md#figures-behind-code-comments).
   MweFitOptions mwe = [] {
     MweFitOptions m;
     m.ridge_scale = 2e-5;
@@ -160,7 +160,7 @@ struct CharacterOptions {
 
 // Throws InputError naming the option (`--mwe-s`, …) when a setting is out of range (negative or
 // NaN ridge, components, smoothing steps or threads; non-positive fold-repair distance). Called
-// before any work: `character --mwe-s -1` was refused only by the MWE fit, after 5 s of morphs.
+// before any work: `character --mwe-s -1` was refused only by the MWE fit, after all the pose morphs.
 void validate_character_options(const CharacterOptions& options);
 
 // The example meshes of a character.

@@ -78,8 +78,8 @@ struct UnposeOptions {
   RigPoseFitOptions fit;
 };
 // The options `character --unpose` uses: the pose fitted to the body with a prior towards the
-// registration's own pose. The registration's pose alone left 58 mm RMS between the posed
-// template and a SCAPE registration (arms forward, fingers scattered after the inversion); the
+// registration's own pose. The registration's pose alone left the posed template far from a
+// SCAPE registration (arms forward, fingers scattered after the inversion); the
 // fit without a prior absorbed the template's different shape into rotations (knees out, a step
 // at the waist); with 2000 mm/rad the SCAPE rest body kept neither (docs/skinning.md).
 UnposeOptions unpose_with_prior();

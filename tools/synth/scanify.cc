@@ -4,6 +4,7 @@
 #include <random>
 #include <tbb/parallel_for.h>
 
+#include "core/body_size.h"
 #include "core/error.h"
 #include "core/geometry.h"
 #include "core/point_index.h"
@@ -24,11 +25,7 @@ PointCloud scanify_mesh(const Mesh& mesh, const ScanifyOptions& o, const std::st
   if (!mesh.V.allFinite()) throw InputError(what + ": a vertex has a NaN or infinite coordinate");
   if (mesh.F.minCoeff() < 0 || mesh.F.maxCoeff() >= mesh.V.rows())
     throw InputError(what + ": a face index is outside 0.." + std::to_string(mesh.V.rows() - 1));
-  const double diag = bounding_box_diagonal(mesh.V);
-  if (!(diag >= 300 && diag <= 5000))
-    throw InputError(what + ": the mesh's bounding-box diagonal is " + std::to_string(diag) +
-                     " mm after scaling; a body is 300 … 5 000 mm (wrong --scale? 1000 for "
-                     "metres)");
+  check_body_size(mesh.V, what, "--scale", o.mm_per_unit);
   if (!(o.scanner.noise_sigma_mm >= 0) || o.scanner.min_points < 100)
     throw InputError("scanify: the noise must be ≥ 0 mm and at least 100 points requested");
   std::mt19937_64 rng(o.seed);

@@ -18,6 +18,7 @@ struct ScanifyOptions {
   // the head and the soles); false: the whole surface sampled uniformly by area (noise only).
   bool holes = true;
   unsigned seed = 1;
+  double mm_per_unit = 1;  // the caller's --scale (already applied to the mesh): for messages only
 };
 
 // A scan of `mesh` (millimetres, +y up, the subject standing on the scanner's platform).
@@ -25,7 +26,7 @@ struct ScanifyOptions {
 // coordinate, unit normals from the k nearest noisy points (PCA) oriented towards the pillar
 // that saw the point (holes on) or outwards along the surface (holes off).
 // Throws InputError naming `what` for an empty or non-finite mesh or one whose size is not a
-// body's in millimetres (bounding-box diagonal outside 300 … 5 000 mm: a unit mix-up).
+// body's in millimetres (core/body_size.h: a unit mix-up).
 PointCloud scanify_mesh(const Mesh& mesh, const ScanifyOptions& options,
                         const std::string& what = "mesh");
 

@@ -21,17 +21,19 @@
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 #include <sstream>
 
+#include "core/random_subject.h"
 #include "core/error.h"
 #include "core/geometry.h"
 #include "core/io/atomic_write.h"
-#include "core/io/csv.h"
-#include "core/io/json_text.h"
 #include "tools/pipeline/folder_settings.h"
 #include "core/io/bvh.h"
+#include "core/io/csv.h"
 #include "core/io/interrupt_cleanup.h"
+#include "core/io/json_text.h"
 #include "core/io/mesh_io.h"
 #include "core/landmarks.h"
 #include "core/measure.h"
@@ -135,26 +137,6 @@ const std::vector<std::string>& perturbed_bones() {
 
 
 }  // namespace
-
-MacroSettings random_synthetic_subject(std::mt19937_64& rng, bool male) {
-  std::uniform_real_distribution<double> u(0, 1);
-  auto in = [&](double a, double b) { return a + (b - a) * u(rng); };
-  MacroSettings s;
-  s.gender = male ? in(0.85, 1.0) : in(0.0, 0.15);
-  s.age = in(0.45, 0.85);          // about 23 to 70 years
-  s.muscle = in(0.15, 0.85);
-  s.weight = in(0.15, 0.85);
-  s.height = in(0.15, 0.85);
-  s.proportions = in(0.25, 0.75);
-  s.cup = in(0.3, 0.7);
-  s.firmness = in(0.3, 0.7);
-  std::gamma_distribution<double> g(2.0, 1.0);
-  double a = g(rng), b = g(rng), c = g(rng), sum = a + b + c;
-  s.african = a / sum;
-  s.asian = b / sum;
-  s.caucasian = c / sum;
-  return s;
-}
 
 PointCloud simulate_scan(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
                          const ScannerOptions& o, std::mt19937_64& rng) {
@@ -398,11 +380,76 @@ struct StoredFit {
   std::string reason;
 };
 
-std::map<std::string, StoredFit> read_stored_fits(const fs::path& path, const MakeHuman& mh) {
+// A fit.csv's records (core/io/csv.h: quoted ids and reasons, a byte-order mark, CRLF);
+// InputError naming the file when it cannot be read.
+std::vector<CsvRecord> fit_csv_records(const fs::path& path) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) throw InputError("cannot open '" + path.string() + "'");
-  const std::vector<CsvRecord> rows = read_csv_file(path);  // quoted ids and reasons, a BOM, CRLF
-  const std::vector<std::string> header = rows.empty() ? std::vector<std::string>() : rows[0].fields;
+  std::vector<CsvRecord> rows = read_csv_file(path);
+  if (rows.empty()) throw InputError("'" + path.string() + "' is empty (expected a fit-measurements fit.csv)");
+  return rows;
+}
+
+// The range fit-measurements writes a column in (its extended space included), or none (a
+// column that is not a value checked here).
+std::optional<std::pair<double, double>> stored_fit_range(const std::string& column) {
+  const FitMeasurementsOptions f;
+  if (column == "slider_weight") return std::pair{0.0, std::max(1.0, f.weight_max)};
+  if (column == "slider_muscle") return std::pair{std::min(0.0, f.muscle_min), 1.0};
+  if (column.rfind("slider_", 0) == 0) return std::pair{0.0, 1.0};
+  if (column.rfind("modifier_", 0) == 0) return std::pair{-std::max(1.0, f.modifier_limit), std::max(1.0, f.modifier_limit)};
+  if (column == "age_years") return std::pair{0.0, 150.0};
+  return std::nullopt;
+}
+
+// A value cell of a fit.csv: a finite number within stored_fit_range. A slider far out of
+// range made a giant body without a word, and 'nan' failed later naming no file.
+double stored_fit_value(const std::string& cell, const fs::path& path, int line, const std::string& column) {
+  const auto range = stored_fit_range(column);
+  double v = 0;
+  size_t used = 0;
+  try {
+    v = std::stod(cell, &used);
+  } catch (const std::logic_error&) {
+    used = 0;
+  }
+  if (cell.empty() || used != cell.size())
+    throw InputError(fmt::format("'{}' line {}, column '{}': '{}' is not a number", path.string(), line, column, cell));
+  const std::string ranges = fmt::format("MakeHuman's macro sliders are 0 … 1; fit-measurements' extended space "
+                                         "reaches weight {}, modifiers ±{}",
+                                         FitMeasurementsOptions{}.weight_max, FitMeasurementsOptions{}.modifier_limit);
+  if (!std::isfinite(v))
+    throw InputError(fmt::format("'{}' line {}, column '{}': '{}' is not a finite number ({})", path.string(), line,
+                                 column, cell, ranges));
+  if (range && !(v >= range->first && v <= range->second))
+    throw InputError(fmt::format("'{}' line {}, column '{}': {} is outside {} … {} ({})", path.string(), line, column,
+                                 cell, range->first, range->second, ranges));
+  return v;
+}
+
+}  // namespace
+
+void check_stored_fits(const std::string& fits) {
+  const fs::path path(fits);
+  const std::vector<CsvRecord> rows = fit_csv_records(path);
+  const std::vector<std::string>& header = rows[0].fields;
+  for (size_t r = 1; r < rows.size(); ++r) {
+    const int line_no = rows[r].line;
+    const std::vector<std::string>& c = rows[r].fields;
+    if (c.size() != header.size())
+      throw InputError(fmt::format("'{}' line {}: {} cells for {} columns", path.string(), line_no, c.size(),
+                                   header.size()));
+    for (size_t k = 0; k < header.size(); ++k)
+      if (stored_fit_range(header[k])) stored_fit_value(c[k], path, line_no, header[k]);
+  }
+}
+
+namespace {
+
+std::map<std::string, StoredFit> read_stored_fits(const fs::path& path, const MakeHuman& mh) {
+  check_stored_fits(path.string());
+  const std::vector<CsvRecord> rows = fit_csv_records(path);
+  const std::vector<std::string>& header = rows[0].fields;
   auto col = [&](const std::string& name) {
     const auto it = std::find(header.begin(), header.end(), name);
     if (it == header.end())
@@ -423,10 +470,10 @@ std::map<std::string, StoredFit> read_stored_fits(const fs::path& path, const Ma
     if (c.size() != header.size())
       throw InputError(fmt::format("'{}' line {}: {} cells for {} columns", path.string(), line_no, c.size(),
                                    header.size()));
-    try {
+    {
       StoredFit f;
       f.sex = c[sex];
-      f.age_years = std::stod(c[age]);
+      f.age_years = stored_fit_value(c[age], path, line_no, header[age]);
       f.fitted = c[fitted];
       f.reached = c[reached] == "1";
       f.extrapolated = c[extrapolated] == "1";
@@ -434,12 +481,12 @@ std::map<std::string, StoredFit> read_stored_fits(const fs::path& path, const Ma
       double* v[] = {&f.sliders.gender, &f.sliders.age,     &f.sliders.muscle,  &f.sliders.weight,
                      &f.sliders.height, &f.sliders.proportions, &f.sliders.cup, &f.sliders.firmness,
                      &f.sliders.african, &f.sliders.asian,  &f.sliders.caucasian};
-      for (size_t k = 0; k < slider_cols.size(); ++k) *v[k] = std::stod(c[slider_cols[k]]);
+      for (size_t k = 0; k < slider_cols.size(); ++k)
+        *v[k] = stored_fit_value(c[slider_cols[k]], path, line_no, header[slider_cols[k]]);
       f.modifiers.resize(static_cast<Eigen::Index>(modifier_cols.size()));
-      for (size_t k = 0; k < modifier_cols.size(); ++k) f.modifiers(k) = std::stod(c[modifier_cols[k]]);
+      for (size_t k = 0; k < modifier_cols.size(); ++k)
+        f.modifiers(k) = stored_fit_value(c[modifier_cols[k]], path, line_no, header[modifier_cols[k]]);
       fits[c[id]] = std::move(f);
-    } catch (const std::logic_error&) {  // stod: not a number
-      throw InputError(fmt::format("'{}' line {}: a slider, modifier or age is not a number", path.string(), line_no));
     }
   }
   return fits;
@@ -511,7 +558,6 @@ std::vector<SyntheticSubject> population_subjects(const MakeHuman& mh, const Syn
 
 std::string csv_value(double v, int decimals) { return std::isfinite(v) ? fmt_double(v, decimals) : std::string(); }
 
-
 // subjects.csv: the labels measured on the standard-pose truth mesh and the sliders; for a
 // population, the person (seqn, not a label), the recorded values (nhanes_*), the modifiers
 // and whether the fit reached the person.
@@ -575,6 +621,8 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
   if (o.poses_per_subject < 0) throw InputError("--poses-per-subject must be 0 or more");
   auto t0 = std::chrono::steady_clock::now();
   const fs::path dir(out);
+  // The stored fits are checked before any folder is made: nothing half-written on a bad file.
+  if (!o.population.empty() && !o.fits.empty()) check_stored_fits(o.fits);
   ensure_directory(dir / "scans");
   ensure_directory(dir / "truth");
 
@@ -602,7 +650,7 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
       subj = people[s];
     } else {
       bool male = (s % 2) == 1;
-      subj.sliders = random_synthetic_subject(rng, male);
+      subj.sliders = random_makehuman_subject(rng, male);
       subj.sex = subj.sliders.gender >= 0.5 ? "male" : "female";
       subj.age_years = subj.sliders.age_years();
     }

@@ -56,19 +56,25 @@ struct SyntheticDatabaseOptions {
   // NHANES); `subjects` adults with sex, age and every `population_measurements` value are drawn
   // by survey weight (seeded, sample_population) and each subject's truth body is the MakeHuman
   // body fitted to the person's recorded measurements (fit_measurements, `fit`). Empty = the
-  // uniform slider draw (random_synthetic_subject).
+  // uniform slider draw (random_makehuman_subject, core/makehuman.h).
   std::string population;
   std::vector<std::string> population_measurements = {"height_cm", "weight_kg", "waist_iliac_cm", "hips_cm",
                                                       "arm_circumference_cm"};
   FitMeasurementsOptions fit;
   // A fit-measurements batch's fit.csv whose bodies are reused: a drawn person listed there with
   // the same sex, age and fitted measurements gets that row's sliders and modifiers (stored to 4
-  // decimals) instead of a new fit (~10-20 s each). Empty = fit every person.
+  // decimals) instead of a new fit (seconds of CPU each). Empty = fit every person.
   std::string fits;
   // Write the truth meshes, poses and tables only, without simulating the scanner: what `build`
   // reads (it builds from truth/), for model studies where registration is not the question.
   bool truth_only = false;
 };
+
+// Checks the values of a fit-measurements fit.csv (SyntheticDatabaseOptions::fits) without
+// MakeHuman's data: every slider_*, modifier_* and age_years cell a finite number in the range
+// fit-measurements writes (macro sliders 0 … 1, weight up to FitMeasurementsOptions::weight_max,
+// modifiers ±modifier_limit). InputError naming the file, line and column.
+void check_stored_fits(const std::string& fits);
 
 // What a subject is: slider values and measured labels (measured on the standard-pose mesh).
 struct SyntheticSubject {
@@ -125,10 +131,5 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& makehuman,
                                                      const std::string& out_dir,
                                                      const SyntheticDatabaseOptions& options,
                                                      const ProgressCallback& progress = {});
-
-// Slider values of one random adult subject, as `synth-db` draws them: sex by `male`, macro
-// sliders inside [0.15, 0.85], ethnic mix from normalised Gamma(2) draws. Also used by
-// `eval-regressors --synthetic`, so both see the same population.
-MacroSettings random_synthetic_subject(std::mt19937_64& rng, bool male);
 
 }  // namespace bodymodel

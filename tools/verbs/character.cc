@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 
+#include "core/body_size.h"
 #include "core/error.h"
 #include "core/io/csv.h"
 #include "core/io/file_names.h"
@@ -54,13 +55,14 @@ namespace fs = std::filesystem;
 // The pose a registration was fitted in: `register-mesh` writes <stem>.pose.csv beside <stem>.ply.
 fs::path pose_file_beside(const std::string& mesh) { return fs::path(mesh).replace_extension(".pose.csv"); }
 
-// The start of the pose fits: the registration's pose, the rest pose when there is none.
+// The start of the pose fits: the registration's pose, the rest pose when there is none. A row
+// naming a bone the model's skeleton lacks is refused (the reader names the file, line and bone):
+// skipping it would start the fit from a pose the file does not describe.
 Pose start_pose_for(const std::string& mesh, const std::vector<std::string>& bone_names) {
   const fs::path p = pose_file_beside(mesh);
   std::error_code ec;
   if (!fs::exists(p, ec)) return Pose::rest(static_cast<int>(bone_names.size()));
-  std::vector<std::string> skipped;
-  return read_pose_csv(p, bone_names, &skipped).pose;
+  return read_pose_csv(p, bone_names).pose;
 }
 
 // Two-sided distance (mm) of each registration to its scan from `register-mesh.csv` in the
@@ -115,6 +117,8 @@ Mesh judge_scan_for(const std::string& mesh, const std::string& dir) {
   Mesh m = read_mesh(scan);
   m.V = to_project_frame(m.V, j["scale"].get<double>(), up_axis_rotation(j["up"].get<std::string>(), "'" +
                          settings.string() + "' up"));
+  check_body_size(m.V, "--judge-scans '" + scan.string() + "' (unit and axes from '" + settings.string() + "')",
+                  "register-mesh --scale", j["scale"].get<double>());
   return m;
 }
 
@@ -233,6 +237,7 @@ BODYMODEL_VERB(add_character_verb) {
     for (auto& f : a->judge_poses) {
       Mesh m = read_mesh(f);
       model->check_topology(m.V, m.F, "'" + f + "'");
+      check_body_size(m.V, "--judge-poses '" + f + "'");
       JudgePose p;
       p.name = fs::path(f).stem().string();
       p.target = m.V;
@@ -248,6 +253,7 @@ BODYMODEL_VERB(add_character_verb) {
     if (!a->in.empty()) {
       Mesh body = read_mesh(a->in);
       model->check_topology(body.V, body.F, "'" + a->in + "'");
+      check_body_size(body.V, "'" + a->in + "'");
       V = body.V;
       desc["input"] = path_label(a->in);
       if (a->unpose) {

@@ -51,6 +51,168 @@ void make_quick(CharacterOptions& o) {
 
 }  // namespace
 
+namespace {
+
+void add_crowd_options(CLI::App* cmd, CrowdArgs& a) {
+  cmd->add_option("model", a.model, "Model (.npz from `bodymodel build`, with its skeleton)")->required();
+  cmd->add_option("--count", a.count, "Characters")->capture_default_str()->check(CLI::Range(1, 10000));
+  cmd->add_option("--bvh", a.bvh, "Motion clip (BVH) every character performs")->required();
+  cmd->add_option("--where", a.where, "LABEL=VALUE or LABEL=LO..HI, repeatable");
+  cmd->add_option("--seed", a.seed, "Random seed (character i uses seed·1000003 + i)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--out", a.out, "Output folder")->required();
+  cmd->add_flag("--quick", a.quick, "Smaller range of motion (about half the pose morphs)");
+  cmd->add_option("--fps", a.fps, "Animation frame rate")->capture_default_str();
+  cmd->add_option("--max-frames", a.max_frames, "At most this many animation frames (0 = all)")->capture_default_str();
+  cmd->add_option("--frames-format", a.frames_format, "Per-frame meshes: none, ply or obj")->capture_default_str();
+  cmd->add_flag("--no-repair", a.no_repair,
+                "No fold repair of the animation frames (on by default, as `bodymodel animate`; the glb files "
+                "are never repaired)");
+  cmd->add_flag("--force", a.force, "Replace an existing output folder made with other settings");
+}
+
+// Up to 10 bodies a row, one scale.
+void write_crowd_picture(const std::vector<Eigen::MatrixX3d>& bodies, const Eigen::MatrixX3i& F, int count,
+                         const fs::path& png) {
+  const int per_row = std::min(10, count), rows = (count + per_row - 1) / per_row;
+  const int cw = 120, ch = 280;
+  Image grid(per_row * cw, rows * ch);
+  for (int r = 0; r < rows; ++r) {
+    std::vector<Eigen::MatrixX3d> row(bodies.begin() + r * per_row,
+                                      bodies.begin() + std::min<int>(count, (r + 1) * per_row));
+    grid.paste(render_row(row, F, {}, cw, ch), 0, r * ch);
+  }
+  grid.save_png(png);
+}
+
+// The crowd table and picture from the finished folders (also those of earlier runs), and the
+// summary lines.
+void write_crowd_summary(const CrowdArgs& a, const fs::path& out, int skipped) {
+  std::string csv = "character,height_cm,weight_kg,lbs_held_out_mean_mm,mwe_held_out_mean_mm,mwe_held_out_max_mm,"
+                    "max_edge_ratio,p99_edge_ratio,max_flipped,max_flipped_before_repair,max_edge_ratio_before_repair\n";
+  std::vector<Eigen::MatrixX3d> bodies;
+  Eigen::MatrixX3i F;
+  int mwe_better = 0;
+  double worst_ratio = 0;
+  int worst_flipped = 0, worst_flipped_before = 0;
+  for (int i = 0; i < a.count; ++i) {
+    const fs::path d = out / fmt::format("char_{:03d}", i);
+    CharacterRigFile ch = load_character_rig(d / "rig.npz");
+    const auto& c = ch.character;
+    double lbs_mean = 0, mwe_mean = 0, mwe_max = 0;
+    for (auto& r : c.value("fit_errors", nlohmann::json::array()))
+      if (r.value("split", "") == "held_out") {
+        if (r.value("method", "") == "lbs") lbs_mean = r.value("mean_mm", 0.0);
+        if (r.value("method", "") == "mwe") mwe_mean = r.value("mean_mm", 0.0), mwe_max = r.value("max_mm", 0.0);
+      }
+    mwe_better += mwe_mean < lbs_mean;
+    // Worst edge ratio and flips of the rig over the animation.
+    double ratio = 0, p99 = 0, ratio_before = 0;
+    int flipped = 0, flipped_before = 0;
+    {
+      std::istringstream in(read_text_file(d / "anim" / "animation.csv"));
+      std::string line;
+      std::getline(in, line);
+      while (std::getline(in, line)) {
+        const std::vector<std::string> f = split_csv_line(line);
+        if (f.size() >= 6) ratio = std::max(ratio, std::stod(f[3])), flipped = std::max(flipped, std::stoi(f[5]));
+        if (f.size() >= 11) p99 = std::max(p99, std::stod(f[10]));
+        if (f.size() >= 17)
+          flipped_before = std::max(flipped_before, std::stoi(f[15])), ratio_before = std::max(ratio_before, std::stod(f[16]));
+      }
+    }
+    worst_ratio = std::max(worst_ratio, ratio);
+    const auto& m = c.value("measured", nlohmann::json::object());
+    csv += fmt::format("char_{:03d},{:.1f},{:.1f},{:.2f},{:.2f},{:.2f},{:.3f},{:.3f},{},{},{:.3f}\n", i,
+                       m.value("height_cm", 0.0), m.value("weight_kg", 0.0), lbs_mean, mwe_mean, mwe_max, ratio, p99,
+                       flipped, flipped_before, ratio_before);
+    worst_flipped = std::max(worst_flipped, flipped);
+    worst_flipped_before = std::max(worst_flipped_before, flipped_before);
+    bodies.push_back(ch.rig.rest);
+    F = ch.F;
+  }
+  write_text_file(out / "crowd.csv", csv);
+  write_crowd_picture(bodies, F, a.count, out / "crowd.png");
+  fmt::print("characters                 {} ({} made now, {} from an earlier run)\n", a.count, a.count - skipped,
+             skipped);
+  fmt::print("MWE better than SSD        {} of {} (held-out mean vertex error)\n", mwe_better, a.count);
+  fmt::print("worst edge ratio to rest   {:.2f} over all characters and frames\n", worst_ratio);
+  fmt::print("flipped triangles (worst)  {} in a frame{}\n", worst_flipped,
+             a.no_repair ? std::string(" (no fold repair)")
+                          : fmt::format(" after the fold repair, {} before", worst_flipped_before));
+}
+
+void run_crowd(CrowdArgs& a) {
+  const fs::path out = a.out;
+  // Every setting that changes a character, the model and clip by content (no paths): a rerun with
+  // other settings is refused instead of resumed (tools/pipeline/folder_settings.h). --count may
+  // grow: the characters already finished are kept.
+  const nlohmann::json settings = {{"verb", "crowd"},
+                                   {"model", file_fingerprint(a.model)},
+                                   {"bvh", file_fingerprint(a.bvh)},
+                                   {"where", a.where},
+                                   {"seed", a.seed},
+                                   {"quick", a.quick},
+                                   {"fps", a.fps},
+                                   {"max_frames", a.max_frames},
+                                   {"frames_format", a.frames_format},
+                                   {"repair", !a.no_repair}};
+  ResumableFolder folder(out, "crowd.json", settings, a.force, [](const std::string& n) {
+    return n == "crowd.csv" || n == "crowd.png" || n.rfind("char_", 0) == 0;
+  });
+  auto model = std::make_shared<const BodyModel>(load_model(a.model));
+  if (model->rig.empty())
+    throw InputError("'" + a.model + "' has no skeleton: rebuild it without --no-rig (a crowd needs one)");
+  const std::vector<LabelCondition> cond = parse_conditions(model->shape.regression, a.where);
+  const BvhMotion clip = read_bvh(a.bvh);
+  if (folder.open()) cli::info("resuming the crowd in " + out.string() + " (finished characters are skipped)");
+  std::error_code ec;
+  CharacterJobOptions co;
+  if (a.quick) make_quick(co.character);
+  validate_character_options(co.character);
+  AnimateOptions ao;
+  ao.fps = a.fps;
+  ao.max_frames = a.max_frames;
+  ao.format = a.frames_format;
+  ao.repair = !a.no_repair;
+  ShapeMorpher morpher(model);
+  GenerateOptions go;
+  go.morph.sex = sex_of(cond);
+  cli::ProgressBar bar("crowd");
+  int skipped = 0;
+  auto t0 = std::chrono::steady_clock::now();
+  for (int i = 0; i < a.count; ++i) {
+    const fs::path final_dir = out / fmt::format("char_{:03d}", i);
+    if (fs::exists(final_dir / "rig.npz", ec)) {
+      ++skipped;
+      continue;
+    }
+    auto sub = [&, i](double lo, double hi) -> ProgressCallback {
+      ProgressCallback cb = bar.callback();
+      return [=](double f, std::string_view w) {
+        return cb((i + lo + (hi - lo) * f) / a.count, fmt::format("character {}: {}", i, w));
+      };
+    };
+    StagedFolder dir(final_dir, true);
+    const uint64_t seed = a.seed * 1000003ull + static_cast<uint64_t>(i);
+    GeneratedBody g = generate_body(morpher, cond, seed, go);
+    nlohmann::json desc = {{"model", path_label(a.model)}, {"seed", seed}, {"where", a.where}, {"crowd_index", i}};
+    write_character(*model, g.V, dir.path(), desc, co, sub(0, 0.9));
+    CharacterRigFile ch = load_character_rig(dir / "rig.npz");
+    ClipPoses poses = retarget_clip(clip, ch.skeleton, data_file("makehuman"), true, a.bvh);
+    ensure_directory(dir / "anim");
+    animate_character(ch, poses, dir / "anim", ao, sub(0.9, 1.0));
+    dir.commit();
+  }
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  bar.finish(fmt::format("{} characters ({} already done) in {:.0f} s", a.count, skipped, secs));
+  write_crowd_summary(a, out, skipped);
+  cli::info("wrote " + out.string() + "/crowd.csv, crowd.png");
+}
+
+}  // namespace
+
 BODYMODEL_VERB(add_crowd_verb) {
   auto a = std::make_shared<CrowdArgs>();
   auto* cmd = app.add_subcommand(
@@ -60,150 +222,8 @@ BODYMODEL_VERB(add_crowd_verb) {
       "clip (as `bodymodel animate`): OUT/char_NNN/ {body.obj, rig.npz, fit.csv, character.glb,\n"
       "anim/animated.glb, anim/animation.csv, anim/frames.png}, OUT/crowd.csv, OUT/crowd.png.\n"
       "A rerun with the same settings skips the characters already finished.");
-  cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`, with its skeleton)")->required();
-  cmd->add_option("--count", a->count, "Characters")->capture_default_str()->check(CLI::Range(1, 10000));
-  cmd->add_option("--bvh", a->bvh, "Motion clip (BVH) every character performs")->required();
-  cmd->add_option("--where", a->where, "LABEL=VALUE or LABEL=LO..HI, repeatable");
-  cmd->add_option("--seed", a->seed, "Random seed (character i uses seed·1000003 + i)")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
-  cmd->add_option("--out", a->out, "Output folder")->required();
-  cmd->add_flag("--quick", a->quick, "Smaller range of motion (about half the pose morphs)");
-  cmd->add_option("--fps", a->fps, "Animation frame rate")->capture_default_str();
-  cmd->add_option("--max-frames", a->max_frames, "At most this many animation frames (0 = all)")->capture_default_str();
-  cmd->add_option("--frames-format", a->frames_format, "Per-frame meshes: none, ply or obj")->capture_default_str();
-  cmd->add_flag("--no-repair", a->no_repair,
-                "No fold repair of the animation frames (on by default, as `bodymodel animate`; the glb files "
-                "are never repaired)");
-  cmd->add_flag("--force", a->force, "Replace an existing output folder made with other settings");
-  cmd->callback([a] {
-    const fs::path out = a->out;
-    // Every setting that changes a character, the model and clip by content (no paths): a rerun with
-    // other settings is refused instead of resumed (tools/pipeline/folder_settings.h). --count may
-    // grow: the characters already finished are kept.
-    const nlohmann::json settings = {{"verb", "crowd"},
-                                     {"model", file_fingerprint(a->model)},
-                                     {"bvh", file_fingerprint(a->bvh)},
-                                     {"where", a->where},
-                                     {"seed", a->seed},
-                                     {"quick", a->quick},
-                                     {"fps", a->fps},
-                                     {"max_frames", a->max_frames},
-                                     {"frames_format", a->frames_format},
-                                     {"repair", !a->no_repair}};
-    ResumableFolder folder(out, "crowd.json", settings, a->force, [](const std::string& n) {
-      return n == "crowd.csv" || n == "crowd.png" || n.rfind("char_", 0) == 0;
-    });
-    auto model = std::make_shared<const BodyModel>(load_model(a->model));
-    if (model->rig.empty())
-      throw InputError("'" + a->model + "' has no skeleton: rebuild it without --no-rig (a crowd needs one)");
-    const std::vector<LabelCondition> cond = parse_conditions(model->shape.regression, a->where);
-    const BvhMotion clip = read_bvh(a->bvh);
-    if (folder.open()) cli::info("resuming the crowd in " + out.string() + " (finished characters are skipped)");
-    std::error_code ec;
-    CharacterJobOptions co;
-    if (a->quick) make_quick(co.character);
-    validate_character_options(co.character);
-    AnimateOptions ao;
-    ao.fps = a->fps;
-    ao.max_frames = a->max_frames;
-    ao.format = a->frames_format;
-    ao.repair = !a->no_repair;
-    ShapeMorpher morpher(model);
-    GenerateOptions go;
-    go.morph.sex = sex_of(cond);
-    cli::ProgressBar bar("crowd");
-    int skipped = 0;
-    auto t0 = std::chrono::steady_clock::now();
-    for (int i = 0; i < a->count; ++i) {
-      const fs::path final_dir = out / fmt::format("char_{:03d}", i);
-      if (fs::exists(final_dir / "rig.npz", ec)) {
-        ++skipped;
-        continue;
-      }
-      auto sub = [&, i](double lo, double hi) -> ProgressCallback {
-        ProgressCallback cb = bar.callback();
-        return [=](double f, std::string_view w) {
-          return cb((i + lo + (hi - lo) * f) / a->count, fmt::format("character {}: {}", i, w));
-        };
-      };
-      StagedFolder dir(final_dir, true);
-      const uint64_t seed = a->seed * 1000003ull + static_cast<uint64_t>(i);
-      GeneratedBody g = generate_body(morpher, cond, seed, go);
-      nlohmann::json desc = {{"model", path_label(a->model)}, {"seed", seed}, {"where", a->where}, {"crowd_index", i}};
-      write_character(*model, g.V, dir.path(), desc, co, sub(0, 0.9));
-      CharacterRigFile ch = load_character_rig(dir / "rig.npz");
-      ClipPoses poses = retarget_clip(clip, ch.skeleton, data_file("makehuman"), true, a->bvh);
-      ensure_directory(dir / "anim");
-      animate_character(ch, poses, dir / "anim", ao, sub(0.9, 1.0));
-      dir.commit();
-    }
-    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    bar.finish(fmt::format("{} characters ({} already done) in {:.0f} s", a->count, skipped, secs));
-    // The crowd table and picture from the finished folders (also those of earlier runs).
-    std::string csv = "character,height_cm,weight_kg,lbs_held_out_mean_mm,mwe_held_out_mean_mm,mwe_held_out_max_mm,"
-                      "max_edge_ratio,p99_edge_ratio,max_flipped,max_flipped_before_repair,max_edge_ratio_before_repair\n";
-    std::vector<Eigen::MatrixX3d> bodies;
-    Eigen::MatrixX3i F;
-    int mwe_better = 0;
-    double worst_ratio = 0;
-    int worst_flipped = 0, worst_flipped_before = 0;
-    for (int i = 0; i < a->count; ++i) {
-      const fs::path d = out / fmt::format("char_{:03d}", i);
-      CharacterRigFile ch = load_character_rig(d / "rig.npz");
-      const auto& c = ch.character;
-      double lbs_mean = 0, mwe_mean = 0, mwe_max = 0;
-      for (auto& r : c.value("fit_errors", nlohmann::json::array()))
-        if (r.value("split", "") == "held_out") {
-          if (r.value("method", "") == "lbs") lbs_mean = r.value("mean_mm", 0.0);
-          if (r.value("method", "") == "mwe") mwe_mean = r.value("mean_mm", 0.0), mwe_max = r.value("max_mm", 0.0);
-        }
-      mwe_better += mwe_mean < lbs_mean;
-      // Worst edge ratio and flips of the rig over the animation.
-      double ratio = 0, p99 = 0, ratio_before = 0;
-      int flipped = 0, flipped_before = 0;
-      {
-        std::istringstream in(read_text_file(d / "anim" / "animation.csv"));
-        std::string line;
-        std::getline(in, line);
-        while (std::getline(in, line)) {
-          const std::vector<std::string> f = split_csv_line(line);
-          if (f.size() >= 6) ratio = std::max(ratio, std::stod(f[3])), flipped = std::max(flipped, std::stoi(f[5]));
-          if (f.size() >= 11) p99 = std::max(p99, std::stod(f[10]));
-          if (f.size() >= 17)
-            flipped_before = std::max(flipped_before, std::stoi(f[15])), ratio_before = std::max(ratio_before, std::stod(f[16]));
-        }
-      }
-      worst_ratio = std::max(worst_ratio, ratio);
-      const auto& m = c.value("measured", nlohmann::json::object());
-      csv += fmt::format("char_{:03d},{:.1f},{:.1f},{:.2f},{:.2f},{:.2f},{:.3f},{:.3f},{},{},{:.3f}\n", i,
-                         m.value("height_cm", 0.0), m.value("weight_kg", 0.0), lbs_mean, mwe_mean, mwe_max, ratio, p99,
-                         flipped, flipped_before, ratio_before);
-      worst_flipped = std::max(worst_flipped, flipped);
-      worst_flipped_before = std::max(worst_flipped_before, flipped_before);
-      bodies.push_back(ch.rig.rest);
-      F = ch.F;
-    }
-    write_text_file(out / "crowd.csv", csv);
-    // Grid: up to 10 bodies a row, common scale.
-    const int per_row = std::min(10, a->count), rows = (a->count + per_row - 1) / per_row;
-    const int cw = 120, ch = 280;
-    Image grid(per_row * cw, rows * ch);
-    for (int r = 0; r < rows; ++r) {
-      std::vector<Eigen::MatrixX3d> row(bodies.begin() + r * per_row,
-                                        bodies.begin() + std::min<int>(a->count, (r + 1) * per_row));
-      grid.paste(render_row(row, F, {}, cw, ch), 0, r * ch);
-    }
-    grid.save_png(out / "crowd.png");
-    fmt::print("characters                 {} ({} made now, {} from an earlier run)\n", a->count, a->count - skipped,
-               skipped);
-    fmt::print("MWE better than SSD        {} of {} (held-out mean vertex error)\n", mwe_better, a->count);
-    fmt::print("worst edge ratio to rest   {:.2f} over all characters and frames\n", worst_ratio);
-    fmt::print("flipped triangles (worst)  {} in a frame{}\n", worst_flipped,
-               a->no_repair ? std::string(" (no fold repair)")
-                            : fmt::format(" after the fold repair, {} before", worst_flipped_before));
-    cli::info("wrote " + out.string() + "/crowd.csv, crowd.png");
-  });
+  add_crowd_options(cmd, *a);
+  cmd->callback([a] { run_crowd(*a); });
 }
 
 }  // namespace bodymodel

@@ -29,6 +29,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// People the baseline regression (5 coefficients) is fitted on, at least: 4 per coefficient.
+constexpr int kMinBaselinePeople = 20;
+
 struct EvalPopulationArgs {
   std::string model, population, exclude, out, change = "likely";
   std::string girths = "waist_iliac_cm,hips_cm";
@@ -117,6 +120,17 @@ BODYMODEL_VERB(add_eval_population_verb) {
     std::vector<int> training;
     for (int i : e.eligible)
       if (!drawn_set.count(i)) training.push_back(i);
+    if (drawn.empty())
+      throw InputError(fmt::format("'{}': no eligible adult is left to evaluate ({} eligible, {} of them the "
+                                   "--exclude database's people)",
+                                   a->population, e.eligible.size(), e.eligible.size() - candidates.size()));
+    // The baseline has 5 coefficients: fitted on fewer people than this it predicts nothing (on
+    // none it predicted 0 and the ratios compared the model with that).
+    if (static_cast<int>(training.size()) < kMinBaselinePeople)
+      throw InputError(fmt::format(
+          "'{}': the height/weight baseline regression needs at least {} eligible adults besides the {} drawn for "
+          "evaluation, found {} ({} eligible in all): give a larger people file or a smaller --count",
+          a->population, kMinBaselinePeople, drawn.size(), training.size(), e.eligible.size()));
     cli::info(fmt::format("{}: {} eligible adults, {} left out as the database's people, {} drawn for evaluation, "
                           "the regression fitted on the other {}",
                           a->population, e.eligible.size(), e.eligible.size() - candidates.size(), drawn.size(),
@@ -162,7 +176,7 @@ BODYMODEL_VERB(add_eval_population_verb) {
         repair.passes = 8;
         repair_body_folds(*model, V, repair);
         Row& r = rows[k];
-        r.m = morpher.measure(V, p.sex);
+        r.m = measure_morphed(morpher, V, p.sex, cond);
         r.converged = s.converged;
         r.self_intersections = self_intersecting_triangle_pairs(V, model->tmpl->faces());
         r.roughness_p95 = roughness(V, model->tmpl->faces(), region).p95_deg;

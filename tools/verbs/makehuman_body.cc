@@ -32,9 +32,10 @@ struct MakeHumanBodyArgs {
   std::string out;
 };
 
-void run(const MakeHumanBodyArgs& a) {
+// The macro sliders with the ethnic ones given: set the given ones, the others share the rest
+// (MakeHuman's rule); several given must sum to one.
+MacroSettings settings_of(const MakeHumanBodyArgs& a) {
   MacroSettings s = a.settings;
-  // Ethnic sliders: set the given ones; the others share the rest (MakeHuman's rule).
   int given = 0;
   for (auto [name, v] : {std::pair<const char*, std::optional<double>>{"african", a.african},
                          {"asian", a.asian}, {"caucasian", a.caucasian}})
@@ -55,16 +56,14 @@ void run(const MakeHumanBodyArgs& a) {
       throw InputError(fmt::format("--african/--asian/--caucasian must sum to 1 (got {:.4f})", sum));
   }
   s.validate();
-  if (!a.out.empty()) {
-    const std::string ext = std::filesystem::path(a.out).extension().string();
-    if (ext != ".obj" && ext != ".ply" && ext != ".OBJ" && ext != ".PLY")
-      throw InputError("--out '" + a.out + "': expected an .obj or .ply file name");
-  }
+  return s;
+}
 
-  // Resolve and read the pose first, so a bad --pose fails before the model is loaded.
-  const std::filesystem::path mh_dir = data_file("makehuman");
+// The --pose clip: a BVH file, or a CMU clip or static pose of the data by name.
+std::optional<BvhMotion> read_pose_clip(const MakeHumanBodyArgs& a, const std::filesystem::path& mh_dir,
+                                        std::filesystem::path& file) {
   std::optional<BvhMotion> clip;
-  std::filesystem::path file = a.pose;
+  file = a.pose;
   if (!a.pose.empty()) {
     std::error_code ec;
     if (!std::filesystem::exists(file, ec)) {
@@ -85,6 +84,22 @@ void run(const MakeHumanBodyArgs& a) {
       throw InputError(fmt::format("--frame {}: '{}' has frames 0..{}", a.frame, file.string(),
                                    clip->frame_count() - 1));
   }
+
+  return clip;
+}
+
+void run(const MakeHumanBodyArgs& a) {
+  const MacroSettings s = settings_of(a);
+  if (!a.out.empty()) {
+    const std::string ext = std::filesystem::path(a.out).extension().string();
+    if (ext != ".obj" && ext != ".ply" && ext != ".OBJ" && ext != ".PLY")
+      throw InputError("--out '" + a.out + "': expected an .obj or .ply file name");
+  }
+
+  // Resolve and read the pose first, so a bad --pose fails before the model is loaded.
+  const std::filesystem::path mh_dir = data_file("makehuman");
+  std::filesystem::path file;
+  const std::optional<BvhMotion> clip = read_pose_clip(a, mh_dir, file);
 
   MakeHuman::Options options;
   options.substitute_defective_height_targets = !a.raw_targets;

@@ -1,6 +1,7 @@
 // bodymodel edit model.npz --in body.ply --handle VERTEX:dx,dy,dz ... --out out.obj
 #include <fmt/format.h>
 
+#include "core/body_size.h"
 #include "core/io/mesh_io.h"
 #include "model/pose_edit.h"
 #include "tools/verb.h"
@@ -53,6 +54,7 @@ BODYMODEL_VERB(add_model_edit_verb) {
     BodyModel model = model_cli::load_model_for_cli(a->model);
     Mesh body = read_mesh(a->in);
     model.check_topology(body.V, body.F, "'" + a->in + "'");
+    check_body_size(body.V, "'" + a->in + "'");
     RelativeRotationDecoder decoder(model.tmpl);
     EditOptions o;
     o.iterations = a->iterations;

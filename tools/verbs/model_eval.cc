@@ -6,6 +6,7 @@
 #include <map>
 #include <set>
 
+#include "core/body_size.h"
 #include "core/io/atomic_write.h"
 #include "core/io/csv.h"
 #include "core/io/mesh_io.h"
@@ -71,7 +72,7 @@ std::vector<std::pair<std::string, fs::path>> list_meshes(const fs::path& dir, c
 
 // Reads meshes, checks the model's topology (error naming the file), scales to mm.
 std::vector<Eigen::MatrixX3d> read_checked(const BodyModel& model, const std::vector<std::pair<std::string, fs::path>>& list,
-                                           double scale, const std::string& what) {
+                                           double scale, bool from_model, const std::string& what) {
   std::vector<Eigen::MatrixX3d> out;
   for (const auto& [name, path] : list) {
     Mesh m = read_mesh(path);
@@ -80,6 +81,7 @@ std::vector<Eigen::MatrixX3d> read_checked(const BodyModel& model, const std::ve
     const bool any_faces = model.metadata.contains("source") && model.metadata["source"].value("first_mesh_faces", false);
     model.check_topology(m.V, any_faces && m.V.rows() == model.tmpl->vertex_count() ? Eigen::MatrixX3i(model.tmpl->faces()) : m.F,
                          fmt::format("{} '{}'", what, path.string()));
+    check_body_size(m.V, fmt::format("{} '{}'", what, path.string()), "--scale", scale, from_model);
     out.push_back(std::move(m.V));
   }
   return out;
@@ -219,7 +221,7 @@ BODYMODEL_VERB(add_model_eval_verb) {
       const nlohmann::json src = model.metadata.value("source", nlohmann::json::object());
       if (scale == 0) scale = src.value("mm_per_unit", 1.0);
       const auto test_list = list_meshes(a->test, a->test_subjects);
-      const auto test = read_checked(model, test_list, scale, "test mesh");
+      const auto test = read_checked(model, test_list, scale, a->scale == 0, "test mesh");
       std::vector<std::string> names;
       for (const auto& t : test_list) names.push_back(t.first);
       // Training meshes: from --train or where build read them, named by the full model's samples.
@@ -237,7 +239,7 @@ BODYMODEL_VERB(add_model_eval_verb) {
           throw InputError(fmt::format("the model's training mesh '{}' is not in '{}' ({} missing): give --train DIR, "
                                        "or --samples 0 --no-baseline to skip what needs them",
                                        missing[0], train_dir, missing.size()));
-        train = read_checked(model, list, scale, "training mesh");
+        train = read_checked(model, list, scale, a->scale == 0, "training mesh");
       } else if (a->samples > 0 || !a->no_baseline) {
         throw InputError("the model does not say where its training meshes are: give --train DIR (or --samples 0 "
                          "--no-baseline)");

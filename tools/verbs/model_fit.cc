@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
+#include "core/body_size.h"
 #include "core/io/atomic_write.h"
 #include "core/io/json_text.h"
 #include "core/io/mesh_io.h"
@@ -87,6 +88,7 @@ BODYMODEL_VERB(add_model_fit_verb) {
       mesh.F = model->tmpl->faces();
     model->check_topology(mesh.V * scale, mesh.F, "'" + a->in + "'");
     const Eigen::MatrixX3d Y = mesh.V * scale;
+    check_body_size(Y, "'" + a->in + "'", "--scale", scale, a->scale == 0);
     ModelFitter fitter(model->tmpl, model->mean, sub.pca);
     ModelFitOptions o;
     o.components = a->components;

@@ -156,8 +156,8 @@ BODYMODEL_VERB(add_model_generate_verb) {
                      ->capture_default_str();
   cmd->add_option("--format", a->format, "obj or ply")->check(CLI::IsMember({"obj", "ply"}))->capture_default_str();
   cmd->add_flag("--no-girths", a->no_girths,
-                "labels.csv without the girths and body fat (height, volume, weight only): about a third "
-                "faster");
+                "labels.csv without the girths and body fat (height, volume, weight only): faster, the "
+                "girths' sections being a large share of a body's time");
   cmd->add_flag("--clamp", a->clamp, "Clamp values far outside the data to the data's range");
   cmd->add_option("--jobs", a->jobs, "Bodies generated in parallel (0 = all cores); the crowd does not depend on it")
       ->capture_default_str()

@@ -1,6 +1,7 @@
 // bodymodel pose model.npz --in body.ply --bvh pose.bvh [--frame k] --out out.obj
 #include <fmt/format.h>
 
+#include "core/body_size.h"
 #include "core/data_path.h"
 #include "core/io/bvh.h"
 #include "core/io/mesh_io.h"
@@ -61,6 +62,14 @@ BODYMODEL_VERB(add_model_pose_verb) {
     if (model.rig.empty()) throw InputError("'" + a->model + "' has no skeleton: rebuild it without --no-rig");
     Mesh body = read_mesh(a->in);
     model.check_topology(body.V, body.F, "'" + a->in + "'");
+    check_body_size(body.V, "'" + a->in + "'");
+    // The truth is checked before any work, so a wrong one fails before the output is written.
+    Mesh truth;
+    if (!a->truth.empty()) {
+      truth = read_mesh(a->truth);
+      model.check_topology(truth.V, truth.F, "'" + a->truth + "'");
+      check_body_size(truth.V, "'" + a->truth + "'");
+    }
     Pose pose;
     if (!a->bvh.empty()) {
       BvhMotion clip = read_bvh(a->bvh);
@@ -109,10 +118,8 @@ BODYMODEL_VERB(add_model_pose_verb) {
                  mean_vertex_error_after_rigid_fit(out, lbs));
     }
     if (!a->truth.empty()) {
-      Mesh t = read_mesh(a->truth);
-      model.check_topology(t.V, t.F, "'" + a->truth + "'");
       fmt::print("mean vertex error vs truth: {:.2f} mm (after a rigid fit)\n",
-                 mean_vertex_error_after_rigid_fit(out, t.V));
+                 mean_vertex_error_after_rigid_fit(out, truth.V));
     }
     cli::info("wrote " + a->out);
   });

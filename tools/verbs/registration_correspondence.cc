@@ -14,6 +14,7 @@
 #include <map>
 #include <regex>
 
+#include "core/body_size.h"
 #include "core/error.h"
 #include "core/geometry.h"
 #include "core/io/atomic_write.h"
@@ -167,6 +168,7 @@ BODYMODEL_VERB(add_eval_correspondence_verb) {
                          ": the truths must share one vertex numbering");
       }
       t.V = to_project_frame(t.V, a->truth_scale, up);
+      check_body_size(t.V, "'" + truths[stem].string() + "'", "--truth-scale", a->truth_scale);
       const double ratio = bounding_box_diagonal(t.V) / bounding_box_diagonal(r.V);
       if (ratio > 2.0 || ratio < 0.5)
         throw InputError("'" + truths[stem].string() + "' is " + fmt::format("{:.3g}", ratio) +

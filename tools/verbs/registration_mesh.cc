@@ -19,16 +19,14 @@
 #include "core/up_axis.h"
 #include <nlohmann/json.hpp>
 #include "registration/detail_transfer.h"
-#include "registration/fit_check.h"
-#include "registration/local_fold_repair.h"
+#include "registration/job.h"
 #include "registration/mesh_scan.h"
 #include "core/io/pose_csv.h"
-#include "registration/register_scan.h"
 #include "tools/console.h"
 #include "tools/pipeline/batch_jobs.h"
 #include "tools/pipeline/folder_settings.h"
-#include "tools/pipeline/registration_setup.h"
 #include "tools/verb.h"
+#include "tools/verbs/registration_common.h"
 
 namespace bodymodel {
 namespace {
@@ -36,19 +34,20 @@ namespace {
 namespace fs = std::filesystem;
 
 struct RegisterMeshArgs {
+  RegistrationJobOptions job = [] {
+    RegistrationJobOptions o;
+    // Stiffer end than `register`: a captured mesh has less detail than the template, and a
+    // softer end folds its eyelids and armpits (docs/real-registration.md).
+    o.fast_k_end = 3.0;
+    o.folds = FoldRepair::full;
+    return o;
+  }();
+  cli::NegatedRegistrationFlags no;
   std::vector<std::string> meshes;
-  std::string landmarks, out, schedule = "fast", up = "y";
+  std::string landmarks, out, up = "y";
   double scale = 1.0;
   int jobs = 1, samples = MeshScanOptions{}.samples;
-  int fast_steps = NonrigidOptions{}.fast_steps;
-  // Stiffer end than `register` (1): a captured mesh has less detail than the template, and at
-  // β = 1 the fit folded 86 triangles of frame 1 of vlasic-jumping (eyelids, armpits) against
-  // 31 at β = 3; those left are smoothed away (unfold_triangles): 8.6 mm two-sided, 0 folds.
-  double fast_k_end = 3.0;
-  bool no_shape_fit = false;
-  bool force = false, detail = false, pose_only = false, no_proportions = false,
-       keep_folds = false;
-  int pose_iterations = PoseFitOptions{}.max_icp_iterations;
+  bool force = false, detail = false, keep_folds = false;
 };
 
 std::string csv_header() {
@@ -71,6 +70,149 @@ void rebuild_csv(const fs::path& out) {
   write_text_file(out / "register-mesh.csv", s);
 }
 
+// Registers one mesh and writes its outputs; returns a line for the log.
+std::string register_one_mesh(const RegisterMeshArgs& a, const RegistrationTemplate& tpl,
+                              const RegistrationSetup& setup, const Eigen::Matrix3d& up, const fs::path& out,
+                              const std::string& path, const std::string& stem,
+                              const std::function<void(double)>& progress) {
+  Mesh mesh = read_mesh(path);
+  mesh.V = to_project_frame(mesh.V, a.scale, up);
+  std::vector<Landmark> landmarks = read_mesh_landmarks(a.landmarks, body_landmarks(), mesh.V);
+  MeshScanOptions so;
+  so.samples = a.samples;
+  PointCloud scan = mesh_to_scan(mesh, so, path);
+  const PointCloud scan_copy = scan;
+  const RegistrationJobResult job = run_registration_job(
+      tpl, setup, scan, landmarks, path,
+      [&](double f, std::string_view) { return progress(0.9 * f), true; });  // the rest: distances, writing
+  const RegistrationResult& r = job.registration;
+  const RegistrationSummary& s = job.summary;
+  const MeshScanDistance d = mesh_scan_distance(r.V, tpl.mesh.F, mesh, &r.pose.V);
+  double detail_distance = -1;
+  if (a.detail) {
+    const SurfaceDetail detail = capture_detail(r.V, tpl.mesh.F, scan_copy);
+    const Mesh detailed = apply_detail(r.V, tpl.mesh.F, detail);
+    detail_distance = mesh_scan_distance(detailed.V, detailed.F, mesh).scan_to_registered_mean;
+    write_detail(out / (stem + ".detail.npz"), detail, tpl.mesh.F);
+    write_mesh(out / (stem + ".detailed.ply"), detailed);
+  }
+  PoseRecord rec;
+  rec.scale = r.pose.scale;
+  rec.pose = r.pose.pose;
+  write_mesh(out / (stem + ".ply"), r.V, tpl.mesh.F);
+  write_pose_csv(out / (stem + ".pose.csv"), tpl.skeleton.names, rec);
+  if (r.shape) write_text_file(out / (stem + ".shape.json"), json_text(r.shape->to_json(), 2) + "\n");
+  write_text_file(
+      out / (stem + ".register-mesh.csv"),
+      fmt::format("{},{},{},{:.6f},{},{:.4f},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},"
+                  "{:.4f},{},{},{:.4f},{:.2f}\n",
+                  csv_field(stem), scan.P.rows(), landmarks.size(), r.pose.scale, s.pose.icp_iterations,
+                  s.pose.rms, s.nonrigid.iterations, s.nonrigid.data_rms, s.nonrigid.landmark_rms,
+                  d.registered_to_scan_mean, d.scan_to_registered_mean, d.two_sided_mean,
+                  d.registered_to_scan_p95, d.scan_to_registered_p95, d.folded_triangles,
+                  d.flipped_against_scan, detail_distance, s.seconds));
+  return fmt::format("{}: two-sided distance {:.2f} mm (registered→scan {:.2f}, "
+                     "scan→registered {:.2f}), {} folded triangles, {:.0f} s",
+                     stem, d.two_sided_mean, d.registered_to_scan_mean,
+                     d.scan_to_registered_mean, d.folded_triangles, s.seconds);
+}
+
+}  // namespace
+
+namespace {
+
+void add_register_mesh_options(CLI::App* cmd, RegisterMeshArgs& a) {
+  cmd->add_option("meshes", a.meshes, "Scan meshes (OBJ/PLY/OFF), any topology")->required();
+  cmd->add_option("--landmarks", a.landmarks,
+                  "JSON {name: vertex index (0-based, of the scan mesh) or [x, y, z]}; names as "
+                  "in the template's landmark table (head_top, l_knee, ...)")
+      ->required();
+  cmd->add_option("--out", a.out, "Output folder")->required();
+  cmd->add_option("--scale", a.scale,
+                  "Millimetres per mesh unit (1000 for meshes in metres)")
+      ->capture_default_str();
+  cmd->add_option("--up", a.up,
+                  "Axis the body stands along in the meshes (x, y, z, -x, -y, -z), rotated onto "
+                  "+y before registering (SCAPE: x); the outputs are in that frame, mm")
+      ->capture_default_str();
+  cli::add_registration_flags(cmd, a.job, a.no);
+  cmd->add_option("--samples", a.samples,
+                  "Surface samples drawn on each mesh for the registration (besides its vertices)")
+      ->capture_default_str();
+  cmd->add_option("--jobs", a.jobs, "Meshes registered in parallel")->capture_default_str();
+  cmd->add_flag("--detail", a.detail,
+                "Detail transfer: also write OUT/<stem>.detail.npz (normal offsets of the "
+                "mid-edge subdivision, per triangle) and OUT/<stem>.detailed.ply");
+  cmd->add_flag("--keep-folds", a.keep_folds,
+                "Do not smooth away triangles the non-rigid fit folded over (where the template "
+                "is finer than the mesh: eyelids, armpits), neither against the posed template "
+                "nor local folds (a triangle facing against its 2-ring, unlike at rest)");
+  cmd->add_option("--pose-iterations", a.job.pose_iterations,
+                  "ICP iterations of the pose fit (0: landmarks only)")
+      ->capture_default_str();
+  cmd->add_flag("--force", a.force,
+                "Register again meshes that are already done; replace the results in OUT made with other settings "
+                "(without it such a folder is refused)");
+}
+
+void run_register_mesh(RegisterMeshArgs& a) {
+  if (!(a.scale > 0) || !std::isfinite(a.scale))
+    throw InputError("--scale must be a positive number of millimetres per mesh unit, got " +
+                     fmt::format("{}", a.scale));
+  if (a.jobs < 1) throw InputError("--jobs must be at least 1, got " + std::to_string(a.jobs));
+  cli::apply_registration_flags(a.job, a.no);
+  if (a.keep_folds) a.job.folds = FoldRepair::keep;
+  validate(a.job);
+  const Eigen::Matrix3d up = up_axis_rotation(a.up, "--up");
+  if (a.samples < 0) throw InputError("--samples must not be negative");
+  const fs::path out = a.out;
+  std::vector<std::string> stems;
+  for (const auto& m : a.meshes) {
+    if (!fs::is_regular_file(m))
+      throw InputError("'" + m + "': expected a mesh file (OBJ/PLY/OFF), it does not exist");
+    const std::string stem = fs::path(m).stem().string();
+    if (std::find(stems.begin(), stems.end(), stem) != stems.end())
+      throw InputError("'" + m + "': two meshes share the name '" + stem +
+                       "'; their outputs would overwrite each other");
+    stems.push_back(stem);
+  }
+  if (!fs::is_regular_file(a.landmarks))
+    throw InputError("--landmarks '" + a.landmarks + "': file not found");
+  // Every setting that changes a registration, the landmarks by content: a rerun with other
+  // settings is refused instead of keeping the earlier results (tools/pipeline/folder_settings.h).
+  const nlohmann::json settings = {
+      {"verb", "register-mesh"}, {"landmarks", file_fingerprint(a.landmarks)},
+      {"scale", a.scale},       {"schedule", a.job.schedule},
+      {"fast_steps", a.job.fast_steps}, {"fast_stiffness_end", a.job.fast_k_end},
+      {"samples", a.samples},   {"detail", a.detail},
+      {"pose_only", a.job.pose_only}, {"keep_folds", a.keep_folds},
+      {"proportions", a.job.proportions}, {"shape_fit", a.job.shape_fit},
+      {"pose_iterations", a.job.pose_iterations}, {"up", a.up}};
+  ResumableFolder folder(out, "register-mesh.json", settings, a.force,
+                         outputs_named({"register-mesh.csv"}, {".ply", ".pose.csv", ".shape.json", ".register-mesh.csv",
+                                                               ".detail.npz"}));
+  folder.open();
+  BatchJobs batch({"mesh", "meshes", "registered", a.jobs, a.force}, stems, a.meshes);
+  const size_t todo = batch.skip_done([&](size_t k) {
+    const std::string& s = stems[k];
+    return fs::exists(out / (s + ".ply")) && fs::exists(out / (s + ".pose.csv")) &&
+           fs::exists(out / (s + ".register-mesh.csv")) &&
+           (!a.detail || fs::exists(out / (s + ".detail.npz")));
+  }, a.out);
+  if (todo == 0) {
+    rebuild_csv(out);
+    return;
+  }
+
+  const RegistrationSetup setup = registration_setup(a.job);
+  const RegistrationTemplate tpl = registration_template(a.job);
+  batch.run(fmt::format("register {} meshes", todo), [&](size_t k, const std::function<void(double)>& progress) {
+    return register_one_mesh(a, tpl, setup, up, out, a.meshes[k], stems[k], progress);
+  });
+  rebuild_csv(out);
+  batch.throw_if_failed();
+}
+
 }  // namespace
 
 BODYMODEL_VERB(add_register_mesh_verb) {
@@ -85,167 +227,8 @@ BODYMODEL_VERB(add_register_mesh_verb) {
       "Meshes already registered are skipped; a failed mesh is reported and skipped.\n"
       "Example (a sequence in metres):\n"
       "  bodymodel register-mesh frames/*.obj --landmarks lm.json --scale 1000 --out reg/");
-  cmd->add_option("meshes", a->meshes, "Scan meshes (OBJ/PLY/OFF), any topology")->required();
-  cmd->add_option("--landmarks", a->landmarks,
-                  "JSON {name: vertex index (0-based, of the scan mesh) or [x, y, z]}; names as "
-                  "in the template's landmark table (head_top, l_knee, ...)")
-      ->required();
-  cmd->add_option("--out", a->out, "Output folder")->required();
-  cmd->add_option("--scale", a->scale,
-                  "Millimetres per mesh unit (1000 for meshes in metres)")
-      ->capture_default_str();
-  cmd->add_option("--up", a->up,
-                  "Axis the body stands along in the meshes (x, y, z, -x, -y, -z), rotated onto "
-                  "+y before registering (SCAPE: x); the outputs are in that frame, mm")
-      ->capture_default_str();
-  cmd->add_option("--schedule", a->schedule,
-                  "Non-rigid stiffness schedule: 'paper' (1500 steps, §2.3) or 'fast'")
-      ->check(CLI::IsMember({"paper", "fast"}))
-      ->capture_default_str();
-  cmd->add_option("--fast-steps", a->fast_steps, "Steps of the fast schedule")
-      ->capture_default_str();
-  cmd->add_option("--fast-stiffness-end", a->fast_k_end,
-                  "Final smoothness weight β of the fast schedule (starts at k0 = 3000)")
-      ->capture_default_str();
-  cmd->add_option("--samples", a->samples,
-                  "Surface samples drawn on each mesh for the registration (besides its vertices)")
-      ->capture_default_str();
-  cmd->add_option("--jobs", a->jobs, "Meshes registered in parallel")->capture_default_str();
-  cmd->add_flag("--detail", a->detail,
-                "Detail transfer: also write OUT/<stem>.detail.npz (normal offsets of the "
-                "mid-edge subdivision, per triangle) and OUT/<stem>.detailed.ply");
-  cmd->add_flag("--pose-only", a->pose_only, "Stop after the skeleton pose fit");
-  cmd->add_flag("--keep-folds", a->keep_folds,
-                "Do not smooth away triangles the non-rigid fit folded over (where the template "
-                "is finer than the mesh: eyelids, armpits), neither against the posed template "
-                "nor local folds (a triangle facing against its 2-ring, unlike at rest)");
-  cmd->add_flag("--no-proportions", a->no_proportions,
-                "Keep the template's limb proportions (global scale only)");
-  cmd->add_flag("--no-shape-fit", a->no_shape_fit,
-                "Keep the default MakeHuman body's shape (global scale and landmark proportions "
-                "only) instead of fitting its macro sliders (gender, age, muscle, weight, height, "
-                "proportions, cup) in the pose stage (vlasic frames 1 and 64: 7.63/9.11 mm "
-                "two-sided without, 7.22/6.60 with)");
-  cmd->add_option("--pose-iterations", a->pose_iterations,
-                  "ICP iterations of the pose fit (0: landmarks only)")
-      ->capture_default_str();
-  cmd->add_flag("--force", a->force,
-                "Register again meshes that are already done; replace the results in OUT made with other settings "
-                "(without it such a folder is refused)");
-  cmd->callback([a] {
-    if (!(a->scale > 0) || !std::isfinite(a->scale))
-      throw InputError("--scale must be a positive number of millimetres per mesh unit, got " +
-                       fmt::format("{}", a->scale));
-    if (a->jobs < 1) throw InputError("--jobs must be at least 1, got " + std::to_string(a->jobs));
-    if (a->fast_steps < 1) throw InputError("--fast-steps must be at least 1");
-    if (!(a->fast_k_end > 0)) throw InputError("--fast-stiffness-end must be positive");
-    const Eigen::Matrix3d up = up_axis_rotation(a->up, "--up");
-    if (a->samples < 0) throw InputError("--samples must not be negative");
-    const fs::path out = a->out;
-    std::vector<std::string> stems;
-    for (const auto& m : a->meshes) {
-      if (!fs::is_regular_file(m))
-        throw InputError("'" + m + "': expected a mesh file (OBJ/PLY/OFF), it does not exist");
-      const std::string stem = fs::path(m).stem().string();
-      if (std::find(stems.begin(), stems.end(), stem) != stems.end())
-        throw InputError("'" + m + "': two meshes share the name '" + stem +
-                         "'; their outputs would overwrite each other");
-      stems.push_back(stem);
-    }
-    if (!fs::is_regular_file(a->landmarks))
-      throw InputError("--landmarks '" + a->landmarks + "': file not found");
-    // Every setting that changes a registration, the landmarks by content: a rerun with other
-    // settings is refused instead of keeping the earlier results (tools/pipeline/folder_settings.h).
-    const nlohmann::json settings = {
-        {"verb", "register-mesh"}, {"landmarks", file_fingerprint(a->landmarks)},
-        {"scale", a->scale},       {"schedule", a->schedule},
-        {"fast_steps", a->fast_steps}, {"fast_stiffness_end", a->fast_k_end},
-        {"samples", a->samples},   {"detail", a->detail},
-        {"pose_only", a->pose_only}, {"keep_folds", a->keep_folds},
-        {"proportions", !a->no_proportions}, {"shape_fit", !a->no_shape_fit},
-        {"pose_iterations", a->pose_iterations}, {"up", a->up}};
-    ResumableFolder folder(out, "register-mesh.json", settings, a->force,
-                           outputs_named({"register-mesh.csv"}, {".ply", ".pose.csv", ".shape.json", ".register-mesh.csv",
-                                                                 ".detail.npz"}));
-    folder.open();
-    BatchJobs batch({"mesh", "meshes", "registered", a->jobs, a->force}, stems, a->meshes);
-    const size_t todo = batch.skip_done([&](size_t k) {
-      const std::string& s = stems[k];
-      return fs::exists(out / (s + ".ply")) && fs::exists(out / (s + ".pose.csv")) &&
-             fs::exists(out / (s + ".register-mesh.csv")) &&
-             (!a->detail || fs::exists(out / (s + ".detail.npz")));
-    }, a->out);
-    if (todo == 0) {
-      rebuild_csv(out);
-      return;
-    }
-
-    RegistrationSetup setup = makehuman_registration_setup(
-        {a->schedule, a->fast_steps, a->fast_k_end, a->pose_only, a->no_proportions, a->no_shape_fit});
-    const RegistrationTemplate& tpl = setup.tpl;
-    RegistrationOptions& options = setup.options;
-    options.pose.max_icp_iterations = a->pose_iterations;
-    // options.pose.parameters left empty: default_pose_parameters(), as `register`.
-
-    batch.run(fmt::format("register {} meshes", todo), [&](size_t k, const auto& progress) {
-      const std::string& path = a->meshes[k];
-      const std::string& stem = stems[k];
-      Mesh mesh = read_mesh(path);
-      mesh.V = to_project_frame(mesh.V, a->scale, up);
-      std::vector<Landmark> landmarks = read_mesh_landmarks(a->landmarks, body_landmarks(), mesh.V);
-      MeshScanOptions so;
-      so.samples = a->samples;
-      PointCloud scan = mesh_to_scan(mesh, so, path);
-      const PointCloud scan_copy = scan;
-      RegistrationSummary s;
-      auto report = [&](double f, std::string_view) {
-        progress(0.9 * f);  // the rest: distances, detail, writing
-        return true;
-      };
-      RegistrationResult r = register_scan(tpl, scan, landmarks, options, path, &s, report);
-      if (!a->keep_folds) {
-        unfold_triangles(r.V, r.pose.V, tpl.mesh.F);
-        // Folds the posed template itself carries (its skinning creases) are not flipped
-        // against it: re-solve local folds from the rest template's shape too.
-        if (!a->pose_only) repair_local_folds(r.V, r.rest.V, tpl.mesh.F);
-      }
-      // Not a body (a sphere), or landmarks not its own: failed, nothing written.
-      if (!a->pose_only) {
-        const FitCheck fc = check_registration_fit(r.V, r.pose.V, r.rest.V, tpl.mesh.F, scan);
-        if (!fc.plausible) throw InputError(path + ": registration failed: " + fc.reason);
-      }
-      const MeshScanDistance d = mesh_scan_distance(r.V, tpl.mesh.F, mesh, &r.pose.V);
-      double detail_distance = -1;
-      if (a->detail) {
-        const SurfaceDetail detail = capture_detail(r.V, tpl.mesh.F, scan_copy);
-        const Mesh detailed = apply_detail(r.V, tpl.mesh.F, detail);
-        detail_distance = mesh_scan_distance(detailed.V, detailed.F, mesh).scan_to_registered_mean;
-        write_detail(out / (stem + ".detail.npz"), detail, tpl.mesh.F);
-        write_mesh(out / (stem + ".detailed.ply"), detailed);
-      }
-      PoseRecord rec;
-      rec.scale = r.pose.scale;
-      rec.pose = r.pose.pose;
-      write_mesh(out / (stem + ".ply"), r.V, tpl.mesh.F);
-      write_pose_csv(out / (stem + ".pose.csv"), tpl.skeleton.names, rec);
-      if (r.shape) write_text_file(out / (stem + ".shape.json"), json_text(r.shape->to_json(), 2) + "\n");
-      write_text_file(
-          out / (stem + ".register-mesh.csv"),
-          fmt::format("{},{},{},{:.6f},{},{:.4f},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},"
-                      "{:.4f},{},{},{:.4f},{:.2f}\n",
-                      csv_field(stem), scan.P.rows(), landmarks.size(), r.pose.scale, s.pose.icp_iterations,
-                      s.pose.rms, s.nonrigid.iterations, s.nonrigid.data_rms, s.nonrigid.landmark_rms,
-                      d.registered_to_scan_mean, d.scan_to_registered_mean, d.two_sided_mean,
-                      d.registered_to_scan_p95, d.scan_to_registered_p95, d.folded_triangles,
-                      d.flipped_against_scan, detail_distance, s.seconds));
-      return fmt::format("{}: two-sided distance {:.2f} mm (registered→scan {:.2f}, "
-                         "scan→registered {:.2f}), {} folded triangles, {:.0f} s",
-                         stem, d.two_sided_mean, d.registered_to_scan_mean,
-                         d.scan_to_registered_mean, d.folded_triangles, s.seconds);
-    });
-    rebuild_csv(out);
-    batch.throw_if_failed();
-  });
+  add_register_mesh_options(cmd, *a);
+  cmd->callback([a] { run_register_mesh(*a); });
 }
 
 }  // namespace bodymodel

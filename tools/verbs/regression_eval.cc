@@ -16,6 +16,7 @@
 
 #include <random>
 
+#include "core/random_subject.h"
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "core/io/csv.h"
@@ -138,7 +139,7 @@ StudyInput synthetic_input(const EvalRegressorsArgs& a) {
   std::mt19937_64 rng(a.synthetic_seed);
   const int n = a.synthetic;
   std::vector<MacroSettings> sliders;
-  for (int s = 0; s < n; ++s) sliders.push_back(random_synthetic_subject(rng, s % 2 == 1));
+  for (int s = 0; s < n; ++s) sliders.push_back(random_makehuman_subject(rng, s % 2 == 1));
   ModelBuildInput b;
   b.meshes.resize(n);
   const std::vector<std::pair<std::string, std::string>> label_info = {
@@ -207,6 +208,183 @@ StudyInput synthetic_input(const EvalRegressorsArgs& a) {
 }
 }  // namespace
 
+namespace {
+
+void add_eval_regressors_options(CLI::App* cmd, EvalRegressorsArgs& a) {
+  cmd->add_option("model", a.model, "Model file (.npz), e.g. from `bodymodel build` (or use --synthetic)");
+  cmd->add_option("--synthetic", a.synthetic,
+                  "Instead of a model file: build the shape-only model of this many synthetic subjects\n"
+                  "in-process (synth-db's subject distribution, standard-pose truth meshes, every PCA\n"
+                  "component kept) and evaluate on it");
+  cmd->add_option("--synthetic-seed", a.synthetic_seed, "Seed of the synthetic subjects")->capture_default_str();
+  cmd->add_option("--save-model", a.save_model, "With --synthetic: also write the built model (.npz)");
+  cmd->add_option("--label-noise", a.label_noise,
+                  "Simulated measurement noise added to the labels before cross-validation (seeded by\n"
+                  "--seed): '0.2' = 0.2 x each label's standard deviation, or 'height_cm=1,weight_kg=0.5'\n"
+                  "(sigma in the label's unit). RMSE is then against the noisy labels, as with measured ones");
+  cmd->add_option("--folds", a.folds, "Cross-validation folds (subjects grouped)")
+      ->capture_default_str()
+      ->check(CLI::Range(2, 1000000));
+  cmd->add_option("--labels", a.labels, "Comma-separated label names; 'pose:*' = every joint angle")
+      ->capture_default_str();
+  cmd->add_option("--regressors", a.regressors, "Comma-separated: simple_linear, filtered_linear (the nested fits on the most\ncorrelated components, stacked on their leave-one-subject-out predictions), svr,\ngaussian_process (also filtered_linear_select: the one count with the lowest leave-one-out\nerror; filtered_linear_by_s: ranked by |s|; filtered_linear_10fold: one count by inner\n10-fold CV)")
+      ->capture_default_str();
+  cmd->add_option("--out", a.out, "Report folder")->capture_default_str();
+  cmd->add_option("--set", a.set, "shape (one row a subject) or full (every scan)")
+      ->check(CLI::IsMember({"shape", "full"}))
+      ->capture_default_str();
+  cmd->add_option("--seed", a.seed, "Seed of the fold assignment")->capture_default_str();
+  cmd->add_option("--jobs", a.jobs, "Worker threads (0 = all cores)")->capture_default_str();
+  cmd->add_flag("--no-directions", a.no_directions, "Skip the morph-direction angles (Table 2)");
+}
+
+// The --labels columns of the study's labels (pose:* = every pose label), joint angles in degrees.
+struct SelectedLabels {
+  Eigen::MatrixXd Y;
+  std::vector<std::string> names, units;
+};
+
+SelectedLabels select_labels(const StudyInput& in, const std::string& labels) {
+  const std::vector<std::string>& names = in.names;
+  const std::vector<std::string>& units = in.units;
+  const Eigen::MatrixXd& Y = in.Y;
+  std::vector<std::string> wanted;
+  for (const auto& l : cli::split_commas(labels)) {
+    if (l == "pose:*") {
+      for (const auto& n : names)
+        if (n.rfind("pose:", 0) == 0) wanted.push_back(n);
+    } else {
+      wanted.push_back(l);
+    }
+  }
+  if (wanted.empty()) throw InputError("--labels: no label selected");
+  Eigen::MatrixXd Ysel(Y.rows(), wanted.size());
+  std::vector<std::string> sel_units;
+  for (size_t k = 0; k < wanted.size(); ++k) {
+    const auto it = std::find(names.begin(), names.end(), wanted[k]);
+    if (it == names.end()) {
+      std::string known;
+      for (const auto& n : names) known += (known.empty() ? "" : ", ") + n;
+      throw InputError("--labels: '" + wanted[k] + "' is not in '" + in.source + "' (it has " + known + ")");
+    }
+    const size_t c = static_cast<size_t>(it - names.begin());
+    Ysel.col(k) = Y.col(c);
+    std::string unit = units[c].empty() ? default_unit(wanted[k]) : units[c];
+    if (wanted[k].rfind("pose:", 0) == 0 && (unit == "rad" || unit == "radians" || unit.empty())) {
+      Ysel.col(k) *= 180.0 / M_PI;  // joint angles reported in degrees
+      unit = "deg";
+    }
+    sel_units.push_back(unit);
+  }
+  return {Ysel, wanted, sel_units};
+}
+
+// regressors.csv, directions.csv and the filtered-linear curves (CSV and plot) in `dir`.
+void write_regression_outputs(const std::string& dir, const RegressionStudy& study, const RegressionStudyOptions& o,
+                              const std::vector<std::string>& wanted, const std::vector<std::string>& sel_units) {
+  const std::filesystem::path out(dir);
+  ensure_directory(out);
+  std::string csv = "regressor,label,unit,rmse,mae,folds,samples,skipped_missing\n";
+  for (const auto& r : o.regressors)
+    for (size_t k = 0; k < wanted.size(); ++k) {
+      const auto& s = study.result(r, wanted[k]);
+      csv += fmt::format("{},{},{},{:.6g},{:.6g},{},{},{}\n", r, csv_field(wanted[k]), csv_field(sel_units[k]),
+                         s.rmse, s.mae, s.folds, s.samples, s.skipped_missing);
+    }
+  write_text_file(out / "regressors.csv", csv);
+  if (o.directions) {
+    std::string d = "regressor,label,mean_deg,std_deg,max_deg,subjects\n";
+    for (const auto& r : study.directions)
+      d += fmt::format("{},{},{:.6g},{:.6g},{:.6g},{}\n", r.regressor, csv_field(r.label), r.spread.mean_deg,
+                       r.spread.std_deg, r.spread.max_deg, r.spread.subjects);
+    write_text_file(out / "directions.csv", d);
+    fmt::print("\nMorph-direction angle to the mean direction, degrees (mean ± std over subjects)\n");
+    std::string t = fmt::format("{:<22}", "");
+    for (const auto& l : wanted) t += fmt::format(" {:>16}", l);
+    t += "\n";
+    for (const auto& r : o.regressors) {
+      t += fmt::format("{:<22}", r);
+      for (const auto& dr : study.directions)
+        if (dr.regressor == r) t += fmt::format(" {:>16}", fmt::format("{:.2f} ± {:.2f}", dr.spread.mean_deg, dr.spread.std_deg));
+      t += "\n";
+    }
+    fmt::print("{}", t);
+  }
+  std::vector<LinePanel> panels;
+  std::string curve_csv = "label,unit,kept_components,rmse\n";
+  for (size_t k = 0; k < wanted.size(); ++k) {
+    const Eigen::VectorXd& c = study.filtered_curves[k];
+    LinePanel pnl;
+    pnl.title = wanted[k] + " rmse (" + sel_units[k] + ") filtered linear";
+    pnl.x = Eigen::VectorXd::LinSpaced(c.size(), 1, static_cast<double>(c.size()));
+    pnl.y = c;
+    panels.push_back(pnl);
+    for (Eigen::Index m = 0; m < c.size(); ++m)
+      curve_csv += fmt::format("{},{},{},{:.6g}\n", csv_field(wanted[k]), csv_field(sel_units[k]), m + 1, c(m));
+  }
+  write_line_plot_png(out / "filtered_components.png", panels);
+  write_text_file(out / "filtered_components.csv", curve_csv);
+}
+
+void run_eval_regressors(EvalRegressorsArgs& a) {
+  if (a.synthetic > 0 && !a.model.empty())
+    throw InputError("give either a model file or --synthetic N, not both");
+  if (a.synthetic <= 0 && a.model.empty())
+    throw InputError("no model file given (expected model.npz, or --synthetic N to build one in-process)");
+  const LabelNoiseSpec noise = parse_label_noise(a.label_noise);
+  const StudyInput in = a.synthetic > 0 ? synthetic_input(a) : model_input(a);
+  const Eigen::MatrixXd& X = in.X;
+  const std::vector<int>& groups = in.groups;
+  SelectedLabels chosen = select_labels(in, a.labels);
+  Eigen::MatrixXd& Ysel = chosen.Y;
+  const std::vector<std::string>& wanted = chosen.names;
+  const std::vector<std::string>& sel_units = chosen.units;
+  if (!noise.empty()) {
+    const Eigen::VectorXd sigma = label_noise_sigma(noise, Ysel, wanted);
+    Ysel = add_label_noise(Ysel, sigma, groups, a.seed);
+    std::string list;
+    for (size_t k = 0; k < wanted.size(); ++k)
+      list += fmt::format("{}{} {:.3g} {}", k ? ", " : "", wanted[k], sigma(k), sel_units[k]);
+    cli::info("simulated label noise (sigma): " + list);
+  }
+
+  RegressionStudyOptions o;
+  o.regressors = cli::split_commas(a.regressors);
+  for (const auto& r : o.regressors) make_regressor(r);  // validates the names
+  o.cross_validation.folds = a.folds;
+  o.cross_validation.seed = a.seed;
+  o.jobs = a.jobs;
+  o.directions = !a.no_directions;
+  cli::info(fmt::format("{}: {} rows ({} subjects), {} components, {} labels, {} regressors, {}-fold",
+                        in.source, X.rows(), groups.empty() ? X.rows() : static_cast<Eigen::Index>(*std::max_element(groups.begin(), groups.end()) + 1),
+                        X.cols(), wanted.size(), o.regressors.size(), a.folds));
+  cli::ProgressBar bar("eval-regressors");
+  const RegressionStudy study = run_regression_study(X, Ysel, wanted, groups, o, bar.callback());
+  bar.finish();
+
+  // Table 1 style, with units.
+  std::string table = fmt::format("{:<22}", "RMSE");
+  for (size_t k = 0; k < wanted.size(); ++k) table += fmt::format(" {:>16}", wanted[k] + " (" + sel_units[k] + ")");
+  table += "\n";
+  for (const auto& r : o.regressors) {
+    table += fmt::format("{:<22}", r);
+    for (const auto& l : wanted) table += fmt::format(" {:>16.3f}", study.result(r, l).rmse);
+    table += "\n";
+  }
+  fmt::print("{}", table);
+  for (size_t k = 0; k < wanted.size(); ++k) {
+    const auto& s = study.result(o.regressors[0], wanted[k]);
+    if (s.skipped_missing > 0)
+      cli::warn(fmt::format("label '{}': {} rows without a value were skipped ({} used)", wanted[k],
+                            s.skipped_missing, s.samples));
+  }
+
+  write_regression_outputs(a.out, study, o, wanted, sel_units);
+  cli::info(fmt::format("wrote {}/regressors.csv, directions.csv, filtered_components.png/.csv", a.out));
+}
+
+}  // namespace
+
 BODYMODEL_VERB(add_eval_regressors_verb) {
   auto a = std::make_shared<EvalRegressorsArgs>();
   auto* cmd = app.add_subcommand(
@@ -218,156 +396,8 @@ BODYMODEL_VERB(add_eval_regressors_verb) {
       "the full model's arrays are used, scans are grouped by subject (full_subject_ids, or the scan\n"
       "id up to its last '_p'), and joint-angle labels 'pose:<bone>:r?' are reported in degrees.\n"
       "Writes <out>/regressors.csv, <out>/directions.csv, <out>/filtered_components.png.");
-  cmd->add_option("model", a->model, "Model file (.npz), e.g. from `bodymodel build` (or use --synthetic)");
-  cmd->add_option("--synthetic", a->synthetic,
-                  "Instead of a model file: build the shape-only model of this many synthetic subjects\n"
-                  "in-process (synth-db's subject distribution, standard-pose truth meshes, every PCA\n"
-                  "component kept) and evaluate on it");
-  cmd->add_option("--synthetic-seed", a->synthetic_seed, "Seed of the synthetic subjects")->capture_default_str();
-  cmd->add_option("--save-model", a->save_model, "With --synthetic: also write the built model (.npz)");
-  cmd->add_option("--label-noise", a->label_noise,
-                  "Simulated measurement noise added to the labels before cross-validation (seeded by\n"
-                  "--seed): '0.2' = 0.2 x each label's standard deviation, or 'height_cm=1,weight_kg=0.5'\n"
-                  "(sigma in the label's unit). RMSE is then against the noisy labels, as with measured ones");
-  cmd->add_option("--folds", a->folds, "Cross-validation folds (subjects grouped)")
-      ->capture_default_str()
-      ->check(CLI::Range(2, 1000000));
-  cmd->add_option("--labels", a->labels, "Comma-separated label names; 'pose:*' = every joint angle")
-      ->capture_default_str();
-  cmd->add_option("--regressors", a->regressors, "Comma-separated: simple_linear, filtered_linear (the nested fits on the most\ncorrelated components, stacked on their leave-one-subject-out predictions), svr,\ngaussian_process (also filtered_linear_select: the one count with the lowest leave-one-out\nerror; filtered_linear_by_s: ranked by |s|; filtered_linear_10fold: one count by inner\n10-fold CV)")
-      ->capture_default_str();
-  cmd->add_option("--out", a->out, "Report folder")->capture_default_str();
-  cmd->add_option("--set", a->set, "shape (one row a subject) or full (every scan)")
-      ->check(CLI::IsMember({"shape", "full"}))
-      ->capture_default_str();
-  cmd->add_option("--seed", a->seed, "Seed of the fold assignment")->capture_default_str();
-  cmd->add_option("--jobs", a->jobs, "Worker threads (0 = all cores)")->capture_default_str();
-  cmd->add_flag("--no-directions", a->no_directions, "Skip the morph-direction angles (Table 2)");
-  cmd->callback([a] {
-    if (a->synthetic > 0 && !a->model.empty())
-      throw InputError("give either a model file or --synthetic N, not both");
-    if (a->synthetic <= 0 && a->model.empty())
-      throw InputError("no model file given (expected model.npz, or --synthetic N to build one in-process)");
-    const LabelNoiseSpec noise = parse_label_noise(a->label_noise);
-    const StudyInput in = a->synthetic > 0 ? synthetic_input(*a) : model_input(*a);
-    const Eigen::MatrixXd& X = in.X;
-    const std::vector<std::string>& names = in.names;
-    const std::vector<std::string>& units = in.units;
-    const std::vector<int>& groups = in.groups;
-    Eigen::MatrixXd Y = in.Y;
-    // Requested labels.
-    std::vector<std::string> wanted;
-    for (const auto& l : cli::split_commas(a->labels)) {
-      if (l == "pose:*") {
-        for (const auto& n : names)
-          if (n.rfind("pose:", 0) == 0) wanted.push_back(n);
-      } else {
-        wanted.push_back(l);
-      }
-    }
-    if (wanted.empty()) throw InputError("--labels: no label selected");
-    Eigen::MatrixXd Ysel(Y.rows(), wanted.size());
-    std::vector<std::string> sel_units;
-    for (size_t k = 0; k < wanted.size(); ++k) {
-      const auto it = std::find(names.begin(), names.end(), wanted[k]);
-      if (it == names.end()) {
-        std::string known;
-        for (const auto& n : names) known += (known.empty() ? "" : ", ") + n;
-        throw InputError("--labels: '" + wanted[k] + "' is not in '" + in.source + "' (it has " + known + ")");
-      }
-      const size_t c = static_cast<size_t>(it - names.begin());
-      Ysel.col(k) = Y.col(c);
-      std::string unit = units[c].empty() ? default_unit(wanted[k]) : units[c];
-      if (wanted[k].rfind("pose:", 0) == 0 && (unit == "rad" || unit == "radians" || unit.empty())) {
-        Ysel.col(k) *= 180.0 / M_PI;  // joint angles reported in degrees
-        unit = "deg";
-      }
-      sel_units.push_back(unit);
-    }
-    if (!noise.empty()) {
-      const Eigen::VectorXd sigma = label_noise_sigma(noise, Ysel, wanted);
-      Ysel = add_label_noise(Ysel, sigma, groups, a->seed);
-      std::string list;
-      for (size_t k = 0; k < wanted.size(); ++k)
-        list += fmt::format("{}{} {:.3g} {}", k ? ", " : "", wanted[k], sigma(k), sel_units[k]);
-      cli::info("simulated label noise (sigma): " + list);
-    }
-
-    RegressionStudyOptions o;
-    o.regressors = cli::split_commas(a->regressors);
-    for (const auto& r : o.regressors) make_regressor(r);  // validates the names
-    o.cross_validation.folds = a->folds;
-    o.cross_validation.seed = a->seed;
-    o.jobs = a->jobs;
-    o.directions = !a->no_directions;
-    cli::info(fmt::format("{}: {} rows ({} subjects), {} components, {} labels, {} regressors, {}-fold",
-                          in.source, X.rows(), groups.empty() ? X.rows() : static_cast<Eigen::Index>(*std::max_element(groups.begin(), groups.end()) + 1),
-                          X.cols(), wanted.size(), o.regressors.size(), a->folds));
-    cli::ProgressBar bar("eval-regressors");
-    const RegressionStudy study = run_regression_study(X, Ysel, wanted, groups, o, bar.callback());
-    bar.finish();
-
-    // Table 1 style, with units.
-    std::string table = fmt::format("{:<22}", "RMSE");
-    for (size_t k = 0; k < wanted.size(); ++k) table += fmt::format(" {:>16}", wanted[k] + " (" + sel_units[k] + ")");
-    table += "\n";
-    for (const auto& r : o.regressors) {
-      table += fmt::format("{:<22}", r);
-      for (const auto& l : wanted) table += fmt::format(" {:>16.3f}", study.result(r, l).rmse);
-      table += "\n";
-    }
-    fmt::print("{}", table);
-    for (size_t k = 0; k < wanted.size(); ++k) {
-      const auto& s = study.result(o.regressors[0], wanted[k]);
-      if (s.skipped_missing > 0)
-        cli::warn(fmt::format("label '{}': {} rows without a value were skipped ({} used)", wanted[k],
-                              s.skipped_missing, s.samples));
-    }
-
-    const std::filesystem::path out(a->out);
-    ensure_directory(out);
-    std::string csv = "regressor,label,unit,rmse,mae,folds,samples,skipped_missing\n";
-    for (const auto& r : o.regressors)
-      for (size_t k = 0; k < wanted.size(); ++k) {
-        const auto& s = study.result(r, wanted[k]);
-        csv += fmt::format("{},{},{},{:.6g},{:.6g},{},{},{}\n", r, csv_field(wanted[k]), csv_field(sel_units[k]),
-                           s.rmse, s.mae, s.folds, s.samples, s.skipped_missing);
-      }
-    write_text_file(out / "regressors.csv", csv);
-    if (o.directions) {
-      std::string d = "regressor,label,mean_deg,std_deg,max_deg,subjects\n";
-      for (const auto& r : study.directions)
-        d += fmt::format("{},{},{:.6g},{:.6g},{:.6g},{}\n", r.regressor, csv_field(r.label), r.spread.mean_deg,
-                         r.spread.std_deg, r.spread.max_deg, r.spread.subjects);
-      write_text_file(out / "directions.csv", d);
-      fmt::print("\nMorph-direction angle to the mean direction, degrees (mean ± std over subjects)\n");
-      std::string t = fmt::format("{:<22}", "");
-      for (const auto& l : wanted) t += fmt::format(" {:>16}", l);
-      t += "\n";
-      for (const auto& r : o.regressors) {
-        t += fmt::format("{:<22}", r);
-        for (const auto& dr : study.directions)
-          if (dr.regressor == r) t += fmt::format(" {:>16}", fmt::format("{:.2f} ± {:.2f}", dr.spread.mean_deg, dr.spread.std_deg));
-        t += "\n";
-      }
-      fmt::print("{}", t);
-    }
-    std::vector<LinePanel> panels;
-    std::string curve_csv = "label,unit,kept_components,rmse\n";
-    for (size_t k = 0; k < wanted.size(); ++k) {
-      const Eigen::VectorXd& c = study.filtered_curves[k];
-      LinePanel pnl;
-      pnl.title = wanted[k] + " rmse (" + sel_units[k] + ") filtered linear";
-      pnl.x = Eigen::VectorXd::LinSpaced(c.size(), 1, static_cast<double>(c.size()));
-      pnl.y = c;
-      panels.push_back(pnl);
-      for (Eigen::Index m = 0; m < c.size(); ++m)
-        curve_csv += fmt::format("{},{},{},{:.6g}\n", csv_field(wanted[k]), csv_field(sel_units[k]), m + 1, c(m));
-    }
-    write_line_plot_png(out / "filtered_components.png", panels);
-    write_text_file(out / "filtered_components.csv", curve_csv);
-    cli::info(fmt::format("wrote {}/regressors.csv, directions.csv, filtered_components.png/.csv", a->out));
-  });
+  add_eval_regressors_options(cmd, *a);
+  cmd->callback([a] { run_eval_regressors(*a); });
 }
 
 }  // namespace bodymodel

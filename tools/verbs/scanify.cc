@@ -37,6 +37,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
+constexpr double kMaxNoiseMm = 100;  // σ per coordinate; a body scanner's is about 1 mm
+constexpr int kMaxPoints = 10'000'000;  // per mesh: points, normals and their index must fit in memory
+
 struct ScanifyArgs {
   std::vector<std::string> meshes;
   std::string out, scanner = "pillars", holes = "on", up = "y", landmarks, subject_regex;
@@ -140,13 +143,16 @@ BODYMODEL_VERB(add_scanify_verb) {
                 "Replace scans of the same id already in the --out database (and add to a folder without "
                 "scans.csv)");
   cmd->callback([a] {
-    if (!(a->noise_mm >= 0) || !std::isfinite(a->noise_mm))
-      throw InputError("--noise-mm must be 0 or more");
-    if (!(a->landmark_noise_mm >= 0) || !std::isfinite(a->landmark_noise_mm))
-      throw InputError("--landmark-noise-mm must be 0 or more");
+    // Bounded above too: noise far beyond a body's size makes a cloud no reader takes back, and
+    // a point count beyond memory ended in a bare std::bad_alloc.
+    if (!(a->noise_mm >= 0 && a->noise_mm <= kMaxNoiseMm))
+      throw InputError(fmt::format("--noise-mm must be 0 … {} mm, got {}", kMaxNoiseMm, a->noise_mm));
+    if (!(a->landmark_noise_mm >= 0 && a->landmark_noise_mm <= kMaxNoiseMm))
+      throw InputError(fmt::format("--landmark-noise-mm must be 0 … {} mm, got {}", kMaxNoiseMm, a->landmark_noise_mm));
     if (!(a->scale > 0) || !std::isfinite(a->scale))
       throw InputError("--scale must be a positive number of millimetres per mesh unit");
-    if (a->points < 100) throw InputError("--points must be at least 100");
+    if (a->points < 100 || a->points > kMaxPoints)
+      throw InputError(fmt::format("--points must be 100 … {}, got {}", kMaxPoints, a->points));
     if (a->jobs < 1) throw InputError("--jobs must be at least 1");
     const Eigen::Matrix3d up = up_axis_rotation(a->up, "--up");
     std::regex subject_re;
@@ -164,7 +170,7 @@ BODYMODEL_VERB(add_scanify_verb) {
       throw InputError("--out '" + a->out + "' is one scan file, but " +
                        std::to_string(a->meshes.size()) +
                        " meshes were given: give a folder to make a scan database");
-    std::vector<std::string> stems;
+    std::vector<std::string> stems, subjects;
     for (const auto& m : a->meshes) {
       if (!fs::is_regular_file(m))
         throw InputError("'" + m + "': expected a mesh file (OBJ/PLY/OFF), it does not exist");
@@ -175,6 +181,13 @@ BODYMODEL_VERB(add_scanify_verb) {
       if (std::find(stems.begin(), stems.end(), stem) != stems.end())
         throw InputError("'" + m + "': two meshes share the name '" + stem + "'");
       stems.push_back(stem);
+      // Every subject id before anything is written: a stem the pattern misses used to fail
+      // after the other scans were written, leaving a database without its scans.csv.
+      std::smatch match;
+      if (!a->subject_regex.empty() && (!std::regex_search(stem, match, subject_re) || match.size() < 2))
+        throw InputError("--subject-regex '" + a->subject_regex + "' does not match '" + stem +
+                         "' with a capture group ('" + m + "'); nothing written");
+      subjects.push_back(a->subject_regex.empty() ? stem : match[1].str());
     }
     if (!a->landmarks.empty() && !fs::is_regular_file(a->landmarks))
       throw InputError("--landmarks '" + a->landmarks + "': file not found");
@@ -203,6 +216,7 @@ BODYMODEL_VERB(add_scanify_verb) {
     options.scanner.noise_sigma_mm = a->noise_mm;
     options.scanner.min_points = a->points;
     options.holes = a->holes == "on";
+    options.mm_per_unit = a->scale;
     cli::ProgressBar bar(fmt::format("scanify {} meshes", a->meshes.size()));
     std::mutex mutex;
     std::atomic<int> done{0};
@@ -235,15 +249,7 @@ BODYMODEL_VERB(add_scanify_verb) {
           const fs::path lm_path = scan_path.parent_path() / (scan_path.stem().string() + ".landmarks.json");
           write_point_cloud(scan_path, scan);
           if (!single || !landmarks.empty()) write_text_file(lm_path, json_text(lm, 1) + "\n");
-          std::string subject = stem;
-          std::smatch m;
-          if (!a->subject_regex.empty()) {
-            if (!std::regex_search(stem, m, subject_re) || m.size() < 2)
-              throw InputError("--subject-regex '" + a->subject_regex + "' does not match '" +
-                               stem + "' with a capture group");
-            subject = m[1].str();
-          }
-          rows[k] = {stem, subject, stem, std::to_string(scan.P.rows()), path};
+          rows[k] = {stem, subjects[k], stem, std::to_string(scan.P.rows()), path};
           std::lock_guard<std::mutex> lock(mutex);
           bar.update(double(++done) / double(a->meshes.size()), stem);
         } catch (const std::exception& e) {

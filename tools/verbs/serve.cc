@@ -1,8 +1,9 @@
 // `bodymodel serve model.npz`: live morphing in the browser. A small HTTP/JSON API (cpp-httplib)
 // around one ShapeMorpher, and a page with a slider per label, a seed box for generate, the
-// measured labels and OBJ / glb downloads. Loopback by default; request bodies are capped, reads
-// and writes time out, and at most --max-decodes morphs run at once (others get 503 at once, so
-// a flood cannot queue unbounded work or memory).
+// measured labels and OBJ / glb downloads. Loopback by default; request bodies are capped however
+// they are framed, a request must arrive whole within --timeout and only whole requests occupy a
+// thread (serve_connections.h), and at most --max-decodes morphs run at once (others get 503 at
+// once, so a flood cannot queue unbounded work or memory).
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -25,8 +26,9 @@
 #include "tools/verb.h"
 #include "tools/verbs/model_common.h"
 #include "tools/viewer/viewer_assets.h"
-// Last: it pulls in <resolv.h>, whose _res macro breaks Eigen headers parsed after it.
-#include <httplib.h>
+// Last: it pulls in <httplib.h> and so <resolv.h>, whose _res macro breaks Eigen headers parsed
+// after it.
+#include "tools/verbs/serve_connections.h"
 
 namespace bodymodel {
 namespace {
@@ -36,7 +38,7 @@ using nlohmann::json;
 
 struct ServeArgs {
   std::string model, host = "127.0.0.1", three;
-  int port = 8080, max_decodes = 2, threads = 8, timeout = 10;
+  int port = 8080, max_decodes = 2, threads = 8, timeout = 5;
   size_t max_body = 16 * 1024;
   bool preview = true;
 };
@@ -175,7 +177,7 @@ class MorphService {
       }
       b.decode_ms = ms_since(t0);
       const auto t1 = std::chrono::steady_clock::now();
-      b.measured = quick ? measure_height_and_weight(b.V, model_->tmpl->faces()) : morpher_.measure(b.V, sex);
+      b.measured = quick ? measure_height_and_weight(b.V, model_->tmpl->faces()) : measure_morphed(morpher_, b.V, sex, cond);
       b.measure_ms = ms_since(t1);
     }
     b.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -234,12 +236,58 @@ void error_reply(httplib::Response& res, int status, const std::string& message)
   res.set_content(json_text(json{{"error", message}}), "application/json");
 }
 
-// Runs f(parsed body), mapping failures to statuses: 400 bad JSON / bad values (the message
-// the CLI prints), 503 when the decode cap is reached, 500 otherwise.
+// Whether the request announces a body (chunked, or a Content-Length other than 0).
+bool has_body(const httplib::Request& req) {
+  if (req.get_header_value("Transfer-Encoding").find("chunked") != std::string::npos) return true;
+  const std::string n = req.get_header_value("Content-Length");
+  return !n.empty() && n != "0";
+}
+
+// Reads the request body into `body`, at most `max_body` bytes however it is framed: cpp-httplib
+// 0.11's payload limit checks a Content-Length only, and read a chunked body of any size into
+// memory. Past the limit it stops reading and answers 413; false when it answered.
+bool read_body(const httplib::Request& req, httplib::Response& res, const httplib::ContentReader& reader,
+               size_t max_body, std::string& body) {
+  auto refuse = [&](int status, const std::string& message) {
+    error_reply(res, status, message);
+    serve::t_close_connection = true;  // the unread rest of the body is not a next request
+    return false;
+  };
+  if (req.is_multipart_form_data()) return refuse(415, "the request body must be JSON (application/json)");
+  const bool chunked = req.get_header_value("Transfer-Encoding").find("chunked") != std::string::npos;
+  if (!chunked) {
+    const std::string length = req.get_header_value("Content-Length");
+    if (length.empty()) return true;  // no body
+    char* stop = nullptr;
+    const unsigned long long n = std::strtoull(length.c_str(), &stop, 10);
+    if (*stop != '\0' || length[0] == '-') return refuse(400, "bad Content-Length '" + length + "'");
+    if (n > max_body)
+      return refuse(413, fmt::format("request body of {} bytes is over --max-body ({} bytes)", n, max_body));
+  }
+  bool too_big = false;
+  const bool complete = reader([&](const char* data, size_t n) {
+    if (body.size() + n > max_body) {
+      too_big = true;
+      return false;
+    }
+    body.append(data, n);
+    return true;
+  });
+  if (too_big) return refuse(413, fmt::format("request body over --max-body ({} bytes)", max_body));
+  if (!complete) return refuse(400, "incomplete or malformed request body");
+  return true;
+}
+
+// Reads the body (read_body), then runs f(parsed body), mapping failures to statuses: 400 bad
+// JSON / bad values (the message the CLI prints), 503 when the decode cap is reached, 500
+// otherwise.
 template <class F>
-void handle(const httplib::Request& req, httplib::Response& res, F&& f) {
+void handle(const httplib::Request& req, httplib::Response& res, const httplib::ContentReader& reader,
+            size_t max_body, F&& f) {
+  std::string text;
+  if (!read_body(req, res, reader, max_body, text)) return;
   try {
-    json body = req.body.empty() ? json::object() : json::parse(req.body);
+    json body = text.empty() ? json::object() : json::parse(text);
     if (!body.is_object()) throw BadRequest("the request body must be a JSON object");
     f(body);
   } catch (const json::exception& e) {
@@ -257,11 +305,14 @@ void handle(const httplib::Request& req, httplib::Response& res, F&& f) {
 
 
 httplib::Server* g_server = nullptr;
-void stop_server(int) {
+volatile std::sig_atomic_t g_stop_signal = 0;
+void stop_server(int sig) {
+  g_stop_signal = sig;
   if (g_server) g_server->stop();
 }
 
-void run_serve(const ServeArgs& a) {
+// Returns the signal that stopped the server (0: it stopped otherwise).
+int serve_until_stopped(const ServeArgs& a) {
   auto model = std::make_shared<const BodyModel>(model_cli::load_model_for_cli(a.model));
   const fs::path three = a.three.empty() ? cli::default_three_js() : fs::path(a.three);
   if (three.empty() || !fs::is_regular_file(three))
@@ -271,24 +322,38 @@ void run_serve(const ServeArgs& a) {
   auto service = std::make_shared<MorphService>(model, a.max_decodes, a.preview);
   const std::string describe = json_text(service->describe());
 
-  httplib::Server svr;
-  svr.set_payload_max_length(a.max_body);  // larger bodies: 413 before any parsing
+  serve::ConnectionLimits limits;
+  limits.max_body = a.max_body;
+  limits.request_timeout = std::chrono::seconds(a.timeout);
+  limits.workers = a.threads;
+  serve::GatedServer svr(limits);
+  // Bodies reach the POST handlers below only, which read them through read_body; the payload
+  // limit is a second guard for any other route cpp-httplib reads a Content-Length body for.
+  svr.set_payload_max_length(a.max_body);
   svr.set_read_timeout(a.timeout, 0);
   svr.set_write_timeout(a.timeout, 0);
-  svr.set_keep_alive_max_count(20);
   // An exception that escapes a handler: without this, cpp-httplib answers 500 with the
   // exception's text in an EXCEPTION_WHAT header. Internal text stays inside the server.
   svr.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr) {
     res.status = 500;
     res.set_content(R"({"error": "internal error"})", "application/json");
   });
-  const int threads = a.threads;
-  svr.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<size_t>(threads)); };
   // cpp-httplib compresses what the client accepts compressed; Debian's build has brotli, at a
   // quality that took 1.2 s for one 214 KB body answer on loopback (11 ms plain, 34 ms gzip): the
   // browser's round trip was all compression. API answers (base64 floats, 28 % smaller gzipped)
   // go plain; the page and three.js at most gzip.
-  svr.set_pre_routing_handler([](const httplib::Request& req, httplib::Response&) {
+  svr.set_pre_routing_handler([](const httplib::Request& req, httplib::Response& res) {
+    // A body sent anywhere but the POST routes is refused unread: cpp-httplib would read a
+    // chunked one into memory whatever its size before answering 404.
+    const bool api_post = req.method == "POST" &&
+                          (req.path == "/api/body" || req.path == "/api/body.obj" || req.path == "/api/body.glb");
+    if (!api_post && has_body(req) && req.method != "GET" && req.method != "HEAD") {
+      error_reply(res, 404, fmt::format("no {} {} (the API: GET /api/model, POST /api/body[.obj|.glb])", req.method,
+                                        req.path));
+      serve::t_close_connection = true;
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    if (!api_post && has_body(req)) serve::t_close_connection = true;  // a GET's body is not read
     auto& r = const_cast<httplib::Request&>(req);  // the server's own, non-const request object
     const bool gzip = req.path.rfind("/api/", 0) != 0 &&
                       req.get_header_value("Accept-Encoding").find("gzip") != std::string::npos;
@@ -303,19 +368,23 @@ void run_serve(const ServeArgs& a) {
   svr.Get("/api/model", [&describe](const httplib::Request&, httplib::Response& res) {
     res.set_content(describe, "application/json");
   });
-  svr.Post("/api/body", [service](const httplib::Request& req, httplib::Response& res) {
-    handle(req, res, [&](const json& body) {
+  const size_t max_body = a.max_body;
+  svr.Post("/api/body", [service, max_body](const httplib::Request& req, httplib::Response& res,
+                                            const httplib::ContentReader& reader) {
+    handle(req, res, reader, max_body, [&](const json& body) {
       res.set_content(json_text(service->to_json(service->make(body))), "application/json");
     });
   });
-  svr.Post("/api/body.obj", [service](const httplib::Request& req, httplib::Response& res) {
-    handle(req, res, [&](const json& body) {
+  svr.Post("/api/body.obj", [service, max_body](const httplib::Request& req, httplib::Response& res,
+                                                const httplib::ContentReader& reader) {
+    handle(req, res, reader, max_body, [&](const json& body) {
       res.set_header("Content-Disposition", "attachment; filename=\"body.obj\"");
       res.set_content(service->obj(service->make(body)), "model/obj");
     });
   });
-  svr.Post("/api/body.glb", [service](const httplib::Request& req, httplib::Response& res) {
-    handle(req, res, [&](const json& body) {
+  svr.Post("/api/body.glb", [service, max_body](const httplib::Request& req, httplib::Response& res,
+                                                const httplib::ContentReader& reader) {
+    handle(req, res, reader, max_body, [&](const json& body) {
       res.set_header("Content-Disposition", "attachment; filename=\"body.glb\"");
       res.set_content(service->glb(service->make(body)), "model/gltf-binary");
     });
@@ -324,9 +393,13 @@ void run_serve(const ServeArgs& a) {
   // connections beyond it has its SYNs dropped and the clients wait for retransmits (1, 3, 7,
   // 15, 31 s), which stalled 200 concurrent requests by up to a minute on a loaded machine.
   // Linux lets a second listen() on the bound socket raise the backlog.
+  // Its default socket options set SO_REUSEPORT, with which a second server binds the same port
+  // and the kernel splits the connections between the two: SO_REUSEADDR only (a restart may still
+  // bind while old connections linger in TIME_WAIT), so a busy port is refused.
   int listen_fd = -1;
   svr.set_socket_options([&listen_fd](socket_t sock) {
-    httplib::default_socket_options(sock);
+    int yes = 1;
+    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
     listen_fd = sock;
   });
   if (!svr.bind_to_port(a.host, a.port))
@@ -341,6 +414,17 @@ void run_serve(const ServeArgs& a) {
   std::fflush(stdout);
   svr.listen_after_bind();
   g_server = nullptr;
+  svr.shut_down();  // before the handlers' captures go
+  return g_stop_signal;
+}
+
+void run_serve(const ServeArgs& a) {
+  // Stopped by a signal: ends as the other verbs do on one (130 after Ctrl-C, 143 after
+  // SIGTERM; tools/main.cc), once the server and the model are released.
+  if (const int sig = serve_until_stopped(a)) {
+    std::signal(sig, SIG_DFL);
+    std::raise(sig);
+  }
 }
 
 }  // namespace
@@ -367,7 +451,9 @@ BODYMODEL_VERB(add_serve_verb) {
   cmd->add_option("--threads", a->threads, "Connection threads")->capture_default_str()->check(CLI::Range(1, 256));
   cmd->add_option("--max-body", a->max_body, "Largest request body (bytes); larger get 413")
       ->capture_default_str()->check(CLI::Range(size_t{64}, size_t{1} << 20));
-  cmd->add_option("--timeout", a->timeout, "Read/write timeout per connection (s)")
+  cmd->add_option("--timeout", a->timeout,
+                  "A request (headers and body) must arrive within this of its first byte, an answer be\n"
+                  "written within it, and an idle connection is closed after it (s)")
       ->capture_default_str()->check(CLI::Range(1, 600));
   cmd->add_flag("!--no-preview", a->preview,
                 "Decode every slider move (default: after a start-up of 2 decodes per model component, drags are\n"

@@ -11,7 +11,7 @@
 #include "core/io/atomic_write.h"
 #include "core/io/csv.h"
 #include "core/io/mesh_io.h"
-#include "skinning/sequence_evaluation.h"
+#include "skinning/method_comparison.h"
 #include "tools/console.h"
 #include "tools/verb.h"
 #include "tools/verbs/skinning_common.h"
@@ -37,18 +37,6 @@ struct EvalArgs {
   double color_scale = 0;   // 0 = 1% of the bbox diagonal
   unsigned seed = 1;
 };
-
-void merge(DeviationStats& a, const DeviationStats& b) {
-  a.count += b.count;
-  a.frames += b.frames;
-  a.sum_geometric += b.sum_geometric;
-  a.max_geometric = std::max(a.max_geometric, b.max_geometric);
-  a.sum_normal += b.sum_normal;
-  a.max_normal = std::max(a.max_normal, b.max_normal);
-  a.sum_vertex += b.sum_vertex;
-  a.sum_vertex_sq += b.sum_vertex_sq;
-  a.max_vertex = std::max(a.max_vertex, b.max_vertex);
-}
 
 // Non-blank lines of a text file, '#' comments and surrounding blanks removed.
 std::vector<std::string> read_lines(const std::string& path, const std::string& what) {
@@ -90,45 +78,7 @@ MeshSequence read_inputs(const EvalArgs& a) {
   return read_mesh_files(files, a.per_frame_faces);
 }
 
-// "auto", "none", "folds:K", "last:N" (N = 0: a third).
-SkinCrossValidationOptions parse_cv(const std::string& s, bool future_split) {
-  SkinCrossValidationOptions o;
-  auto number = [&](const std::string& v) {
-    try {
-      size_t used = 0;
-      const int n = std::stoi(v, &used);
-      if (used != v.size() || n < 0) throw std::invalid_argument(v);
-      return n;
-    } catch (const std::exception&) {
-      throw InputError("--cv: expected auto, none, folds:K or last:N, found '" + s + "'");
-    }
-  };
-  if (s == "none") {
-    o.scheme = CvScheme::none;
-  } else if (s == "auto") {
-    o.scheme = future_split ? CvScheme::last : CvScheme::interleaved;
-  } else if (s.rfind("folds:", 0) == 0) {
-    o.scheme = CvScheme::interleaved;
-    o.folds = number(s.substr(6));
-  } else if (s.rfind("last:", 0) == 0) {
-    o.scheme = CvScheme::last;
-    o.held_out = number(s.substr(5));
-  } else {
-    throw InputError("--cv: expected auto, none, folds:K or last:N, found '" + s + "'");
-  }
-  return o;
-}
-
-std::string cv_text(const SkinCrossValidationOptions& o) {
-  if (o.scheme == CvScheme::none) return "none (settings as given)";
-  const std::string rule = fmt::format(", rule {}, nesting {}", cv_rule_name(o.rule), cv_nesting_name(o.nesting));
-  if (o.scheme == CvScheme::interleaved) return fmt::format("{}-fold interleaved over the training frames{}", o.folds, rule);
-  return (o.held_out > 0 ? fmt::format("the last {} training frames held back", o.held_out)
-                         : std::string("the last third of the training frames held back")) + rule;
-}
-
-void run_eval(const EvalArgs& a) {
-  const MeshSequence all = read_inputs(a);
+SequenceEvaluationOptions evaluation_options(const EvalArgs& a) {
   SequenceEvaluationOptions opt;
   opt.methods.clear();
   for (const auto& m : split_commas(a.methods)) opt.methods.push_back(parse_skinning_model(m));
@@ -149,8 +99,17 @@ void run_eval(const EvalArgs& a) {
   else if (a.mwe_base == "rigid") opt.fit.mwe.base = MweBase::rigid;
   else if (a.mwe_base == "none") opt.fit.mwe.base = MweBase::none;
   else throw InputError("--mwe-base: expected ssd, as, rigid or none, found '" + a.mwe_base + "'");
-  const std::string source = a.inputs.size() == 1 && a.list.empty() ? a.inputs[0]
-                             : fmt::format("{} mesh files", all.names.size());
+  return opt;
+}
+
+// The frames named by --train/--test (an explicit test list keeps only the two sides, in input
+// order) and the split request of the other options.
+struct SelectedFrames {
+  MeshSequence seq;
+  FrameSplitRequest request;
+};
+
+SelectedFrames select_frames(const EvalArgs& a, const MeshSequence& all, const std::string& source) {
   auto index_in = [&](const MeshSequence& s, const std::string& name, const char* flag) {
     for (size_t f = 0; f < s.names.size(); ++f)
       if (s.names[f] == name) return static_cast<int>(f);
@@ -158,8 +117,8 @@ void run_eval(const EvalArgs& a) {
                      std::to_string(s.names.size()) + " frames of " + source +
                      " (names are file names without extension)");
   };
-  // An explicit test list keeps only the training and test frames, in input order.
-  MeshSequence seq;
+  SelectedFrames out;
+  MeshSequence& seq = out.seq;
   if (!a.test.empty()) {
     if (a.train.empty()) throw InputError("--test needs --train (the explicit split names both sides)");
     std::set<int> keep;
@@ -180,141 +139,60 @@ void run_eval(const EvalArgs& a) {
   } else {
     seq = all;
   }
-  const int nf = static_cast<int>(seq.frames.size());
+  FrameSplitRequest& r = out.request;
+  r.leave_one_out = a.leave_one_out;
+  r.explicit_test = !a.test.empty();
+  if (!a.leave_one_out && !a.train.empty())
+    for (const auto& n : names_of(a.train, "--train")) r.train.push_back(index_in(seq, n, "--train"));
+  r.train_fraction = a.train_fraction;
+  r.train_every = a.train_every;
+  r.train_count = a.train_count;
+  if (!a.rest.empty()) r.rest = index_in(seq, a.rest, "--rest");
+  r.frame_names = seq.names;
+  return out;
+}
 
-  // Folds: one, or leave-one-out.
-  std::vector<std::vector<int>> folds;
-  std::string protocol;
-  int rest = -1;
-  if (!a.rest.empty()) rest = index_in(seq, a.rest, "--rest");
-  if (a.leave_one_out) {
-    if (rest < 0) rest = 0;
-    for (int f = 0; f < nf; ++f) {
-      if (f == rest) continue;   // the rest frame is always a training frame
-      std::vector<int> t;
-      for (int g = 0; g < nf; ++g)
-        if (g != f) t.push_back(g);
-      folds.push_back(t);
-    }
-    protocol = fmt::format("leave-one-out over {} frames (rest frame {} always trained)", nf,
-                           seq.names[static_cast<size_t>(rest)]);
-  } else {
-    std::vector<int> t;
-    if (!a.train.empty()) {
-      for (const auto& n : names_of(a.train, "--train")) t.push_back(index_in(seq, n, "--train"));
-      protocol = a.test.empty() ? fmt::format("{} training frames listed with --train, the other {} unseen", t.size(),
-                                              nf - static_cast<int>(std::set<int>(t.begin(), t.end()).size()))
-                                : fmt::format("explicit split: {} training frames (--train), {} unseen (--test)",
-                                              t.size(), nf - static_cast<int>(t.size()));
-    } else if (a.train_fraction > 0) {
-      if (!(a.train_fraction < 1)) throw InputError("--train-fraction must be in (0, 1)");
-      const int k = std::max(1, static_cast<int>(std::lround(a.train_fraction * nf)));
-      for (int f = 0; f < k; ++f) t.push_back(f);
-      protocol = fmt::format("the first {} of {} frames trained ({:g} %), the rest unseen", k, nf, 100 * a.train_fraction);
-    } else if (a.train_every > 0) {
-      for (int f = 0; f < nf; f += a.train_every) t.push_back(f);
-      protocol = fmt::format("every {}th frame trained", a.train_every);
-    } else {
-      // Default: 10 frames, but always leave one unseen on short sequences.
-      const int k = a.train_count > 0 ? a.train_count : std::max(1, std::min(10, nf - 1));
-      t = evenly_spaced_frames(nf, k);
-      protocol = fmt::format("{} evenly spaced training frames", t.size());
-    }
-    // Training on every frame leaves no unseen split to report (--train-count 1000 did so silently).
-    if (static_cast<int>(std::set<int>(t.begin(), t.end()).size()) >= nf)
-      throw InputError(fmt::format("skin eval: the training frames ({}) are all {} frames of the sequence, leaving "
-                                   "no unseen frame to measure (train on at most {})",
-                                   protocol, nf, nf - 1));
-    if (rest < 0) rest = *std::min_element(t.begin(), t.end());
-    folds.push_back(t);
-  }
-  opt.rest_frame = rest;
-  opt.frame_faces = seq.frame_faces;
-  // Cross-validation: "auto" holds back the last training frames when every unseen frame comes
-  // after every training frame (a forecast), else interleaved folds.
-  bool future = !a.leave_one_out;
-  if (future) {
-    const int last_train = *std::max_element(folds[0].begin(), folds[0].end());
-    const std::set<int> tset(folds[0].begin(), folds[0].end());
-    bool any_unseen = false;
-    for (int f = 0; f < nf; ++f)
-      if (!tset.count(f)) {
-        any_unseen = true;
-        if (f < last_train) future = false;
-      }
-    future = future && any_unseen && a.test.empty();
-  }
-  opt.cv = parse_cv(a.cv, future);
-  opt.cv.rule = parse_cv_rule(a.cv_rule);
-  opt.cv.nesting = parse_cv_nesting(a.cv_nesting);
-
-  for (const auto& fold : folds) check_evaluation_request(nf, fold, opt);
-  ensure_directory(a.out);
-  if (a.save_posed) {
-    if (a.leave_one_out) throw InputError("--save-posed needs a single split (not --leave-one-out)");
-    opt.on_posed = [&](SkinningModel m, int f, const Eigen::MatrixX3d& X) {
-      const auto dir = std::filesystem::path(a.out) / "posed" / skinning_model_name(m);
-      ensure_directory(dir);
-      write_mesh(dir / (seq.names[static_cast<size_t>(f)] + ".obj"), X,
-                 seq.frame_faces.empty() ? seq.F : seq.frame_faces[static_cast<size_t>(f)]);
-    };
-  }
-  ProgressBar bar("skin eval");
-  const size_t M = opt.methods.size();
-  std::vector<DeviationStats> train(M), unseen(M);
-  std::vector<Eigen::VectorXd> per_vertex(M, Eigen::VectorXd::Zero(seq.frames[0].rows()));
-  std::vector<std::vector<double>> frame_err(M, std::vector<double>(static_cast<size_t>(nf), 0.0));
-  std::vector<std::string> frame_split(static_cast<size_t>(nf), "train");
-  std::vector<double> fit_cpu(M, 0.0);
-  SequenceEvaluation last;
-  double seconds = 0, prep_cpu = 0, cv_setup_cpu = 0;
-  std::string cv_csv =
+std::string cv_csv_of(const SkinningComparison& c) {
+  std::string csv =
       "fold,method,setting,held_out_mean_error,standard_error,paired_standard_error,held_out_examples,chosen,chosen_by\n";
-  for (size_t fold = 0; fold < folds.size(); ++fold) {
-    auto cb = bar.callback();
-    ProgressCallback sub = [&](double f, std::string_view w) { return cb((fold + f) / folds.size(), w); };
-    last = evaluate_skinning_sequence(seq.frames, seq.F, folds[fold], opt, {}, sub);
-    seconds += last.seconds;
-    prep_cpu += last.prepare_cpu_seconds;
-    cv_setup_cpu += last.cv_setup_cpu_seconds;
-    for (const auto& row : last.rows) {
-      size_t m = 0;
-      while (opt.methods[m] != row.method) ++m;
-      merge(row.split == "train" ? train[m] : unseen[m], row.stats);
-    }
-    for (size_t m = 0; m < M; ++m) {
-      fit_cpu[m] += last.fits[m].cpu_seconds;
-      // chosen_by: the rules that would keep this candidate (the choice of the others can be read
-      // off without a rerun; only the rule in force shapes the fitted models, though).
-      std::vector<CvCandidate> cands = last.fits[m].cv.candidates;
-      std::vector<std::string> by(cands.size());
-      if (!cands.empty())
-        for (CvRule r : {CvRule::minimum, CvRule::one_se, CvRule::one_se_unpaired}) {
-          std::string& b = by[select_candidate(cands, r)];
-          b += (b.empty() ? "" : " ") + cv_rule_name(r);
-        }
-      for (size_t k = 0; k < cands.size(); ++k) {
-        const CvCandidate& c = cands[k];
-        cv_csv += fmt::format("{},{},{},{:.8g},{:.4g},{:.4g},{},{},{}\n", fold, skinning_model_name(opt.methods[m]),
-                              csv_field(c.setting), c.error, c.standard_error, c.paired_standard_error,
-                              c.example_errors.size(),
-                              c.setting == last.fits[m].cv.chosen_setting ? 1 : 0, by[k]);
-      }
-    }
-    std::set<int> tset(folds[fold].begin(), folds[fold].end());
-    for (size_t m = 0; m < M; ++m) {
-      per_vertex[m] += last.mean_unseen_geometric[m] / double(folds.size());
-      for (int f = 0; f < nf; ++f)
-        if (!tset.count(f) || folds.size() == 1)
-          frame_err[m][static_cast<size_t>(f)] = last.frame_mean_geometric[m][static_cast<size_t>(f)];
-    }
-    for (int f = 0; f < nf; ++f)
-      if (!tset.count(f)) frame_split[static_cast<size_t>(f)] = "unseen";
+  for (const CvCandidateRow& r : c.cv_rows)
+    csv += fmt::format("{},{},{},{:.8g},{:.4g},{:.4g},{},{},{}\n", r.fold, skinning_model_name(r.method),
+                       csv_field(r.candidate.setting), r.candidate.error, r.candidate.standard_error,
+                       r.candidate.paired_standard_error, r.candidate.example_errors.size(), r.chosen ? 1 : 0,
+                       r.chosen_by);
+  return csv;
+}
+
+std::string frames_csv_of(const SkinningComparison& c, const MeshSequence& seq) {
+  std::string csv = "frame,split";
+  for (auto m : c.methods) csv += ",mean_geometric_" + skinning_model_name(m);
+  csv += "\n";
+  for (size_t f = 0; f < seq.names.size(); ++f) {
+    csv += csv_field(seq.names[f]) + "," + c.frame_split[f];
+    for (size_t m = 0; m < c.methods.size(); ++m) csv += fmt::format(",{:.8g}", c.frame_error[m][f]);
+    csv += "\n";
   }
-  bar.finish();
-  const double d = last.diagonal;
+  return csv;
+}
+
+std::string methods_csv_of(const SkinningComparison& c) {
+  const double d = c.last.diagonal;
   std::string csv =
       "method,split,mean_geometric,max_geometric,mean_normal_deg,max_normal_deg,rms_vertex,e_rms,frames,fit_cpu_s\n";
+  for (size_t m = 0; m < c.methods.size(); ++m)
+    for (int s = 0; s < 2; ++s) {
+      const DeviationStats& st = s == 0 ? c.train[m] : c.unseen[m];
+      if (st.count == 0) continue;
+      csv += fmt::format("{},{},{:.8g},{:.8g},{:.6g},{:.6g},{:.8g},{:.6g},{},{:.3f}\n", skinning_model_name(c.methods[m]),
+                         s == 0 ? "train" : "unseen", st.mean_geometric(), st.max_geometric, st.mean_normal_deg(),
+                         st.max_normal, st.rms_vertex(), st.e_rms(d), st.frames, c.fit_cpu[m]);
+    }
+  return csv;
+}
+
+std::string report_markdown(const EvalArgs& a, const SkinningComparison& c, const MeshSequence& seq,
+                            const std::string& source, const FrameSplit& split, const SequenceEvaluationOptions& opt) {
+  const double d = c.last.diagonal;
   std::string md = fmt::format(
       "# Skinning comparison: {}\n\nProtocol (Jacka et al. 2007): {}; bones {} {}; ≤{} influences per "
       "vertex; rest frame {}; regularisation by cross-validation on the training frames only: {}.\n"
@@ -327,30 +205,28 @@ void run_eval(const EvalArgs& a) {
       "{:.1f} s CPU).\n\n"
       "| method | split | frames | mean geometric | max geometric | mean geom. % diag | mean normal (°) | max normal (°) | vertex RMS | E_RMS | fit CPU (s) |\n"
       "|---|---|---|---|---|---|---|---|---|---|---|\n",
-      source, protocol, a.bones, "(recovered: k-means on triangle rotation sequences + EM refinement + SSD alternation)",
-      a.max_influences, seq.names[static_cast<size_t>(opt.rest_frame)], cv_text(opt.cv), seq.names[0], d, prep_cpu,
-      cv_setup_cpu);
-  for (size_t m = 0; m < M; ++m)
+      source, split.protocol, a.bones, "(recovered: k-means on triangle rotation sequences + EM refinement + SSD alternation)",
+      a.max_influences, seq.names[size_t(split.rest)], cv_description(opt.cv), seq.names[0], d, c.prepare_cpu,
+      c.cv_setup_cpu);
+  for (size_t m = 0; m < c.methods.size(); ++m)
     for (int s = 0; s < 2; ++s) {
-      const DeviationStats& st = s == 0 ? train[m] : unseen[m];
+      const DeviationStats& st = s == 0 ? c.train[m] : c.unseen[m];
       if (st.count == 0) continue;
-      const std::string name = skinning_model_name(opt.methods[m]), split = s == 0 ? "train" : "unseen";
-      csv += fmt::format("{},{},{:.8g},{:.8g},{:.6g},{:.6g},{:.8g},{:.6g},{},{:.3f}\n", name, split, st.mean_geometric(),
-                         st.max_geometric, st.mean_normal_deg(), st.max_normal, st.rms_vertex(), st.e_rms(d), st.frames,
-                         fit_cpu[m]);
-      md += fmt::format("| {} | {} | {} | {:.6f} | {:.5f} | {:.4f} | {:.3f} | {:.1f} | {:.6f} | {:.4f} | {:.1f} |\n", name,
-                        split, st.frames, st.mean_geometric(), st.max_geometric, 100 * st.mean_geometric() / d,
-                        st.mean_normal_deg(), st.max_normal, st.rms_vertex(), st.e_rms(d), fit_cpu[m]);
+      md += fmt::format("| {} | {} | {} | {:.6f} | {:.5f} | {:.4f} | {:.3f} | {:.1f} | {:.6f} | {:.4f} | {:.1f} |\n",
+                        skinning_model_name(c.methods[m]), s == 0 ? "train" : "unseen", st.frames, st.mean_geometric(),
+                        st.max_geometric, 100 * st.mean_geometric() / d, st.mean_normal_deg(), st.max_normal,
+                        st.rms_vertex(), st.e_rms(d), c.fit_cpu[m]);
     }
   // All frames together, as Jacka's Table 1 reports (mean over every pose of the data set).
   md += "\nAll frames together (Jacka et al. Table 1 reports means over every pose of the data set):\n\n"
         "| method | mean geometric | max geometric | mean normal (°) | max normal (°) |\n|---|---|---|---|---|\n";
-  for (size_t m = 0; m < M; ++m) {
-    DeviationStats both = train[m];
-    merge(both, unseen[m]);
-    md += fmt::format("| {} | {:.6f} | {:.5f} | {:.3f} | {:.1f} |\n", skinning_model_name(opt.methods[m]),
+  for (size_t m = 0; m < c.methods.size(); ++m) {
+    DeviationStats both = c.train[m];
+    both.merge(c.unseen[m]);
+    md += fmt::format("| {} | {:.6f} | {:.5f} | {:.3f} | {:.1f} |\n", skinning_model_name(c.methods[m]),
                       both.mean_geometric(), both.max_geometric, both.mean_normal_deg(), both.max_normal);
   }
+  const SequenceEvaluation& last = c.last;
   md += fmt::format("\nFits (last fold): {}; {}. CPU: bone recovery {:.2f} s, SSD and alternation {:.2f} s, "
                     "unseen-frame bone maps {:.2f} s. Alternation: {} round(s), training residual RMS {}.\n",
                     last.recovery.brief(), last.lbs_summary.brief(), last.recovery_cpu_seconds,
@@ -362,26 +238,46 @@ void run_eval(const EvalArgs& a) {
     if (!f.cv.candidates.empty()) md += "; cross-validation: " + f.cv.brief();
     md += "\n";
   }
-  md += fmt::format("\nTotal {:.1f} s.\n", seconds);
-  std::string frames_csv = "frame,split";
-  for (auto m : opt.methods) frames_csv += ",mean_geometric_" + skinning_model_name(m);
-  frames_csv += "\n";
-  for (int f = 0; f < nf; ++f) {
-    frames_csv += csv_field(seq.names[static_cast<size_t>(f)]) + "," + frame_split[static_cast<size_t>(f)];
-    for (size_t m = 0; m < M; ++m) frames_csv += fmt::format(",{:.8g}", frame_err[m][static_cast<size_t>(f)]);
-    frames_csv += "\n";
-  }
+  md += fmt::format("\nTotal {:.1f} s.\n", c.seconds);
+  return md;
+}
+
+void run_eval(const EvalArgs& a) {
+  const MeshSequence all = read_inputs(a);
+  SequenceEvaluationOptions opt = evaluation_options(a);
+  const std::string source = a.inputs.size() == 1 && a.list.empty() ? a.inputs[0]
+                             : fmt::format("{} mesh files", all.names.size());
+  const SelectedFrames selected = select_frames(a, all, source);
+  const MeshSequence& seq = selected.seq;
+  const FrameSplit split = split_frames(int(seq.frames.size()), selected.request);
+  opt.frame_faces = seq.frame_faces;
+  opt.cv = parse_cv_scheme(a.cv, split.forecast);
+  opt.cv.rule = parse_cv_rule(a.cv_rule);
+  opt.cv.nesting = parse_cv_nesting(a.cv_nesting);
+  check_comparison(int(seq.frames.size()), split, opt);
+  if (a.save_posed && a.leave_one_out) throw InputError("--save-posed needs a single split (not --leave-one-out)");
+  ensure_directory(a.out);
+  if (a.save_posed)
+    opt.on_posed = [&](SkinningModel m, int f, const Eigen::MatrixX3d& X) {
+      const auto dir = std::filesystem::path(a.out) / "posed" / skinning_model_name(m);
+      ensure_directory(dir);
+      write_mesh(dir / (seq.names[static_cast<size_t>(f)] + ".obj"), X,
+                 seq.frame_faces.empty() ? seq.F : seq.frame_faces[static_cast<size_t>(f)]);
+    };
+  ProgressBar bar("skin eval");
+  const SkinningComparison c = compare_skinning_methods(seq.frames, seq.F, split, opt, bar.callback());
+  bar.finish();
+  const std::string md = report_markdown(a, c, seq, source, split, opt);
   const std::filesystem::path out(a.out);
-  write_text_file(out / "skinning.csv", csv);
+  write_text_file(out / "skinning.csv", methods_csv_of(c));
   write_text_file(out / "skinning.md", md);
-  write_text_file(out / "skinning_frames.csv", frames_csv);
-  write_text_file(out / "skinning_cv.csv", cv_csv);
-  const double scale = a.color_scale > 0 ? a.color_scale : 0.01 * d;
-  for (size_t m = 0; m < M; ++m)
-    write_mesh(out / ("unseen_error_" + skinning_model_name(opt.methods[m]) + ".ply"),
-               seq.frames[static_cast<size_t>(opt.rest_frame)],
-               seq.frame_faces.empty() ? seq.F : seq.frame_faces[static_cast<size_t>(opt.rest_frame)],
-               error_colors(per_vertex[m], scale));
+  write_text_file(out / "skinning_frames.csv", frames_csv_of(c, seq));
+  write_text_file(out / "skinning_cv.csv", cv_csv_of(c));
+  const double scale = a.color_scale > 0 ? a.color_scale : 0.01 * c.last.diagonal;
+  for (size_t m = 0; m < c.methods.size(); ++m)
+    write_mesh(out / ("unseen_error_" + skinning_model_name(c.methods[m]) + ".ply"), seq.frames[size_t(split.rest)],
+               seq.frame_faces.empty() ? seq.F : seq.frame_faces[size_t(split.rest)],
+               error_colors(c.per_vertex_unseen[m], scale));
   std::printf("%s", md.c_str());
   info(fmt::format("wrote {}/skinning.csv, skinning.md, skinning_frames.csv, skinning_cv.csv and "
                    "unseen_error_<method>.ply (mean unseen geometric error per vertex on the rest mesh, blue 0 → red ≥ {:.5g})",

@@ -7,7 +7,7 @@
 #include "core/io/libigl_formats.h"
 #include "core/io/mesh_io.h"
 #include "skinning/rig_io.h"
-#include "skinning/sequence_evaluation.h"
+#include "skinning/method_comparison.h"
 #include "tools/console.h"
 #include "tools/verb.h"
 #include "tools/verbs/skinning_common.h"
@@ -47,27 +47,72 @@ std::vector<BoneTransforms> read_pose_transforms(const std::filesystem::path& T,
   return out;
 }
 
+// The training examples and their SSD fit: with known bone maps (--transforms) or bones
+// recovered from the rest mesh and the poses (--bones).
+PreparedSequence prepare_fit(const FitArgs& a, const Mesh& rest, const MeshSequence& seq,
+                             SequenceEvaluationOptions& opt, const ProgressCallback& cb) {
+  PreparedSequence prep;
+  if (!a.transforms.empty()) {
+    SkinningExamples& ex = prep.examples;
+    ex.rest = rest.V;
+    ex.poses = seq.frames;
+    ex.transforms = read_pose_transforms(a.transforms, seq);
+    LbsFitOptions lo = opt.lbs;
+    lo.max_influences = a.max_influences;
+    prep.lbs = fit_lbs(ex, {}, lo, &prep.lbs_summary, [&](double f, std::string_view w) { return cb(0.3 * f, w); });
+    info(prep.lbs_summary.brief());
+  } else {
+    // Rest mesh as frame 0 (identity), every pose a training frame.
+    std::vector<Eigen::MatrixX3d> frames{rest.V};
+    frames.insert(frames.end(), seq.frames.begin(), seq.frames.end());
+    std::vector<int> train(frames.size());
+    for (size_t i = 0; i < train.size(); ++i) train[i] = static_cast<int>(i);
+    opt.recovery.bones = a.bones;
+    prep = prepare_skinning_sequence(frames, rest.F, train, opt, {},
+                                     [&](double f, std::string_view w) { return cb(0.3 * f, w); });
+    info(prep.recovery.brief());
+    info(prep.lbs_summary.brief());
+  }
+  return prep;
+}
+
+// The cross-validator over the example poses, and the settings the method's base takes from it
+// (MWE's Animation Space ridge, the pose-space methods' kernel); null without cross-validation.
+std::unique_ptr<CrossValidator> make_validator(const FitArgs& a, SkinningModel method, const SkinCrossValidationOptions& cv,
+                                               const PreparedSequence& prep, const Mesh& rest,
+                                               SequenceEvaluationOptions& opt,
+                                               std::vector<std::unique_ptr<ReferenceSurface>>& trees) {
+  const SkinningExamples& ex = prep.examples;
+  std::vector<const ReferenceSurface*> surfaces;
+  std::unique_ptr<CrossValidator> validator;
+  if (cv.scheme != CvScheme::none && method != SkinningModel::ssd && method != SkinningModel::dqs) {
+    for (const auto& P : ex.poses) {
+      trees.push_back(std::make_unique<ReferenceSurface>(P, rest.F));
+      surfaces.push_back(trees.back().get());
+    }
+    LbsFitOptions lo = opt.lbs;
+    lo.max_influences = a.max_influences;
+    lo.require_rigid = false;
+    FoldBoneFitter fold_bones;
+    if (cv.nesting == CvNesting::full)
+      fold_bones = [&](const std::vector<int>& t, const std::vector<int>& h) {
+        return fit_fold_bones(ex, rest.F, t, h, opt);
+      };
+    validator = std::make_unique<CrossValidator>(ex, lo, cv, surfaces, fold_bones);
+    if (method == SkinningModel::mwe)   // the AS base's ridge, chosen the same way
+      opt.fit.mwe.base_as_ridge = validator->select(SkinningModel::as, opt.fit).chosen.animation_space.ridge;
+    if (method == SkinningModel::eigenskin || method == SkinningModel::quadratic) {   // PSD's pose space
+      const PoseSpaceOptions chosen = validator->select(SkinningModel::psd, opt.fit).chosen.pose_space;
+      opt.fit.pose_space.kernel_width = chosen.kernel_width;
+      opt.fit.pose_space.rbf_ridge = chosen.rbf_ridge;
+    }
+  }
+  return validator;
+}
+
 void run_fit(const FitArgs& a) {
   const SkinningModel method = parse_skinning_model(a.method);
-  SkinCrossValidationOptions cv;
-  if (a.cv == "none") {
-    cv.scheme = CvScheme::none;
-  } else if (a.cv.rfind("folds:", 0) == 0 || a.cv.rfind("last:", 0) == 0) {
-    const bool folds = a.cv[0] == 'f';
-    int k = -1;
-    try {
-      size_t used = 0;
-      const std::string v = a.cv.substr(folds ? 6 : 5);
-      k = std::stoi(v, &used);
-      if (used != v.size()) k = -1;
-    } catch (const std::exception&) {
-    }
-    if (k < 0) throw InputError("--cv: expected none, folds:K or last:N, found '" + a.cv + "'");
-    cv.scheme = folds ? CvScheme::interleaved : CvScheme::last;
-    (folds ? cv.folds : cv.held_out) = k;
-  } else {
-    throw InputError("--cv: expected none, folds:K or last:N, found '" + a.cv + "'");
-  }
+  SkinCrossValidationOptions cv = parse_cv_scheme(a.cv, false);
   cv.rule = parse_cv_rule(a.cv_rule);
   cv.nesting = parse_cv_nesting(a.cv_nesting);
   // Given bone maps are not fitted: there is nothing to refit per fold.
@@ -101,53 +146,10 @@ void run_fit(const FitArgs& a) {
   opt.fit.animation_space.ridge = a.as_ridge;
   opt.fit.mwe.ridge_scale = a.mwe_s;
   opt.fit.mwe.components = a.mwe_components;
-  if (!a.transforms.empty()) {
-    SkinningExamples& ex = prep.examples;
-    ex.rest = rest.V;
-    ex.poses = seq.frames;
-    ex.transforms = read_pose_transforms(a.transforms, seq);
-    LbsFitOptions lo = opt.lbs;
-    lo.max_influences = a.max_influences;
-    prep.lbs = fit_lbs(ex, {}, lo, &prep.lbs_summary, [&](double f, std::string_view w) { return cb(0.3 * f, w); });
-    info(prep.lbs_summary.brief());
-  } else {
-    // Rest mesh as frame 0 (identity), every pose a training frame.
-    std::vector<Eigen::MatrixX3d> frames{rest.V};
-    frames.insert(frames.end(), seq.frames.begin(), seq.frames.end());
-    std::vector<int> train(frames.size());
-    for (size_t i = 0; i < train.size(); ++i) train[i] = static_cast<int>(i);
-    opt.recovery.bones = a.bones;
-    prep = prepare_skinning_sequence(frames, rest.F, train, opt, {},
-                                     [&](double f, std::string_view w) { return cb(0.3 * f, w); });
-    info(prep.recovery.brief());
-    info(prep.lbs_summary.brief());
-  }
+  prep = prepare_fit(a, rest, seq, opt, cb);
   const SkinningExamples& ex = prep.examples;
   std::vector<std::unique_ptr<ReferenceSurface>> trees;
-  std::vector<const ReferenceSurface*> surfaces;
-  std::unique_ptr<CrossValidator> validator;
-  if (cv.scheme != CvScheme::none && method != SkinningModel::ssd && method != SkinningModel::dqs) {
-    for (const auto& P : ex.poses) {
-      trees.push_back(std::make_unique<ReferenceSurface>(P, rest.F));
-      surfaces.push_back(trees.back().get());
-    }
-    LbsFitOptions lo = opt.lbs;
-    lo.max_influences = a.max_influences;
-    lo.require_rigid = false;
-    FoldBoneFitter fold_bones;
-    if (cv.nesting == CvNesting::full)
-      fold_bones = [&](const std::vector<int>& t, const std::vector<int>& h) {
-        return fit_fold_bones(ex, rest.F, t, h, opt);
-      };
-    validator = std::make_unique<CrossValidator>(ex, lo, cv, surfaces, fold_bones);
-    if (method == SkinningModel::mwe)   // the AS base's ridge, chosen the same way
-      opt.fit.mwe.base_as_ridge = validator->select(SkinningModel::as, opt.fit).chosen.animation_space.ridge;
-    if (method == SkinningModel::eigenskin || method == SkinningModel::quadratic) {   // PSD's pose space
-      const PoseSpaceOptions chosen = validator->select(SkinningModel::psd, opt.fit).chosen.pose_space;
-      opt.fit.pose_space.kernel_width = chosen.kernel_width;
-      opt.fit.pose_space.rbf_ridge = chosen.rbf_ridge;
-    }
-  }
+  const std::unique_ptr<CrossValidator> validator = make_validator(a, method, cv, prep, rest, opt, trees);
   MethodFit mf;
   const FittedModel model = fit_sequence_method(method, prep, opt, validator.get(), &mf,
                                                 [&](double f, std::string_view w) { return cb(0.3 + 0.7 * f, w); });
@@ -184,7 +186,7 @@ BODYMODEL_VERB(add_skin_fit_verb) {
                   "Bone transforms: a folder of <pose>.Tmat files or a libigl animation .dmat (one column per pose)");
   cmd->add_option("--bones", a->bones, "Recover this many bones from the poses instead (no skeleton)");
   cmd->add_option("--method", a->method, "ssd, dqs, as, mwe, psd, eigenskin or quadratic")->capture_default_str();
-  cmd->add_option("--cv", a->cv, "Cross-validation over the poses: folds:K (interleaved), last:N or none")
+  cmd->add_option("--cv", a->cv, "Cross-validation over the poses: folds:K (interleaved), last:N, none or auto (interleaved folds)")
       ->capture_default_str();
   cmd->add_option("--cv-nesting", a->cv_nesting,
                   "What each fold refits on its training part: weights (the SSD base) or full (bone recovery and SSD "

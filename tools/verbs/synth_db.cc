@@ -93,6 +93,7 @@ BODYMODEL_VERB(add_synth_db_verb) {
                                      "{} under 18, {} without a weight)",
                                      a->options.population, a->population_measurements, e.incomplete, e.children,
                                      e.no_weight));
+      if (!a->options.fits.empty()) check_stored_fits(a->options.fits);
       cli::info(fmt::format("population {}: {} adults eligible ({} incomplete rows, {} under 18, {} without a "
                             "survey weight); drawing {} by survey weight",
                             a->options.population, e.eligible.size(), e.incomplete, e.children, e.no_weight,

@@ -69,16 +69,20 @@ struct NamedRig {
 };
 
 
-void run_viewer(const ViewerArgs& a) {
-  if (a.rigs.empty() && a.meshes.empty() && a.error_meshes.empty())
-    throw InputError("give at least one --rig, --mesh or --error-mesh");
-  if (!(a.error_scale > 0)) throw InputError(fmt::format("--error-scale must be positive, found {}", a.error_scale));
-  if (!a.rigs.empty() && a.bvh.empty()) throw InputError("--rig needs --bvh (the clip to play)");
-  if (a.frames < 1) throw InputError(fmt::format("--frames must be at least 1, found {}", a.frames));
+struct LoadedRigs {
   std::vector<NamedRig> rigs;
   Eigen::MatrixX3i F;
   Skeleton skeleton;
   std::vector<char> driven;
+};
+
+// The --rig files: a character's rig (its method and its SSD base) or a plain rig; all alike.
+LoadedRigs load_viewer_rigs(const ViewerArgs& a) {
+  LoadedRigs L;
+  std::vector<NamedRig>& rigs = L.rigs;
+  Eigen::MatrixX3i& F = L.F;
+  Skeleton& skeleton = L.skeleton;
+  std::vector<char>& driven = L.driven;
   for (const auto& path : a.rigs) {
     bool character = false;
     try {
@@ -115,46 +119,57 @@ void run_viewer(const ViewerArgs& a) {
   if (!rigs.empty() && skeleton.bone_count() != rigs[0].rig.bone_count)
     throw InputError("'" + a.rigs[0] + "' has no skeleton (store one, or use a MakeHuman-body rig)");
 
-  nlohmann::json d;
-  std::vector<int> frames;
+  return L;
+}
+
+// The clip's bone maps and every rig's texels into d; returns the maps of the frames written.
+std::vector<BoneTransforms> add_animation(const ViewerArgs& a, const LoadedRigs& L, nlohmann::json& d,
+                                          std::vector<int>& frames) {
+  const std::vector<NamedRig>& rigs = L.rigs;
+  const Eigen::MatrixX3i& F = L.F;
+  const Skeleton& skeleton = L.skeleton;
+  const std::vector<char>& driven = L.driven;
   std::vector<BoneTransforms> maps;
-  if (!rigs.empty()) {
-    const BvhMotion clip = read_bvh(a.bvh);
-    if (clip.frame_count() == 0) throw InputError("'" + a.bvh + "' has no frames");
-    if (a.first < 0 || a.first >= clip.frame_count())
-      throw InputError(fmt::format("'{}' has {} frames; --first {} is out of range", a.bvh, clip.frame_count(), a.first));
-    // In place (no root translation): the camera orbits a body that stays put.
-    const std::vector<Pose> poses = poses_from_bvh(clip, skeleton, data_file("makehuman"), false);
-    for (int f = a.first; f < clip.frame_count() && static_cast<int>(frames.size()) < a.frames; f += std::max(1, a.every)) {
-      frames.push_back(f);
-      const Pose& p = poses[static_cast<size_t>(f)];
-      maps.push_back(forward_kinematics(skeleton, driven.empty() ? p : restrict_pose(p, driven)));
-    }
-    const Eigen::MatrixX3d& rest = rigs[0].rig.rest;
-    std::vector<float> restf, bones;
-    for (int v = 0; v < rest.rows(); ++v)
-      for (int k = 0; k < 3; ++k) restf.push_back(static_cast<float>(rest(v, k)));
-    // Bone maps: 3 texels per (frame, bone), the rows of [R t].
-    for (auto& M : maps)
-      for (auto& m : M)
-        for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 4; ++c) bones.push_back(static_cast<float>(m.matrix()(r, c)));
-    std::vector<uint32_t> faces;
-    for (int i = 0; i < F.rows(); ++i)
-      for (int k = 0; k < 3; ++k) faces.push_back(static_cast<uint32_t>(F(i, k)));
-    d["rest"] = b64(restf);
-    d["faces"] = b64(faces);
-    d["vertex_count"] = rest.rows();
-    d["bone_count"] = skeleton.bone_count();
-    d["frames"] = frames.size();
-    d["frame_time"] = clip.frame_time * std::max(1, a.every);
-    d["transforms"] = b64(bones);
-    d["height"] = rest.col(1).maxCoeff() - rest.col(1).minCoeff();
-    d["clip"] = fs::path(a.bvh).filename().string();
-    for (auto& r : rigs)
-      d["rigs"].push_back({{"name", r.name}, {"method", skinning_method_name(r.rig.method)},
-                           {"K", r.rig.max_influences()}, {"texels", b64(rig_texels(r.rig))}});
+  const BvhMotion clip = read_bvh(a.bvh);
+  if (clip.frame_count() == 0) throw InputError("'" + a.bvh + "' has no frames");
+  if (a.first < 0 || a.first >= clip.frame_count())
+    throw InputError(fmt::format("'{}' has {} frames; --first {} is out of range", a.bvh, clip.frame_count(), a.first));
+  // In place (no root translation): the camera orbits a body that stays put.
+  const std::vector<Pose> poses = poses_from_bvh(clip, skeleton, data_file("makehuman"), false);
+  for (int f = a.first; f < clip.frame_count() && static_cast<int>(frames.size()) < a.frames; f += std::max(1, a.every)) {
+    frames.push_back(f);
+    const Pose& p = poses[static_cast<size_t>(f)];
+    maps.push_back(forward_kinematics(skeleton, driven.empty() ? p : restrict_pose(p, driven)));
   }
+  const Eigen::MatrixX3d& rest = rigs[0].rig.rest;
+  std::vector<float> restf, bones;
+  for (int v = 0; v < rest.rows(); ++v)
+    for (int k = 0; k < 3; ++k) restf.push_back(static_cast<float>(rest(v, k)));
+  // Bone maps: 3 texels per (frame, bone), the rows of [R t].
+  for (auto& M : maps)
+    for (auto& m : M)
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) bones.push_back(static_cast<float>(m.matrix()(r, c)));
+  std::vector<uint32_t> faces;
+  for (int i = 0; i < F.rows(); ++i)
+    for (int k = 0; k < 3; ++k) faces.push_back(static_cast<uint32_t>(F(i, k)));
+  d["rest"] = b64(restf);
+  d["faces"] = b64(faces);
+  d["vertex_count"] = rest.rows();
+  d["bone_count"] = skeleton.bone_count();
+  d["frames"] = frames.size();
+  d["frame_time"] = clip.frame_time * std::max(1, a.every);
+  d["transforms"] = b64(bones);
+  d["height"] = rest.col(1).maxCoeff() - rest.col(1).minCoeff();
+  d["clip"] = fs::path(a.bvh).filename().string();
+  for (auto& r : rigs)
+    d["rigs"].push_back({{"name", r.name}, {"method", skinning_method_name(r.rig.method)},
+                         {"K", r.rig.max_influences()}, {"texels", b64(rig_texels(r.rig))}});
+  return maps;
+}
+
+// Static meshes (and error meshes coloured by their distance to a reference) into d.
+void add_static_meshes(const ViewerArgs& a, nlohmann::json& d) {
   // Static meshes, named by file (with the folder when two files share a name, as the
   // crowd's char_NNN/body.obj do).
   std::vector<std::string> paths = a.meshes;
@@ -189,29 +204,48 @@ void run_viewer(const ViewerArgs& a) {
     add_mesh(path, m, {{"errors", b64(ef)}, {"reference", fs::path(ref).filename().string()},
                        {"error_mean", e.mean()}, {"error_max", e.maxCoeff()}});
   }
-  d["error_scale"] = a.error_scale;
+}
 
-  // check.json: the C++ (double precision) evaluator's positions on the check frames.
+// check.json: the C++ (double precision) evaluator's positions on the check frames.
+nlohmann::json check_json(const ViewerArgs& a, const std::vector<NamedRig>& rigs,
+                          const std::vector<BoneTransforms>& maps, const nlohmann::json& d) {
   nlohmann::json check;
-  if (!rigs.empty() && !a.no_check) {
-    check["height"] = d["height"];
-    for (int f : a.check_frames) {
-      if (f < 0 || f >= static_cast<int>(maps.size()))
-        throw InputError(fmt::format("--check-frames: frame {} is outside the {} frames written", f, maps.size()));
-      check["frames"].push_back(f);
-    }
-    for (auto& r : rigs) {
-      nlohmann::json jr = {{"name", r.name}};
-      for (int f : a.check_frames) {
-        const Eigen::MatrixX3d P = evaluate_rig(r.rig, maps[static_cast<size_t>(f)]);
-        std::vector<double> flat(static_cast<size_t>(P.size()));
-        for (int v = 0; v < P.rows(); ++v)
-          for (int k = 0; k < 3; ++k) flat[static_cast<size_t>(3 * v + k)] = P(v, k);
-        jr["positions"].push_back(flat);
-      }
-      check["rigs"].push_back(jr);
-    }
+  check["height"] = d["height"];
+  for (int f : a.check_frames) {
+    if (f < 0 || f >= static_cast<int>(maps.size()))
+      throw InputError(fmt::format("--check-frames: frame {} is outside the {} frames written", f, maps.size()));
+    check["frames"].push_back(f);
   }
+  for (auto& r : rigs) {
+    nlohmann::json jr = {{"name", r.name}};
+    for (int f : a.check_frames) {
+      const Eigen::MatrixX3d P = evaluate_rig(r.rig, maps[static_cast<size_t>(f)]);
+      std::vector<double> flat(static_cast<size_t>(P.size()));
+      for (int v = 0; v < P.rows(); ++v)
+        for (int k = 0; k < 3; ++k) flat[static_cast<size_t>(3 * v + k)] = P(v, k);
+      jr["positions"].push_back(flat);
+    }
+    check["rigs"].push_back(jr);
+  }
+  return check;
+}
+
+void run_viewer(const ViewerArgs& a) {
+  if (a.rigs.empty() && a.meshes.empty() && a.error_meshes.empty())
+    throw InputError("give at least one --rig, --mesh or --error-mesh");
+  if (!(a.error_scale > 0)) throw InputError(fmt::format("--error-scale must be positive, found {}", a.error_scale));
+  if (!a.rigs.empty() && a.bvh.empty()) throw InputError("--rig needs --bvh (the clip to play)");
+  if (a.frames < 1) throw InputError(fmt::format("--frames must be at least 1, found {}", a.frames));
+  const LoadedRigs L = load_viewer_rigs(a);
+  const std::vector<NamedRig>& rigs = L.rigs;
+  nlohmann::json d;
+  std::vector<int> frames;
+  std::vector<BoneTransforms> maps;
+  if (!rigs.empty()) maps = add_animation(a, L, d, frames);
+  add_static_meshes(a, d);
+  d["error_scale"] = a.error_scale;
+  nlohmann::json check;
+  if (!rigs.empty() && !a.no_check) check = check_json(a, rigs, maps, d);
 
   // Checked after the inputs, so a bad input is named first.
   const fs::path three = a.three.empty() ? default_three_js() : fs::path(a.three);

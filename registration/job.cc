@@ -1,0 +1,90 @@
+#include "registration/job.h"
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "registration/fit_check.h"
+#include "registration/local_fold_repair.h"
+#include "registration/mesh_scan.h"
+#include "registration/pose_parameters.h"
+
+namespace bodymodel {
+
+void validate(const RegistrationJobOptions& o) {
+  if (o.schedule != "paper" && o.schedule != "fast")
+    throw InputError("--schedule: expected 'paper' or 'fast', got '" + o.schedule + "'");
+  if (o.pose_joints != "default" && o.pose_joints != "segment" && o.pose_joints != "bone" &&
+      o.pose_joints != "best")
+    throw InputError("--pose-joints: expected 'segment', 'bone' or 'best', got '" + o.pose_joints + "'");
+  if (o.fast_steps < 1) throw InputError(fmt::format("--fast-steps must be at least 1, got {}", o.fast_steps));
+  if (!(o.fast_k_end > 0)) throw InputError(fmt::format("--fast-stiffness-end must be positive, got {}", o.fast_k_end));
+  if (!(o.transform_length > 0))
+    throw InputError(fmt::format("--transform-length must be positive, got {}", o.transform_length));
+  if (o.pose_iterations < 0)
+    throw InputError(fmt::format("--pose-iterations must not be negative, got {}", o.pose_iterations));
+}
+
+RegistrationTemplate registration_template(const RegistrationJobOptions& o) {
+  MakeHuman mh = MakeHuman::load();
+  const MacroSettings start = o.start_shape.value_or(MacroSettings{});
+  MakeHuman::Body body = mh.body(start);
+  RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, {}, start};
+  if (o.shape_fit) tpl.shape_space = std::move(mh);
+  return tpl;
+}
+
+RegistrationSetup registration_setup(const RegistrationJobOptions& o) {
+  validate(o);
+  RegistrationSetup s;
+  s.folds = o.folds;
+  RegistrationOptions& r = s.options;
+  r.nonrigid.schedule = o.schedule == "paper" ? NonrigidSchedule::paper : NonrigidSchedule::fast;
+  r.nonrigid.fast_steps = o.fast_steps;
+  r.nonrigid.fast_k_end = o.fast_k_end;
+  r.nonrigid.normalization_length = o.transform_length;
+  r.skip_nonrigid = o.pose_only;
+  r.fit_proportions = o.proportions;
+  r.fit_shape = o.shape_fit;  // only read when the template has a shape space
+  r.proportions_with_shape = o.proportions_with_shape;
+  r.pose.max_icp_iterations = o.pose_iterations;
+
+  // pose.parameters left empty means default_pose_parameters() (PoseFitOptions).
+  s.pose_joint_names = {o.pose_joints, "bone"};
+  if (o.pose_joints == "bone") r.pose.parameters = bone_pose_parameters();
+  if (o.pose_joints == "segment") r.pose.parameters = segment_pose_parameters();
+  if (o.pose_joints == "best") {
+    r.pose.parameters = segment_pose_parameters();
+    r.pose_alternatives.push_back(r.pose);
+    r.pose_alternatives.back().parameters = bone_pose_parameters();
+    s.pose_joint_names[0] = "segment";
+  }
+  if (o.hand_stage) {
+    if (r.pose.parameters.empty()) r.pose.parameters = default_pose_parameters();
+    r.pose.parameters = with_hand_stage(r.pose.parameters);
+    for (auto& alt : r.pose_alternatives) alt.parameters = with_hand_stage(alt.parameters);
+  }
+  return s;
+}
+
+RegistrationJobResult run_registration_job(const RegistrationTemplate& tpl, const RegistrationSetup& setup,
+                                           PointCloud& scan, const std::vector<Landmark>& landmarks,
+                                           const std::string& what, const ProgressCallback& progress) {
+  const RegistrationOptions& options = setup.options;
+  const FoldRepair folds = setup.folds;
+  RegistrationJobResult out;
+  RegistrationResult& r = out.registration;
+  r = register_scan(tpl, scan, landmarks, options, what, &out.summary, progress);
+  const size_t choice = size_t(out.summary.pose_choice);
+  out.pose_joints = choice < setup.pose_joint_names.size() ? setup.pose_joint_names[choice] : "";
+  if (options.skip_nonrigid) return out;
+  if (folds == FoldRepair::full) unfold_triangles(r.V, r.pose.V, tpl.mesh.F);
+  // Folds the posed template itself carries (its skinning creases) are not flipped against it:
+  // the local repair re-solves them from the rest template's shape.
+  if (folds != FoldRepair::keep) out.local_folds_repaired = repair_local_folds(r.V, r.rest.V, tpl.mesh.F).folded_before;
+  // Not a body (a sphere), or landmarks not its own: failed, nothing for the caller to write.
+  const FitCheck fc = check_registration_fit(r.V, r.pose.V, r.rest.V, tpl.mesh.F, scan);
+  if (!fc.plausible) throw InputError(what + ": registration failed: " + fc.reason);
+  return out;
+}
+
+}  // namespace bodymodel

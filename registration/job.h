@@ -1,0 +1,79 @@
+// The registration of one scan as every front end runs it: `bodymodel register` (a scan
+// database), `bodymodel register-mesh` (meshes of any topology) and Python's
+// `bodymodel.register_scan` set RegistrationJobOptions from their flags, build the template once
+// (registration_template) and call run_registration_job per scan. The post-steps (fold repair,
+// the plausibility check) therefore cannot drift apart between them.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/makehuman.h"
+#include "core/progress.h"
+#include "registration/landmarks.h"
+#include "registration/register_scan.h"
+#include "registration/scan.h"
+
+namespace bodymodel {
+
+// What to do with triangles folded after the non-rigid fit.
+enum class FoldRepair {
+  keep,   // leave them (diagnosis)
+  local,  // repair_local_folds from the rest template's shape
+  full,   // unfold_triangles against the posed template, then the local repair
+};
+
+// The user-facing settings, named as the verbs' flags.
+struct RegistrationJobOptions {
+  std::string schedule = "fast";  // non-rigid stiffness schedule: "paper" or "fast"
+  int fast_steps = NonrigidOptions{}.fast_steps;
+  double fast_k_end = NonrigidOptions{}.fast_k_end;
+  double transform_length = NonrigidOptions{}.normalization_length;
+  bool pose_only = false;    // stop after the pose fit (no post-steps either)
+  bool proportions = true;   // segment proportions from the landmarks
+  bool shape_fit = true;     // MakeHuman's macro sliders as the template's shape space
+  bool proportions_with_shape = false;
+  // "default" (default_pose_parameters), "segment", "bone" or "best" (segment and bone tried,
+  // the closer kept).
+  std::string pose_joints = "default";
+  bool hand_stage = false;   // finger curls and thumbs after the body
+  int pose_iterations = PoseFitOptions{}.max_icp_iterations;  // ICP iterations (0: landmarks only)
+  FoldRepair folds = FoldRepair::local;
+  // The start body's macro sliders (MakeHuman's default body when unset).
+  std::optional<MacroSettings> start_shape;
+};
+
+// InputError naming the option when a value is out of range.
+void validate(const RegistrationJobOptions& o);
+
+// The template: MakeHuman's body of `o.start_shape`, with MakeHuman as its shape space unless
+// o.shape_fit is off. Loads MakeHuman (throws as MakeHuman::load when its data is missing), so
+// callers that register many scans build it once.
+RegistrationTemplate registration_template(const RegistrationJobOptions& o);
+
+// The registration options derived from `o` (validated), cheap to make.
+struct RegistrationSetup {
+  RegistrationOptions options;
+  FoldRepair folds = FoldRepair::local;
+  std::vector<std::string> pose_joint_names;  // by RegistrationSummary::pose_choice
+};
+RegistrationSetup registration_setup(const RegistrationJobOptions& o);
+
+struct RegistrationJobResult {
+  RegistrationResult registration;
+  RegistrationSummary summary;
+  int local_folds_repaired = 0;  // folds the local repair found (before it)
+  std::string pose_joints;       // the parameterisation kept
+};
+
+// Registers `scan` (normals checked or estimated in place) with `landmarks`, then the post-steps
+// of setup.folds and the plausibility check: a result that is not a body throws InputError
+// "<what>: registration failed: …". A caller may change setup.options per scan (e.g. a start
+// pose for diagnosis).
+RegistrationJobResult run_registration_job(const RegistrationTemplate& tpl, const RegistrationSetup& setup,
+                                           PointCloud& scan, const std::vector<Landmark>& landmarks,
+                                           const std::string& what, const ProgressCallback& progress = {});
+
+}  // namespace bodymodel
