@@ -166,11 +166,9 @@ const GemmKernel gemm_nt = gemm_nt_kernel();
 using Panel = Eigen::Map<Eigen::MatrixXd>;
 using ConstPanel = Eigen::Map<const Eigen::MatrixXd>;
 
-}  // namespace
-
-BlockCholesky3::BlockCholesky3(int n, const std::vector<std::pair<int, int>>& lower) : n_(n) {
-  // ---- AMD ordering of the block graph, then a postorder of its elimination tree (so every
-  // subtree, and every supernode, is a contiguous range of columns).
+// AMD ordering of the block graph, then a postorder of its elimination tree (so every subtree,
+// and every supernode, is a contiguous range of columns); returns perm[new] = old.
+std::vector<int> fill_reducing_order(int n, const std::vector<std::pair<int, int>>& lower) {
   std::vector<Eigen::Triplet<double>> t;
   t.reserve(static_cast<size_t>(n) + 2 * lower.size());
   for (int i = 0; i < n; ++i) t.emplace_back(i, i, 1.0);
@@ -187,57 +185,70 @@ BlockCholesky3::BlockCholesky3(int n, const std::vector<std::pair<int, int>>& lo
   std::vector<int> amd_order(n), inverse(n);  // amd_order[new] = old
   for (int i = 0; i < n; ++i) amd_order[i] = amd_perm.indices()(i);
   for (int i = 0; i < n; ++i) inverse[amd_order[i]] = i;
-  {
-    const PermutedGraph g = permuted_graph(n, lower, inverse);
-    std::vector<std::vector<int>> children(n);
-    std::vector<int> roots;
-    for (int k = n - 1; k >= 0; --k)  // reversed, so the stack below visits children ascending
-      (g.parent[k] >= 0 ? children[g.parent[k]] : roots).push_back(k);
-    std::vector<int> post;
-    post.reserve(n);
-    std::vector<std::pair<int, size_t>> stack;
-    for (auto r = roots.rbegin(); r != roots.rend(); ++r) {
-      stack.emplace_back(*r, 0);
-      while (!stack.empty()) {
-        auto& [v, next] = stack.back();
-        if (next < children[v].size()) {
-          const int c = children[v][children[v].size() - 1 - next];
-          ++next;
-          stack.emplace_back(c, 0);
-        } else {
-          post.push_back(v);
-          stack.pop_back();
-        }
+  const PermutedGraph g = permuted_graph(n, lower, inverse);
+  std::vector<std::vector<int>> children(n);
+  std::vector<int> roots;
+  for (int k = n - 1; k >= 0; --k)  // reversed, so the stack below visits children ascending
+    (g.parent[k] >= 0 ? children[g.parent[k]] : roots).push_back(k);
+  std::vector<int> post;
+  post.reserve(n);
+  std::vector<std::pair<int, size_t>> stack;
+  for (auto r = roots.rbegin(); r != roots.rend(); ++r) {
+    stack.emplace_back(*r, 0);
+    while (!stack.empty()) {
+      auto& [v, next] = stack.back();
+      if (next < children[v].size()) {
+        const int c = children[v][children[v].size() - 1 - next];
+        ++next;
+        stack.emplace_back(c, 0);
+      } else {
+        post.push_back(v);
+        stack.pop_back();
       }
     }
-    perm_.resize(n);
-    for (int i = 0; i < n; ++i) perm_[i] = amd_order[post[i]];
-    for (int i = 0; i < n; ++i) inverse[perm_[i]] = i;
   }
-  const PermutedGraph g = permuted_graph(n, lower, inverse);
-  const std::vector<int>& parent = g.parent;
+  std::vector<int> perm(n);
+  for (int i = 0; i < n; ++i) perm[i] = amd_order[post[i]];
+  return perm;
+}
 
-  // ---- Row patterns of the columns of L (Lp/Li, rows ascending, diagonal first).
-  std::vector<int> count(n, 1), flag(n, -1), s(n), path(n);
+// Row patterns of the columns of L (Lp/Li, rows ascending, diagonal first) and the column counts.
+struct ColumnPatterns {
+  std::vector<int> count;
+  std::vector<long long> Lp;
+  std::vector<int> Li;
+};
+
+ColumnPatterns column_patterns(int n, const PermutedGraph& g) {
+  const std::vector<int>& parent = g.parent;
+  ColumnPatterns cp;
+  std::vector<int>& count = cp.count;
+  count.assign(n, 1);
+  std::vector<int> flag(n, -1), s(n), path(n);
   for (int k = 0; k < n; ++k) {
     const int top = ereach(k, g.up_rows[k], parent, flag, s, path);
     for (int p = top; p < n; ++p) ++count[s[p]];
   }
-  std::vector<long long> Lp(n + 1, 0);
+  std::vector<long long>& Lp = cp.Lp;
+  Lp.assign(n + 1, 0);
   for (int k = 0; k < n; ++k) Lp[k + 1] = Lp[k] + count[k];
-  std::vector<int> Li(Lp[n]);
+  cp.Li.resize(Lp[n]);
   {
     std::vector<long long> next(Lp.begin(), Lp.end() - 1);
     std::fill(flag.begin(), flag.end(), -1);
     for (int k = 0; k < n; ++k) {
-      Li[next[k]++] = k;
+      cp.Li[next[k]++] = k;
       const int top = ereach(k, g.up_rows[k], parent, flag, s, path);
-      for (int p = top; p < n; ++p) Li[next[s[p]]++] = k;
+      for (int p = top; p < n; ++p) cp.Li[next[s[p]]++] = k;
     }
   }
+  return cp;
+}
 
-  // ---- Fundamental supernodes: column j joins j − 1's when j − 1's only parent is j, j has no
-  // other child, and the patterns nest exactly.
+// Fundamental supernodes: column j joins j − 1's when j − 1's only parent is j, j has no other
+// child, and the patterns nest exactly. Returns each supernode's first column, then n.
+std::vector<int> fundamental_supernodes(const std::vector<int>& parent, const std::vector<int>& count) {
+  const int n = static_cast<int>(parent.size());
   std::vector<int> child_count(n, 0);
   for (int k = 0; k < n; ++k)
     if (parent[k] >= 0) ++child_count[parent[k]];
@@ -245,28 +256,31 @@ BlockCholesky3::BlockCholesky3(int n, const std::vector<std::pair<int, int>>& lo
   for (int j = 0; j < n; ++j)
     if (j == 0 || !(parent[j - 1] == j && count[j - 1] == count[j] + 1 && child_count[j] == 1))
       fund_first.push_back(j);
-  const int nfund = static_cast<int>(fund_first.size());
   fund_first.push_back(n);
+  return fund_first;
+}
 
-  // (Relaxed amalgamation, CHOLMOD-style merging with explicit zeros, was measured on the body:
-  // more flops and a slower solve for no faster factorisation, so supernodes stay
-  // fundamental.)
-  super_first_ = fund_first;
-  const int ns = nfund;
-  std::vector<int> super_of(n);
-  for (int sn = 0; sn < ns; ++sn)
-    for (int j = super_first_[sn]; j < super_first_[sn + 1]; ++j) super_of[j] = sn;
+// Per supernode its row list (its own columns, then the union of its columns' rows below), where
+// its panel starts in the values, and the number of 3×3 blocks stored.
+struct SupernodeRows {
+  std::vector<int> rows_begin, rows;
+  std::vector<long long> value_offset;
+  long long factor_blocks = 0;
+};
 
-  // ---- Row lists: the supernode's own columns, then the union of its columns' rows below.
-  rows_begin_.assign(ns + 1, 0);
-  rows_.clear();
-  std::fill(flag.begin(), flag.end(), -1);
-  value_offset_.assign(ns + 1, 0);
-  factor_blocks_ = 0;
+SupernodeRows supernode_rows(int n, const std::vector<int>& super_first, const ColumnPatterns& cp) {
+  const int ns = static_cast<int>(super_first.size()) - 1;
+  const std::vector<long long>& Lp = cp.Lp;
+  const std::vector<int>& Li = cp.Li;
+  SupernodeRows sr;
+  std::vector<int>& rows = sr.rows;
+  sr.rows_begin.assign(ns + 1, 0);
+  std::vector<int> flag(n, -1);
+  sr.value_offset.assign(ns + 1, 0);
   for (int sn = 0; sn < ns; ++sn) {
-    const int first = super_first_[sn], last = super_first_[sn + 1] - 1;
-    rows_begin_[sn] = static_cast<int>(rows_.size());
-    for (int j = first; j <= last; ++j) rows_.push_back(j);
+    const int first = super_first[sn], last = super_first[sn + 1] - 1;
+    sr.rows_begin[sn] = static_cast<int>(rows.size());
+    for (int j = first; j <= last; ++j) rows.push_back(j);
     std::vector<int> below;
     for (int j = first; j <= last; ++j)
       for (long long q = Lp[j]; q < Lp[j + 1]; ++q)
@@ -275,12 +289,110 @@ BlockCholesky3::BlockCholesky3(int n, const std::vector<std::pair<int, int>>& lo
           below.push_back(Li[q]);
         }
     std::sort(below.begin(), below.end());
-    rows_.insert(rows_.end(), below.begin(), below.end());
-    const long long w = last - first + 1, r = static_cast<long long>(rows_.size()) - rows_begin_[sn];
-    value_offset_[sn + 1] = value_offset_[sn] + 9 * w * r;
-    factor_blocks_ += w * r - w * (w - 1) / 2;
+    rows.insert(rows.end(), below.begin(), below.end());
+    const long long w = last - first + 1, r = static_cast<long long>(rows.size()) - sr.rows_begin[sn];
+    sr.value_offset[sn + 1] = sr.value_offset[sn] + 9 * w * r;
+    sr.factor_blocks += w * r - w * (w - 1) / 2;
   }
-  rows_begin_[ns] = static_cast<int>(rows_.size());
+  sr.rows_begin[ns] = static_cast<int>(rows.size());
+  return sr;
+}
+
+// Parallel schedule: disjoint subtrees of the supernodal tree of at most 1/16 of the work each
+// (largest first, supernodes ascending) run concurrently, then the rest (the separators near the
+// roots, ascending) in order.
+struct Schedule {
+  std::vector<int> top;
+  std::vector<std::vector<int>> subtrees;
+};
+
+Schedule parallel_schedule(const std::vector<int>& parent, const std::vector<int>& super_first,
+                           const std::vector<int>& rows_begin, const std::vector<int>& super_of) {
+  const int ns = static_cast<int>(super_first.size()) - 1;
+  std::vector<int> sparent(ns, -1);
+  for (int sn = 0; sn < ns; ++sn) {
+    const int last = super_first[sn + 1] - 1;
+    if (parent[last] >= 0) sparent[sn] = super_of[parent[last]];
+  }
+  std::vector<double> work(ns);
+  for (int sn = 0; sn < ns; ++sn) {
+    const double w = super_first[sn + 1] - super_first[sn];
+    const double r = rows_begin[sn + 1] - rows_begin[sn];
+    work[sn] = w * r * r;
+  }
+  std::vector<std::vector<int>> children(ns);
+  std::vector<int> roots;
+  for (int sn = 0; sn < ns; ++sn) {
+    if (sparent[sn] >= 0) {
+      work[sparent[sn]] += work[sn];  // sparent > sn: accumulates bottom-up
+      children[sparent[sn]].push_back(sn);
+    } else {
+      roots.push_back(sn);
+    }
+  }
+  double total = 0;
+  for (int r : roots) total += work[r];
+  const double limit = total / 16;
+  std::vector<int> stack(roots.begin(), roots.end());
+  std::vector<std::pair<double, int>> cuts;
+  Schedule sched;
+  while (!stack.empty()) {
+    const int v = stack.back();
+    stack.pop_back();
+    if (work[v] <= limit) {
+      cuts.emplace_back(work[v], v);
+    } else {
+      sched.top.push_back(v);
+      for (int c : children[v]) stack.push_back(c);
+    }
+  }
+  std::sort(sched.top.begin(), sched.top.end());
+  std::sort(cuts.rbegin(), cuts.rend());  // largest first
+  for (const auto& [w, v] : cuts) {
+    std::vector<int> members;
+    std::vector<int> todo = {v};
+    while (!todo.empty()) {
+      const int u = todo.back();
+      todo.pop_back();
+      members.push_back(u);
+      for (int c : children[u]) todo.push_back(c);
+    }
+    std::sort(members.begin(), members.end());
+    sched.subtrees.push_back(std::move(members));
+  }
+  return sched;
+}
+
+}  // namespace
+
+BlockCholesky3::BlockCholesky3(int n, const std::vector<std::pair<int, int>>& lower) : n_(n) {
+  // ---- AMD ordering of the block graph, then a postorder of its elimination tree (so every
+  // subtree, and every supernode, is a contiguous range of columns).
+  perm_ = fill_reducing_order(n, lower);
+  std::vector<int> inverse(n);
+  for (int i = 0; i < n; ++i) inverse[perm_[i]] = i;
+  const PermutedGraph g = permuted_graph(n, lower, inverse);
+  const std::vector<int>& parent = g.parent;
+
+  // ---- Row patterns of the columns of L (Lp/Li, rows ascending, diagonal first).
+  const ColumnPatterns cp = column_patterns(n, g);
+
+  // ---- Fundamental supernodes.
+  // (Relaxed amalgamation, CHOLMOD-style merging with explicit zeros, was measured on the body:
+  // more flops and a slower solve for no faster factorisation, so supernodes stay
+  // fundamental.)
+  super_first_ = fundamental_supernodes(parent, cp.count);
+  const int ns = static_cast<int>(super_first_.size()) - 1;
+  std::vector<int> super_of(n);
+  for (int sn = 0; sn < ns; ++sn)
+    for (int j = super_first_[sn]; j < super_first_[sn + 1]; ++j) super_of[j] = sn;
+
+  // ---- Row lists: the supernode's own columns, then the union of its columns' rows below.
+  SupernodeRows sr = supernode_rows(n, super_first_, cp);
+  rows_begin_ = std::move(sr.rows_begin);
+  rows_ = std::move(sr.rows);
+  value_offset_ = std::move(sr.value_offset);
+  factor_blocks_ = sr.factor_blocks;
 
   // ---- Update lists: supernode K updates every supernode J owning one of its rows below.
   updates_.assign(ns, {});
@@ -337,58 +449,9 @@ BlockCholesky3::BlockCholesky3(int n, const std::vector<std::pair<int, int>>& lo
 
   // ---- Parallel schedule: disjoint subtrees of the supernodal tree of at most 1/16 of the
   // work each run concurrently, then the rest (the separators near the roots) in order.
-  std::vector<int> sparent(ns, -1);
-  for (int sn = 0; sn < ns; ++sn) {
-    const int last = super_first_[sn + 1] - 1;
-    if (parent[last] >= 0) sparent[sn] = super_of[parent[last]];
-  }
-  std::vector<double> work(ns);
-  for (int sn = 0; sn < ns; ++sn) {
-    const double w = super_first_[sn + 1] - super_first_[sn];
-    const double r = rows_begin_[sn + 1] - rows_begin_[sn];
-    work[sn] = w * r * r;
-  }
-  std::vector<std::vector<int>> children(ns);
-  std::vector<int> roots;
-  for (int sn = 0; sn < ns; ++sn) {
-    if (sparent[sn] >= 0) {
-      work[sparent[sn]] += work[sn];  // sparent > sn: accumulates bottom-up
-      children[sparent[sn]].push_back(sn);
-    } else {
-      roots.push_back(sn);
-    }
-  }
-  double total = 0;
-  for (int r : roots) total += work[r];
-  const double limit = total / 16;
-  std::vector<int> stack(roots.begin(), roots.end());
-  std::vector<std::pair<double, int>> cuts;
-  top_supernodes_.clear();
-  subtree_supernodes_.clear();
-  while (!stack.empty()) {
-    const int v = stack.back();
-    stack.pop_back();
-    if (work[v] <= limit) {
-      cuts.emplace_back(work[v], v);
-    } else {
-      top_supernodes_.push_back(v);
-      for (int c : children[v]) stack.push_back(c);
-    }
-  }
-  std::sort(top_supernodes_.begin(), top_supernodes_.end());
-  std::sort(cuts.rbegin(), cuts.rend());  // largest first
-  for (const auto& [w, v] : cuts) {
-    std::vector<int> members;
-    std::vector<int> todo = {v};
-    while (!todo.empty()) {
-      const int u = todo.back();
-      todo.pop_back();
-      members.push_back(u);
-      for (int c : children[u]) todo.push_back(c);
-    }
-    std::sort(members.begin(), members.end());
-    subtree_supernodes_.push_back(std::move(members));
-  }
+  Schedule sched = parallel_schedule(parent, super_first_, rows_begin_, super_of);
+  top_supernodes_ = std::move(sched.top);
+  subtree_supernodes_ = std::move(sched.subtrees);
 }
 
 void BlockCholesky3::factor_supernode(int sn, const std::vector<Eigen::Matrix3d>& diag,

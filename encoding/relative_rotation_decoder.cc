@@ -228,18 +228,13 @@ void RelativeRotationDecoder::set_last_timing(const DecodeTiming& t) const {
   impl_->last = t;
 }
 
-RelativeRotationDecoder::RelativeRotationDecoder(std::shared_ptr<const EncodingTemplate> tmpl,
-                                                 DecoderOptions options)
-    : tmpl_(std::move(tmpl)), options_(options), impl_(std::make_unique<Impl>()) {
-  if (!tmpl_) throw InputError("decoder: no template given");
-  options_.validate();
-  Impl& m = *impl_;
-  const Eigen::MatrixX3i& F = tmpl_->faces();
-  const Eigen::MatrixX3i& TT = tmpl_->adjacency();
-  m.nf = tmpl_->triangle_count();
-  m.nv = tmpl_->vertex_count();
+namespace {
 
-  // Components of the dual graph: the first triangle of each is fixed.
+using DecoderImpl = RelativeRotationDecoder::Impl;
+
+// Components of the dual graph: the first triangle of each is fixed (identity rotation), the
+// others are numbered as the rotation system's unknowns.
+void number_unknowns(DecoderImpl& m, const Eigen::MatrixX3i& TT) {
   UnionFind uf(m.nf);
   for (int f = 0; f < m.nf; ++f)
     for (int k = 0; k < 3; ++k)
@@ -251,7 +246,12 @@ RelativeRotationDecoder::RelativeRotationDecoder(std::shared_ptr<const EncodingT
     else
       m.unknown[f] = m.n_unknown++;
   }
+}
 
+// The slots (one per triangle side with a neighbour), the pattern of the lower triangle of N with
+// its base diagonal, and where each slot's block sits in it; returns the number of neighbours of
+// each unknown (N's diagonal before the max with 1).
+Eigen::VectorXd rotation_pattern(DecoderImpl& m, const Eigen::MatrixX3i& TT) {
   // Pattern of the lower triangle of N (block rows/cols = unknown indices).
   std::vector<Eigen::Triplet<double>> trip;
   trip.reserve(static_cast<size_t>(m.n_unknown) * 3 + static_cast<size_t>(m.nf) * 27);
@@ -260,7 +260,7 @@ RelativeRotationDecoder::RelativeRotationDecoder(std::shared_ptr<const EncodingT
     for (int k = 0; k < 3; ++k) {
       const int g = TT(f, k);
       if (g < 0) continue;
-      m.slots.push_back(Impl::Slot{f, g, k, {}, false});
+      m.slots.push_back(DecoderImpl::Slot{f, g, k, {}, false});
       const int pf = m.unknown[f], pg = m.unknown[g];
       if (pf >= 0) diag_count(pf) += 1;
       if (pg >= 0) diag_count(pg) += 1;
@@ -290,24 +290,27 @@ RelativeRotationDecoder::RelativeRotationDecoder(std::shared_ptr<const EncodingT
       for (int b = 0; b < 3; ++b)
         s.value[3 * a + b] = value_index(m.N_pattern, 3 * hi + a, 3 * lo + b);
   }
-  if (options_.reuse_factorisations && m.n_unknown > 0 &&
-      options_.rotation_solver == RotationSolver::kCholeskyRefactor)
-    m.rotation_pool.push_back(m.analysed_rotation_solver());
-  if (options_.reuse_factorisations && m.n_unknown > 0 &&
-      options_.rotation_solver == RotationSolver::kPreconditionedCG) {
-    std::vector<std::pair<int, int>> lower;
-    for (const auto& s : m.slots) {
-      const int pf = m.unknown[s.f], pg = m.unknown[s.g];
-      if (pf < 0 || pg < 0 || pf < pg) continue;
-      lower.emplace_back(pf, pg);
-      m.edge_slot.push_back(3 * s.f + s.k);
-    }
-    m.block_solver = std::make_unique<BlockCholesky3>(m.n_unknown, lower);
-    m.diag_value.resize(m.n_unknown);
-    for (int p = 0; p < m.n_unknown; ++p) m.diag_value[p] = std::max(1.0, diag_count(p));
-  }
+  return diag_count;
+}
 
-  // Reverse slots, degrees, spanning tree and the scalar dual-graph Laplacian.
+// The block Cholesky of path c, analysed once over the edges between unknown triangles, with the
+// diagonal values it is factorised with.
+void analyse_block_solver(DecoderImpl& m, const Eigen::VectorXd& diag_count) {
+  std::vector<std::pair<int, int>> lower;
+  for (const auto& s : m.slots) {
+    const int pf = m.unknown[s.f], pg = m.unknown[s.g];
+    if (pf < 0 || pg < 0 || pf < pg) continue;
+    lower.emplace_back(pf, pg);
+    m.edge_slot.push_back(3 * s.f + s.k);
+  }
+  m.block_solver = std::make_unique<BlockCholesky3>(m.n_unknown, lower);
+  m.diag_value.resize(m.n_unknown);
+  for (int p = 0; p < m.n_unknown; ++p) m.diag_value[p] = std::max(1.0, diag_count(p));
+}
+
+// Reverse slots, degrees and the breadth-first spanning tree from the fixed triangles, which
+// path a integrates the rotations along.
+void spanning_tree(DecoderImpl& m, const Eigen::MatrixX3i& TT) {
   m.reverse_slot.assign(3 * static_cast<size_t>(m.nf), -1);
   m.degree.assign(m.nf, 0);
   for (int f = 0; f < m.nf; ++f)
@@ -318,45 +321,48 @@ RelativeRotationDecoder::RelativeRotationDecoder(std::shared_ptr<const EncodingT
       for (int kk = 0; kk < 3; ++kk)
         if (TT(g, kk) == f) m.reverse_slot[3 * f + k] = kk;
     }
-  {
-    std::vector<char> seen(m.nf, 0);
-    std::vector<int> queue;
-    queue.reserve(m.nf);
-    for (int root : m.fixed_triangles) {
-      seen[root] = 1;
-      queue.push_back(root);
-    }
-    for (size_t q = 0; q < queue.size(); ++q) {
-      const int f = queue[q];
-      for (int k = 0; k < 3; ++k) {
-        const int g = TT(f, k);
-        if (g < 0 || seen[g]) continue;
-        seen[g] = 1;
-        queue.push_back(g);
-        m.tree.emplace_back(g, 3 * f + k);
-      }
-    }
-    if (options_.rotation_solver == RotationSolver::kPreconditionedCG && m.n_unknown > 0) {
-      std::vector<Eigen::Triplet<double>> t;
-      for (int f = 0; f < m.nf; ++f) {
-        const int pf = m.unknown[f];
-        if (pf < 0) continue;
-        t.emplace_back(pf, pf, std::max(1, m.degree[f]));
-        for (int k = 0; k < 3; ++k) {
-          const int g = TT(f, k);
-          if (g >= 0 && m.unknown[g] >= 0) t.emplace_back(pf, m.unknown[g], -2.0);
-        }
-      }
-      SparseMatrixd Ls(m.n_unknown, m.n_unknown);
-      Ls.setFromTriplets(t.begin(), t.end());
-      m.dual_laplacian.compute(Ls);
-      if (m.dual_laplacian.info() != Eigen::Success)
-        throw NumericalError("rotation system: factorising the dual-graph Laplacian failed");
+  std::vector<char> seen(m.nf, 0);
+  std::vector<int> queue;
+  queue.reserve(m.nf);
+  for (int root : m.fixed_triangles) {
+    seen[root] = 1;
+    queue.push_back(root);
+  }
+  for (size_t q = 0; q < queue.size(); ++q) {
+    const int f = queue[q];
+    for (int k = 0; k < 3; ++k) {
+      const int g = TT(f, k);
+      if (g < 0 || seen[g]) continue;
+      seen[g] = 1;
+      queue.push_back(g);
+      m.tree.emplace_back(g, 3 * f + k);
     }
   }
+}
 
-  // Poisson operators on the rest shape.
-  const Eigen::MatrixX3d& V = tmpl_->rest_vertices();
+// The scalar dual-graph Laplacian L_s on the unknown triangles, factorised once: the
+// preconditioner of path b.
+void factor_dual_laplacian(DecoderImpl& m, const Eigen::MatrixX3i& TT) {
+  std::vector<Eigen::Triplet<double>> t;
+  for (int f = 0; f < m.nf; ++f) {
+    const int pf = m.unknown[f];
+    if (pf < 0) continue;
+    t.emplace_back(pf, pf, std::max(1, m.degree[f]));
+    for (int k = 0; k < 3; ++k) {
+      const int g = TT(f, k);
+      if (g >= 0 && m.unknown[g] >= 0) t.emplace_back(pf, m.unknown[g], -2.0);
+    }
+  }
+  SparseMatrixd Ls(m.n_unknown, m.n_unknown);
+  Ls.setFromTriplets(t.begin(), t.end());
+  m.dual_laplacian.compute(Ls);
+  if (m.dual_laplacian.info() != Eigen::Success)
+    throw NumericalError("rotation system: factorising the dual-graph Laplacian failed");
+}
+
+// Poisson operators on the rest shape (D = Gᵀ A, K = Gᵀ A G) and the vertex components, each
+// with its first vertex (pinned when the component has no constraint).
+void poisson_operators(DecoderImpl& m, const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F) {
   const SparseMatrixd G = gradient_operator(V, F);
   const Eigen::VectorXd area = face_areas(V, F);
   Eigen::VectorXd a3(3 * m.nf);
@@ -379,6 +385,162 @@ RelativeRotationDecoder::RelativeRotationDecoder(std::shared_ptr<const EncodingT
     if (inserted) m.component_first_vertex.push_back(v);
     m.vertex_component[v] = it->second;
   }
+}
+
+// Path a: the rotations integrated along the spanning tree (R_fg T_g = T_f → T_g = R_fgᵀ T_f),
+// with the largest equation residual over every slot in *residual.
+std::vector<Eigen::Matrix3d> integrate_tree(const DecoderImpl& m, const Eigen::MatrixX3i& TT,
+                                            const std::vector<Eigen::Matrix3d>& slot_rotations,
+                                            const std::vector<Eigen::Matrix3d>& R, double* residual) {
+  std::vector<Eigen::Matrix3d> T(m.nf);
+  for (int f : m.fixed_triangles) T[f] = R[f].transpose();
+  for (const auto& [child, slot] : m.tree) T[child] = slot_rotations[slot].transpose() * T[slot / 3];
+  // Largest equation residual over every slot.
+  std::vector<double> worst(m.nf, 0.0);
+  parallel_range(m.nf, [&](int f) {
+    double w = 0;
+    for (int k = 0; k < 3; ++k) {
+      const int g = TT(f, k);
+      if (g >= 0) w = std::max(w, (slot_rotations[3 * f + k] * T[g] - T[f]).norm());
+    }
+    worst[f] = w;
+  });
+  *residual = 0;
+  for (double w : worst) *residual = std::max(*residual, std::isnan(w) ? 1e300 : w);
+  return T;
+}
+
+// Path b's right-hand side: the terms of the fixed neighbours at their tree-integrated T.
+Eigen::MatrixXd cg_right_hand_side(const DecoderImpl& m, const Eigen::MatrixX3i& TT,
+                                   const std::vector<Eigen::Matrix3d>& slot_rotations,
+                                   const std::vector<Eigen::Matrix3d>& T) {
+  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(3 * m.n_unknown, 3);
+  for (int f = 0; f < m.nf; ++f) {
+    const int pf = m.unknown[f];
+    if (pf < 0) continue;
+    for (int k = 0; k < 3; ++k) {
+      const int g = TT(f, k);
+      if (g < 0 || m.unknown[g] >= 0) continue;
+      const int kk = m.reverse_slot[3 * f + k];
+      const Eigen::Matrix3d M = slot_rotations[3 * f + k] +
+                                (kk >= 0 ? Eigen::Matrix3d(slot_rotations[3 * g + kk].transpose())
+                                         : Eigen::Matrix3d(slot_rotations[3 * f + k]));
+      b.middleRows<3>(3 * pf) += M * T[g];
+    }
+  }
+  return b;
+}
+
+// The closest rotations of the solved unknown blocks X into R (fixed triangles untouched).
+void orthonormalise_unknowns(const DecoderImpl& m, const Eigen::MatrixXd& X, std::vector<Eigen::Matrix3d>& R) {
+  parallel_range(m.nf, [&](int f) {
+    const int p = m.unknown[f];
+    if (p >= 0) R[f] = orthonormalise(X.middleRows<3>(3 * p).transpose());
+  });
+}
+
+// Path c with the block Cholesky: the blocks of N and the right-hand side, then the numeric
+// factorisation (with a pooled factor) and the solve; returns the unknown blocks X.
+Eigen::MatrixXd block_cholesky_rotations(const DecoderImpl& m, const Eigen::MatrixX3i& TT,
+                                         const std::vector<Eigen::Matrix3d>& slot_rotations,
+                                         const std::vector<Eigen::Matrix3d>& R, DecodeTiming& timing,
+                                         Clock::time_point& t0) {
+  std::vector<Eigen::Matrix3d> diag(m.n_unknown), off(m.edge_slot.size());
+  for (int p = 0; p < m.n_unknown; ++p) diag[p] = m.diag_value[p] * Eigen::Matrix3d::Identity();
+  parallel_range(static_cast<int>(off.size()), [&](int e) {
+    const int slot = m.edge_slot[e], f = slot / 3, k = slot % 3, g = TT(f, k);
+    const int kk = m.reverse_slot[slot];
+    off[e] = -(slot_rotations[slot] + (kk >= 0 ? Eigen::Matrix3d(slot_rotations[3 * g + kk].transpose())
+                                                : Eigen::Matrix3d(slot_rotations[slot])));
+  });
+  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(3 * m.n_unknown, 3);
+  for (const auto& s : m.slots) {
+    const int pf = m.unknown[s.f], pg = m.unknown[s.g];
+    const Eigen::Matrix3d& Rfg = slot_rotations[3 * s.f + s.k];
+    if (pf < 0 && pg >= 0)
+      b.middleRows<3>(3 * pg) += Rfg.transpose() * R[s.f].transpose();  // f fixed: T_f = R_fᵀ
+    else if (pg < 0 && pf >= 0)
+      b.middleRows<3>(3 * pf) += Rfg * R[s.g].transpose();              // g fixed
+  }
+  timing.assemble_ms += ms_since(t0);
+  t0 = Clock::now();
+  BlockCholesky3::Factor factor;
+  {
+    std::lock_guard<std::mutex> lock(m.mutex);
+    if (!m.factor_pool.empty()) {
+      factor = std::move(m.factor_pool.back());
+      m.factor_pool.pop_back();
+    }
+  }
+  const bool factorised = m.block_solver->factorize(diag, off, factor);
+  if (factorised) m.block_solver->solve(factor, b);
+  {
+    std::lock_guard<std::mutex> lock(m.mutex);
+    m.factor_pool.push_back(std::move(factor));
+  }
+  if (!factorised)
+    throw NumericalError("rotation system: numeric factorisation failed (not positive definite)");
+  Eigen::MatrixXd X = std::move(b);
+  timing.rotation_solve_ms += ms_since(t0);
+  return X;
+}
+
+// Path c with a sparse Cholesky: N (the pattern's base values minus the slot rotations) and the
+// right-hand side of the fixed neighbours.
+struct RotationSystem {
+  SparseMatrixd N;
+  Eigen::MatrixXd b;
+};
+
+RotationSystem rotation_system(const DecoderImpl& m, const std::vector<Eigen::Matrix3d>& slot_rotations,
+                               const std::vector<Eigen::Matrix3d>& R) {
+  RotationSystem sys{m.N_pattern, Eigen::MatrixXd::Zero(3 * m.n_unknown, 3)};
+  double* val = sys.N.valuePtr();
+  Eigen::MatrixXd& b = sys.b;
+  for (const auto& s : m.slots) {
+    const Eigen::Matrix3d& Rfg = slot_rotations[3 * s.f + s.k];
+    const int pf = m.unknown[s.f], pg = m.unknown[s.g];
+    if (s.value[0] >= 0) {
+      for (int a = 0; a < 3; ++a)
+        for (int c = 0; c < 3; ++c) val[s.value[3 * a + c]] -= s.transposed ? Rfg(c, a) : Rfg(a, c);
+    } else if (pf < 0 && pg >= 0) {
+      b.middleRows<3>(3 * pg) += Rfg.transpose() * R[s.f].transpose();   // f fixed: T_f = R_fᵀ
+    } else if (pg < 0 && pf >= 0) {
+      b.middleRows<3>(3 * pf) += Rfg * R[s.g].transpose();               // g fixed
+    }
+  }
+  return sys;
+}
+
+}  // namespace
+
+RelativeRotationDecoder::RelativeRotationDecoder(std::shared_ptr<const EncodingTemplate> tmpl,
+                                                 DecoderOptions options)
+    : tmpl_(std::move(tmpl)), options_(options), impl_(std::make_unique<Impl>()) {
+  if (!tmpl_) throw InputError("decoder: no template given");
+  options_.validate();
+  Impl& m = *impl_;
+  const Eigen::MatrixX3i& F = tmpl_->faces();
+  const Eigen::MatrixX3i& TT = tmpl_->adjacency();
+  m.nf = tmpl_->triangle_count();
+  m.nv = tmpl_->vertex_count();
+
+  // Components of the dual graph: the first triangle of each is fixed.
+  number_unknowns(m, TT);
+  const Eigen::VectorXd diag_count = rotation_pattern(m, TT);
+  if (options_.reuse_factorisations && m.n_unknown > 0 &&
+      options_.rotation_solver == RotationSolver::kCholeskyRefactor)
+    m.rotation_pool.push_back(m.analysed_rotation_solver());
+  if (options_.reuse_factorisations && m.n_unknown > 0 &&
+      options_.rotation_solver == RotationSolver::kPreconditionedCG)
+    analyse_block_solver(m, diag_count);
+
+  // Reverse slots, degrees, spanning tree and the scalar dual-graph Laplacian.
+  spanning_tree(m, TT);
+  if (options_.rotation_solver == RotationSolver::kPreconditionedCG && m.n_unknown > 0) factor_dual_laplacian(m, TT);
+
+  // Poisson operators on the rest shape.
+  poisson_operators(m, tmpl_->rest_vertices(), F);
   if (options_.reuse_factorisations)
     m.free_poisson = m.build_poisson(Eigen::VectorXi(), Eigen::VectorXd());
 }
@@ -408,21 +570,8 @@ std::vector<Eigen::Matrix3d> RelativeRotationDecoder::rotations(
   Eigen::MatrixXd X;
   if (use_tree) {
     // a. Integrate along the spanning tree: R_fg T_g = T_f  →  T_g = R_fgᵀ T_f.
-    std::vector<Eigen::Matrix3d> T(m.nf);
-    for (int f : m.fixed_triangles) T[f] = R[f].transpose();
-    for (const auto& [child, slot] : m.tree) T[child] = slot_rotations[slot].transpose() * T[slot / 3];
-    // Largest equation residual over every slot.
-    std::vector<double> worst(m.nf, 0.0);
-    parallel_range(m.nf, [&](int f) {
-      double w = 0;
-      for (int k = 0; k < 3; ++k) {
-        const int g = TT(f, k);
-        if (g >= 0) w = std::max(w, (slot_rotations[3 * f + k] * T[g] - T[f]).norm());
-      }
-      worst[f] = w;
-    });
     double residual = 0;
-    for (double w : worst) residual = std::max(residual, std::isnan(w) ? 1e300 : w);
+    const std::vector<Eigen::Matrix3d> T = integrate_tree(m, TT, slot_rotations, R, &residual);
     timing.assemble_ms += ms_since(t0);
     if (residual <= options_.consistency_tolerance) {
       timing.rotation_path = 0;
@@ -436,20 +585,7 @@ std::vector<Eigen::Matrix3d> RelativeRotationDecoder::rotations(
     if (residual <= options_.cg_start_residual) {
       // b. Nearly consistent: conjugate gradients from T.
       t0 = Clock::now();
-      Eigen::MatrixXd b = Eigen::MatrixXd::Zero(3 * m.n_unknown, 3);
-      for (int f = 0; f < m.nf; ++f) {
-        const int pf = m.unknown[f];
-        if (pf < 0) continue;
-        for (int k = 0; k < 3; ++k) {
-          const int g = TT(f, k);
-          if (g < 0 || m.unknown[g] >= 0) continue;
-          const int kk = m.reverse_slot[3 * f + k];
-          const Eigen::Matrix3d M = slot_rotations[3 * f + k] +
-                                    (kk >= 0 ? Eigen::Matrix3d(slot_rotations[3 * g + kk].transpose())
-                                             : Eigen::Matrix3d(slot_rotations[3 * f + k]));
-          b.middleRows<3>(3 * pf) += M * T[g];
-        }
-      }
+      const Eigen::MatrixXd b = cg_right_hand_side(m, TT, slot_rotations, T);
       X.resize(3 * m.n_unknown, 3);
       for (int f = 0; f < m.nf; ++f)
         if (m.unknown[f] >= 0) X.middleRows<3>(3 * m.unknown[f]) = T[f];
@@ -457,10 +593,7 @@ std::vector<Eigen::Matrix3d> RelativeRotationDecoder::rotations(
       if (rotations_cg(slot_rotations, T, b, X, timing)) {
         timing.rotation_path = 1;
         t0 = Clock::now();
-        parallel_range(m.nf, [&](int f) {
-          const int p = m.unknown[f];
-          if (p >= 0) R[f] = orthonormalise(X.middleRows<3>(3 * p).transpose());
-        });
+        orthonormalise_unknowns(m, X, R);
         timing.orthonormalise_ms += ms_since(t0);
         return R;
       }
@@ -471,67 +604,16 @@ std::vector<Eigen::Matrix3d> RelativeRotationDecoder::rotations(
   // c. Cholesky: values of N and the right-hand side b (3·#unknown by 3).
   timing.rotation_path = 2;
   if (m.block_solver) {
-    std::vector<Eigen::Matrix3d> diag(m.n_unknown), off(m.edge_slot.size());
-    for (int p = 0; p < m.n_unknown; ++p) diag[p] = m.diag_value[p] * Eigen::Matrix3d::Identity();
-    parallel_range(static_cast<int>(off.size()), [&](int e) {
-      const int slot = m.edge_slot[e], f = slot / 3, k = slot % 3, g = TT(f, k);
-      const int kk = m.reverse_slot[slot];
-      off[e] = -(slot_rotations[slot] + (kk >= 0 ? Eigen::Matrix3d(slot_rotations[3 * g + kk].transpose())
-                                                  : Eigen::Matrix3d(slot_rotations[slot])));
-    });
-    Eigen::MatrixXd b = Eigen::MatrixXd::Zero(3 * m.n_unknown, 3);
-    for (const auto& s : m.slots) {
-      const int pf = m.unknown[s.f], pg = m.unknown[s.g];
-      const Eigen::Matrix3d& Rfg = slot_rotations[3 * s.f + s.k];
-      if (pf < 0 && pg >= 0)
-        b.middleRows<3>(3 * pg) += Rfg.transpose() * R[s.f].transpose();  // f fixed: T_f = R_fᵀ
-      else if (pg < 0 && pf >= 0)
-        b.middleRows<3>(3 * pf) += Rfg * R[s.g].transpose();              // g fixed
-    }
-    timing.assemble_ms += ms_since(t0);
-    t0 = Clock::now();
-    BlockCholesky3::Factor factor;
-    {
-      std::lock_guard<std::mutex> lock(m.mutex);
-      if (!m.factor_pool.empty()) {
-        factor = std::move(m.factor_pool.back());
-        m.factor_pool.pop_back();
-      }
-    }
-    const bool factorised = m.block_solver->factorize(diag, off, factor);
-    if (factorised) m.block_solver->solve(factor, b);
-    {
-      std::lock_guard<std::mutex> lock(m.mutex);
-      m.factor_pool.push_back(std::move(factor));
-    }
-    if (!factorised)
-      throw NumericalError("rotation system: numeric factorisation failed (not positive definite)");
-    X = std::move(b);
-    timing.rotation_solve_ms += ms_since(t0);
+    X = block_cholesky_rotations(m, TT, slot_rotations, R, timing, t0);
     if (!X.allFinite()) throw NumericalError("rotation system: the solve produced NaN");
     t0 = Clock::now();
-    parallel_range(m.nf, [&](int f) {
-      const int p = m.unknown[f];
-      if (p >= 0) R[f] = orthonormalise(X.middleRows<3>(3 * p).transpose());
-    });
+    orthonormalise_unknowns(m, X, R);
     timing.orthonormalise_ms += ms_since(t0);
     return R;
   }
-  SparseMatrixd N = m.N_pattern;
-  double* val = N.valuePtr();
-  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(3 * m.n_unknown, 3);
-  for (const auto& s : m.slots) {
-    const Eigen::Matrix3d& Rfg = slot_rotations[3 * s.f + s.k];
-    const int pf = m.unknown[s.f], pg = m.unknown[s.g];
-    if (s.value[0] >= 0) {
-      for (int a = 0; a < 3; ++a)
-        for (int c = 0; c < 3; ++c) val[s.value[3 * a + c]] -= s.transposed ? Rfg(c, a) : Rfg(a, c);
-    } else if (pf < 0 && pg >= 0) {
-      b.middleRows<3>(3 * pg) += Rfg.transpose() * R[s.f].transpose();   // f fixed: T_f = R_fᵀ
-    } else if (pg < 0 && pf >= 0) {
-      b.middleRows<3>(3 * pf) += Rfg * R[s.g].transpose();               // g fixed
-    }
-  }
+  RotationSystem sys = rotation_system(m, slot_rotations, R);
+  const SparseMatrixd& N = sys.N;
+  const Eigen::MatrixXd& b = sys.b;
   timing.assemble_ms += ms_since(t0);
 
   t0 = Clock::now();
@@ -552,10 +634,7 @@ std::vector<Eigen::Matrix3d> RelativeRotationDecoder::rotations(
   if (!X.allFinite()) throw NumericalError("rotation system: the solve produced NaN");
 
   t0 = Clock::now();
-  parallel_range(m.nf, [&](int f) {
-    const int p = m.unknown[f];
-    if (p >= 0) R[f] = orthonormalise(X.middleRows<3>(3 * p).transpose());
-  });
+  orthonormalise_unknowns(m, X, R);
   timing.orthonormalise_ms += ms_since(t0);
   return R;
 }

@@ -526,6 +526,41 @@ void ModelFitter::jacobian(Workspace& ws, int K, Eigen::MatrixXd& Jout) const {
   }
 }
 
+namespace {
+
+// The Gauss–Newton system of one iteration: the Jacobian in the target's frame, [Q·dv/dc |
+// rotation about the centroid | translation], into Jt (the stage's buffer, 3·#V by P), then
+// H = JtᵀJt (H zero on entry, P by P) and g = Jtᵀr for the residuals r = placed − Y.
+void normal_equations(const Eigen::MatrixXd& Jraw, int Kc, const Eigen::Matrix3d& Q, const Eigen::MatrixX3d& placed,
+                      const Eigen::MatrixX3d& Y, Eigen::MatrixXd& Jt, Eigen::MatrixXd& H, Eigen::VectorXd& g) {
+  const int nv = static_cast<int>(Y.rows());
+  const Eigen::RowVector3d centroid = placed.colwise().mean();
+  tbb::parallel_for(0, nv, [&](int v) {
+    Jt.block(3 * v, 0, 3, Kc) = Q * Jraw.block(3 * v, 0, 3, Kc);
+    const Eigen::Vector3d p = (placed.row(v) - centroid).transpose();
+    Jt.block<3, 3>(3 * v, Kc) = -skew(p);
+    Jt.block<3, 3>(3 * v, Kc + 3).setIdentity();
+  });
+  Eigen::VectorXd r(3 * nv);
+  for (int v = 0; v < nv; ++v) r.segment<3>(3 * v) = (placed.row(v) - Y.row(v)).transpose();
+  H.selfadjointView<Eigen::Lower>().rankUpdate(Jt.transpose());
+  H = H.selfadjointView<Eigen::Lower>();
+  g = Jt.transpose() * r;
+}
+
+// The fit's error figures from its placed vertices: per-vertex error, mean, RMS, 95th
+// percentile and maximum.
+void error_summary(const Eigen::MatrixX3d& placed, const Eigen::MatrixX3d& Y, ModelFit& out) {
+  out.vertex_error = (placed - Y).rowwise().norm();
+  std::vector<double> e(out.vertex_error.data(), out.vertex_error.data() + out.vertex_error.size());
+  out.summary.mean_mm = out.vertex_error.mean();
+  out.summary.rms_mm = std::sqrt(out.vertex_error.squaredNorm() / std::max<Eigen::Index>(1, out.vertex_error.size()));
+  out.summary.p95_mm = percentile(e, 95);
+  out.summary.max_mm = out.vertex_error.maxCoeff();
+}
+
+}  // namespace
+
 ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
                           const ProgressCallback& progress) const {
   o.validate();
@@ -601,23 +636,9 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
       }
       ++out.summary.iterations;
       // Jacobian in the target's frame: [Q·dv/dc | rotation about the centroid | translation].
-      const Eigen::Matrix3d& Q = cur.rigid.R;
-      const Eigen::RowVector3d centroid = cur.placed.colwise().mean();
       Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P, P);
       Eigen::VectorXd g;
-      {
-        tbb::parallel_for(0, m.nv, [&](int v) {
-          Jt.block(3 * v, 0, 3, Kc) = Q * Jraw.block(3 * v, 0, 3, Kc);
-          const Eigen::Vector3d p = (cur.placed.row(v) - centroid).transpose();
-          Jt.block<3, 3>(3 * v, Kc) = -skew(p);
-          Jt.block<3, 3>(3 * v, Kc + 3).setIdentity();
-        });
-        Eigen::VectorXd r(3 * m.nv);
-        for (int v = 0; v < m.nv; ++v) r.segment<3>(3 * v) = (cur.placed.row(v) - Y.row(v)).transpose();
-        H.selfadjointView<Eigen::Lower>().rankUpdate(Jt.transpose());
-        H = H.selfadjointView<Eigen::Lower>();
-        g = Jt.transpose() * r;
-      }
+      normal_equations(Jraw, Kc, cur.rigid.R, cur.placed, Y, Jt, H, g);
       for (int k = 0; k < Kc; ++k) {
         H(k, k) += o.prior_weight * inv_lambda(k);
         g(k) += o.prior_weight * inv_lambda(k) * c(k);
@@ -668,12 +689,7 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
   if (budget > 0) converged = run(K, o.relative_tolerance, budget);
   out.coefficients = c;
   out.V = cur.placed;
-  out.vertex_error = (cur.placed - Y).rowwise().norm();
-  std::vector<double> e(out.vertex_error.data(), out.vertex_error.data() + out.vertex_error.size());
-  out.summary.mean_mm = out.vertex_error.mean();
-  out.summary.rms_mm = std::sqrt(out.vertex_error.squaredNorm() / std::max<Eigen::Index>(1, out.vertex_error.size()));
-  out.summary.p95_mm = percentile(e, 95);
-  out.summary.max_mm = out.vertex_error.maxCoeff();
+  error_summary(cur.placed, Y, out);
   out.summary.converged = converged;
   out.summary.seconds = std::chrono::duration<double>(Clock::now() - t_start).count();
   report_progress(progress, 1.0, "done");

@@ -316,6 +316,82 @@ void ShapeMorpher::prepare(const std::vector<LabelCondition>& conditions, const 
 
 namespace {
 
+// The regression index of each condition's label, checked (each label once, non-empty ranges),
+// and whether any label is measured on the body rather than only predicted.
+struct ConditionLabels {
+  std::vector<int> idx;
+  bool any_measured = false;
+};
+
+ConditionLabels condition_labels(const SemanticRegression& reg, const std::vector<LabelCondition>& conditions) {
+  const int m = static_cast<int>(conditions.size());
+  ConditionLabels cl;
+  cl.idx.resize(m);
+  std::set<std::string> seen;
+  for (int i = 0; i < m; ++i) {
+    cl.idx[i] = reg.index(conditions[i].label);
+    if (!seen.insert(conditions[i].label).second)
+      throw InputError(fmt::format("label '{}' is given more than once", conditions[i].label));
+    if (!conditions[i].keep && !(conditions[i].lo <= conditions[i].hi))
+      throw InputError(fmt::format("label '{}': empty range {}..{}", conditions[i].label,
+                                   conditions[i].lo, conditions[i].hi));
+    cl.any_measured = cl.any_measured || is_measurable_label(conditions[i].label);
+  }
+  return cl;
+}
+
+// Per condition the value aimed at, the accepted interval and the tolerance: the start value for
+// a kept label, the value of an exact condition, else the start clamped into the range's margins
+// (or moved to range_aim). all_ok and badness judge a candidate's values against them.
+struct LabelTargets {
+  Eigen::VectorXd target, lo, hi, tol;
+
+  bool all_ok(const Eigen::VectorXd& v) const {
+    for (Eigen::Index i = 0; i < lo.size(); ++i)
+      if (v(i) < lo(i) || v(i) > hi(i)) return false;
+    return true;
+  }
+  // The largest distance outside its interval, in tolerances.
+  double badness(const Eigen::VectorXd& v) const {
+    double b = 0;
+    for (Eigen::Index i = 0; i < lo.size(); ++i) {
+      double e = v(i) < lo(i) ? lo(i) - v(i) : v(i) > hi(i) ? v(i) - hi(i) : 0;
+      b = std::max(b, e / tol(i));
+    }
+    return b;
+  }
+};
+
+LabelTargets label_targets(const SemanticRegression& reg, const std::vector<LabelCondition>& conditions,
+                           const std::vector<int>& idx, const Eigen::VectorXd& start, const MorphOptions& o) {
+  const int m = static_cast<int>(conditions.size());
+  LabelTargets t{Eigen::VectorXd(m), Eigen::VectorXd(m), Eigen::VectorXd(m), Eigen::VectorXd(m)};
+  Eigen::VectorXd &target = t.target, &lo = t.lo, &hi = t.hi, &tol = t.tol;
+  for (int i = 0; i < m; ++i) {
+    const LabelCondition& c = conditions[i];
+    const LabelInfo& info = reg.labels[idx[i]];
+    tol(i) = tolerance_for(info, o);
+    if (c.keep) {
+      target(i) = start(i);
+      lo(i) = start(i) - tol(i);
+      hi(i) = start(i) + tol(i);
+    } else if (c.lo == c.hi) {
+      target(i) = c.lo;
+      lo(i) = c.lo - tol(i);
+      hi(i) = c.hi + tol(i);
+    } else {
+      double margin = o.range_margin * (c.hi - c.lo);
+      if (o.range_aim >= 0 && (start(i) < c.lo + margin || start(i) > c.hi - margin))
+        target(i) = c.lo + margin + std::min(o.range_aim, 1.0) * (c.hi - c.lo - 2 * margin);
+      else
+        target(i) = std::clamp(start(i), c.lo + margin, c.hi - margin);
+      lo(i) = c.lo;
+      hi(i) = c.hi;
+    }
+  }
+  return t;
+}
+
 }  // namespace
 
 Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0_given,
@@ -338,18 +414,9 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0_given,
   const Eigen::VectorXd c0 = c0_known ? *c0_known : sm.pca.project(x0);
   const SemanticRegression& reg = sm.regression;
   const int m = static_cast<int>(conditions.size());
-  std::vector<int> idx(m);
-  std::set<std::string> seen;
-  bool any_measured = false;
-  for (int i = 0; i < m; ++i) {
-    idx[i] = reg.index(conditions[i].label);
-    if (!seen.insert(conditions[i].label).second)
-      throw InputError(fmt::format("label '{}' is given more than once", conditions[i].label));
-    if (!conditions[i].keep && !(conditions[i].lo <= conditions[i].hi))
-      throw InputError(fmt::format("label '{}': empty range {}..{}", conditions[i].label,
-                                   conditions[i].lo, conditions[i].hi));
-    any_measured = any_measured || is_measurable_label(conditions[i].label);
-  }
+  const ConditionLabels labels = condition_labels(reg, conditions);
+  const std::vector<int>& idx = labels.idx;
+  const bool any_measured = labels.any_measured;
   if (o.triangle_mask.size() != 0 && o.triangle_mask.size() != model_->tmpl->triangle_count())
     throw InputError(fmt::format("mask has {} entries, the model has {} triangles", o.triangle_mask.size(),
                                  model_->tmpl->triangle_count()));
@@ -396,42 +463,8 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0_given,
       start(i) = at_anchor ? response->anchor_value(i)
                            : start(i) + response->anchor_value(i) - response->anchor_predicted(i);
   }
-  Eigen::VectorXd target(m), lo(m), hi(m), tol(m);
-  for (int i = 0; i < m; ++i) {
-    const LabelCondition& c = conditions[i];
-    const LabelInfo& info = reg.labels[idx[i]];
-    tol(i) = tolerance_for(info, o);
-    if (c.keep) {
-      target(i) = start(i);
-      lo(i) = start(i) - tol(i);
-      hi(i) = start(i) + tol(i);
-    } else if (c.lo == c.hi) {
-      target(i) = c.lo;
-      lo(i) = c.lo - tol(i);
-      hi(i) = c.hi + tol(i);
-    } else {
-      double margin = o.range_margin * (c.hi - c.lo);
-      if (o.range_aim >= 0 && (start(i) < c.lo + margin || start(i) > c.hi - margin))
-        target(i) = c.lo + margin + std::min(o.range_aim, 1.0) * (c.hi - c.lo - 2 * margin);
-      else
-        target(i) = std::clamp(start(i), c.lo + margin, c.hi - margin);
-      lo(i) = c.lo;
-      hi(i) = c.hi;
-    }
-  }
-  auto all_ok = [&](const Eigen::VectorXd& v) {
-    for (int i = 0; i < m; ++i)
-      if (v(i) < lo(i) || v(i) > hi(i)) return false;
-    return true;
-  };
-  auto badness = [&](const Eigen::VectorXd& v) {
-    double b = 0;
-    for (int i = 0; i < m; ++i) {
-      double e = v(i) < lo(i) ? lo(i) - v(i) : v(i) > hi(i) ? v(i) - hi(i) : 0;
-      b = std::max(b, e / tol(i));
-    }
-    return b;
-  };
+  const LabelTargets t = label_targets(reg, conditions, idx, start, o);
+  const Eigen::VectorXd &target = t.target, &lo = t.lo, &hi = t.hi, &tol = t.tol;
 
   // The request whose modelled response is the remaining change (with the unit slope: the
   // change itself).
@@ -439,9 +472,9 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0_given,
   Eigen::VectorXd z = Eigen::VectorXd::Zero(sm.component_count());
   Eigen::VectorXd x = x0, best_x = x0, v = start, best_v = start;
   Eigen::MatrixX3d best_V = V;
-  double best_bad = start_measured ? badness(start) : std::numeric_limits<double>::infinity();
+  double best_bad = start_measured ? t.badness(start) : std::numeric_limits<double>::infinity();
   int it = 0;
-  bool ok = start_measured && all_ok(start);
+  bool ok = start_measured && t.all_ok(start);
   while (!ok && it < o.max_iterations) {
     ++it;
     z = constrained_change(S, delta, change_options(sm, o));
@@ -449,14 +482,14 @@ Eigen::MatrixX3d ShapeMorpher::morph_encoding(const Eigen::VectorXd& x0_given,
     V = decode(x);
     ++decodes;
     v = values(x, z, V);
-    double bad = badness(v);
+    double bad = t.badness(v);
     if (bad < best_bad) {
       best_bad = bad;
       best_x = x;
       best_v = v;
       best_V = V;
     }
-    ok = all_ok(v);
+    ok = t.all_ok(v);
     // Newton-like correction on the measured value: the remaining error, through the measured
     // response's Jacobian at the current request (or with a unit slope: the regression as the
     // Jacobian's estimate).

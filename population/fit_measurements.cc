@@ -106,22 +106,96 @@ std::string MeasurementFit::sliders_text() const {
   return s;
 }
 
-MeasurementFit fit_measurements(const MakeHuman& mh, const PersonSpec& person, const FitMeasurementsOptions& o) {
-  const auto t0 = std::chrono::steady_clock::now();
+namespace {
+
+// The fit's problem: the person's targets and their scales, the parameters' prior, bounds, prior
+// scales and difference steps, MakeHuman's own range, and the evaluation of a parameter vector
+// (build, measure, residual), which counts the evaluations.
+struct MeasurementProblem {
+  const MakeHuman& mh;
+  const PersonSpec& person;
+  const FitMeasurementsOptions& o;
+  int M, P, T;
+  Eigen::VectorXd x0, lo, hi, scale, step;     // P: prior, bounds, prior scales, difference steps
+  Eigen::VectorXd target, sigma;               // T: the targets and their scales
+  Eigen::VectorXd range_lo, range_hi, s_ext;   // P: MakeHuman's range and the scale beyond it
+  MeasureOptions mo;
+  MakeHuman::BuildOptions bo;
+  int evaluations = 0;
+
+  MeasurementProblem(const MakeHuman& mh, const PersonSpec& person, const FitMeasurementsOptions& o)
+      : mh(mh), person(person), o(o), M(static_cast<int>(mh.measure_modifier_names().size())),
+        P(kMacroCount + M), T(static_cast<int>(person.targets.size())) {}
+
+  Eigen::MatrixX3d body_of(const Eigen::VectorXd& x) const {
+    return Eigen::MatrixX3d(mh.build_vertices(settings_of(x), x.tail(M), bo).topRows(MakeHuman::kBodyVertexCount));
+  }
+  Eigen::VectorXd measured(const Eigen::VectorXd& x) {
+    ++evaluations;
+    const BodyMeasurements m = measure_body(body_of(x), mh.body_faces(), person.sex, mo);
+    Eigen::VectorXd v(T);
+    for (int k = 0; k < T; ++k) v(k) = measurement_value(m, person.targets[k].name);
+    return v;
+  }
+  // Beyond MakeHuman's range per parameter: the excess over s_ext (0 inside the range).
+  Eigen::VectorXd excess(const Eigen::VectorXd& x) const {
+    Eigen::VectorXd e(P);
+    for (int j = 0; j < P; ++j) e(j) = (x(j) > range_hi(j) ? x(j) - range_hi(j) : x(j) < range_lo(j) ? x(j) - range_lo(j) : 0) / s_ext(j);
+    return e;
+  }
+  // Residuals: the measurements against the targets, the prior, the excess.
+  Eigen::VectorXd residual(const Eigen::VectorXd& x, const Eigen::VectorXd& v) const {
+    Eigen::VectorXd r(T + 2 * P);
+    for (int k = 0; k < T; ++k) r(k) = std::isfinite(v(k)) ? (v(k) - target(k)) / sigma(k) : 1e6;
+    r.segment(T, P) = (x - x0).cwiseQuotient(scale);
+    r.tail(P) = excess(x);
+    return r;
+  }
+  bool within_stop(const Eigen::VectorXd& v) const {
+    for (int k = 0; k < T; ++k) {
+      const double tol = person.targets[k].name == "weight_kg" ? o.stop_kg : o.stop_cm;
+      if (!(std::abs(v(k) - target(k)) <= tol)) return false;
+    }
+    return true;
+  }
+  // The Jacobian of the measured values (T by P) by forward differences at `at`.
+  Eigen::MatrixXd difference_jacobian(const Eigen::VectorXd& at, const Eigen::VectorXd& v_at) {
+    Eigen::MatrixXd D(T, P);
+    for (int j = 0; j < P; ++j) {
+      Eigen::VectorXd xj = at;
+      double h = step(j);
+      if (xj(j) + h > hi(j)) h = -h;
+      xj(j) += h;
+      const Eigen::VectorXd vj = measured(xj);
+      for (int k = 0; k < T; ++k) D(k, j) = std::isfinite(vj(k)) && std::isfinite(v_at(k)) ? (vj(k) - v_at(k)) / h : 0;
+    }
+    return D;
+  }
+};
+
+// The argument checks of fit_measurements: targets, age and sex, and measurement modifiers in
+// the MakeHuman data.
+void check_person(const MakeHuman& mh, const PersonSpec& person) {
   validate_measurement_targets(person.targets);
   if (!(person.age_years >= 1 && person.age_years <= 90))
     throw InputError(fmt::format("age {:g} years is outside MakeHuman's range (1 to 90)", person.age_years));
   if (person.sex == Sex::unknown) throw InputError("fit-measurements needs the sex (female or male)");
-  const int M = static_cast<int>(mh.measure_modifier_names().size());
-  if (M == 0)
+  if (mh.measure_modifier_names().empty())
     throw InputError("the MakeHuman data in '" + mh.directory().string() +
                      "' has no targets/measure folder (the measurement modifiers)");
-  const int P = kMacroCount + M;
-  const int T = static_cast<int>(person.targets.size());
-  const bool male = person.sex == Sex::male;
+}
 
-  // Prior, bounds and prior scales.
-  Eigen::VectorXd x0(P), lo(P), hi(P), scale(P), step(P);
+// Prior, bounds and prior scales (gender and age fixed by the person, the extended space
+// widening muscle, weight and the modifiers), the difference steps, and MakeHuman's own range
+// per parameter: beyond it an extra residual (excess / s_ext) makes the extended space a last
+// resort, used only where the standard space cannot reach.
+void set_parameter_space(MeasurementProblem& p) {
+  const FitMeasurementsOptions& o = p.o;
+  const PersonSpec& person = p.person;
+  const int M = p.M, P = p.P;
+  const bool male = person.sex == Sex::male;
+  Eigen::VectorXd &x0 = p.x0, &lo = p.lo, &hi = p.hi, &scale = p.scale, &step = p.step;
+  x0.resize(P), lo.resize(P), hi.resize(P), scale.resize(P), step.resize(P);
   const double age = age_slider_for_years(person.age_years, o.adult_shape_below_25);
   x0 << (male ? 1.0 : 0.0), age, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, person.ethnic_prior[0], person.ethnic_prior[1],
       person.ethnic_prior[2];
@@ -140,65 +214,51 @@ MeasurementFit fit_measurements(const MakeHuman& mh, const PersonSpec& person, c
   step.head(kMacroCount).setConstant(0.02);
   step.tail(M).setConstant(0.05);
   for (int j = 0; j < 3; ++j) x0(kAfrican + j) = std::clamp(x0(kAfrican + j), lo(kAfrican + j), hi(kAfrican + j));
+}
 
-  // Measurement scales and the measure options (band girths only when a band girth is asked).
-  Eigen::VectorXd target(T), sigma(T);
-  MeasureOptions mo = o.measure;
-  mo.band_girths = false;
+// Measurement scales and the measure options (band girths only when a band girth is asked).
+void set_targets(MeasurementProblem& p) {
+  const int T = p.T;
+  p.target.resize(T), p.sigma.resize(T);
+  p.mo = p.o.measure;
+  p.mo.band_girths = false;
   for (int k = 0; k < T; ++k) {
-    const auto& name = person.targets[k].name;
-    target(k) = person.targets[k].value;
-    sigma(k) = name == "weight_kg" ? o.sigma_kg : o.sigma_cm;
-    if (name == "waist_cm" || name == "chest_cm" || name == "neck_cm") mo.band_girths = true;
+    const auto& name = p.person.targets[k].name;
+    p.target(k) = p.person.targets[k].value;
+    p.sigma(k) = name == "weight_kg" ? p.o.sigma_kg : p.o.sigma_cm;
+    if (name == "waist_cm" || name == "chest_cm" || name == "neck_cm") p.mo.band_girths = true;
   }
-  MakeHuman::BuildOptions bo;
-  bo.allow_extrapolation = true;
-  const Eigen::MatrixX3i& F = mh.body_faces();
-  int evaluations = 0;
-  auto body_of = [&](const Eigen::VectorXd& x) {
-    return Eigen::MatrixX3d(mh.build_vertices(settings_of(x), x.tail(M), bo).topRows(MakeHuman::kBodyVertexCount));
-  };
-  auto measured = [&](const Eigen::VectorXd& x) {
-    ++evaluations;
-    const BodyMeasurements m = measure_body(body_of(x), F, person.sex, mo);
-    Eigen::VectorXd v(T);
-    for (int k = 0; k < T; ++k) v(k) = measurement_value(m, person.targets[k].name);
-    return v;
-  };
-  // MakeHuman's own range per parameter: beyond it an extra residual (excess / s_ext) makes the
-  // extended space a last resort, used only where the standard space cannot reach.
-  Eigen::VectorXd range_lo = Eigen::VectorXd::Zero(P), range_hi = Eigen::VectorXd::Ones(P), s_ext(P);
-  range_lo.tail(M).setConstant(-1.0);
-  s_ext.head(kMacroCount).setConstant(o.extension_scale_slider);
-  s_ext.tail(M).setConstant(o.extension_scale_modifier);
-  auto excess = [&](const Eigen::VectorXd& x) {
-    Eigen::VectorXd e(P);
-    for (int j = 0; j < P; ++j) e(j) = (x(j) > range_hi(j) ? x(j) - range_hi(j) : x(j) < range_lo(j) ? x(j) - range_lo(j) : 0) / s_ext(j);
-    return e;
-  };
-  auto residual = [&](const Eigen::VectorXd& x, const Eigen::VectorXd& v) {
-    Eigen::VectorXd r(T + 2 * P);
-    for (int k = 0; k < T; ++k) r(k) = std::isfinite(v(k)) ? (v(k) - target(k)) / sigma(k) : 1e6;
-    r.segment(T, P) = (x - x0).cwiseQuotient(scale);
-    r.tail(P) = excess(x);
-    return r;
-  };
-  auto within_stop = [&](const Eigen::VectorXd& v) {
-    for (int k = 0; k < T; ++k) {
-      const double tol = person.targets[k].name == "weight_kg" ? o.stop_kg : o.stop_cm;
-      if (!(std::abs(v(k) - target(k)) <= tol)) return false;
-    }
-    return true;
-  };
+}
 
-  // Start: the best point of a coarse grid over (muscle, weight), the two sliders that move the
-  // mass most and interact (MakeHuman's heavy bodies are its low-muscle, high-weight corner):
-  // from the default alone the descent ends at muscle 1 for heavy men, a local minimum.
-  Eigen::VectorXd x = x0.cwiseMax(lo).cwiseMin(hi);
-  Eigen::VectorXd v = measured(x);
-  Eigen::VectorXd r = residual(x, v);
-  double cost = r.squaredNorm();
-  if (T > 0) {
+// MakeHuman's own range per parameter ([0, 1] for the sliders, [−1, 1] for the modifiers) and
+// the scale of the excess beyond it.
+void set_ranges(MeasurementProblem& p) {
+  const int M = p.M, P = p.P;
+  p.range_lo = Eigen::VectorXd::Zero(P), p.range_hi = Eigen::VectorXd::Ones(P), p.s_ext.resize(P);
+  p.range_lo.tail(M).setConstant(-1.0);
+  p.s_ext.head(kMacroCount).setConstant(p.o.extension_scale_slider);
+  p.s_ext.tail(M).setConstant(p.o.extension_scale_modifier);
+}
+
+// A point of the descent: parameters, their measured values, residuals and cost.
+struct FitPoint {
+  Eigen::VectorXd x, v, r;
+  double cost = 0;
+};
+
+// Start: the best point of a coarse grid over (muscle, weight), the two sliders that move the
+// mass most and interact (MakeHuman's heavy bodies are its low-muscle, high-weight corner):
+// from the default alone the descent ends at muscle 1 for heavy men, a local minimum.
+FitPoint grid_start(MeasurementProblem& p) {
+  const Eigen::VectorXd &x0 = p.x0, &lo = p.lo, &hi = p.hi;
+  FitPoint s;
+  Eigen::VectorXd &x = s.x, &v = s.v, &r = s.r;
+  double& cost = s.cost;
+  x = x0.cwiseMax(lo).cwiseMin(hi);
+  v = p.measured(x);
+  r = p.residual(x, v);
+  cost = r.squaredNorm();
+  if (p.T > 0) {
     std::vector<double> muscles = {lo(kMuscle), 0.25, 0.5, 0.75, 1.0}, weights = {0.0, 0.25, 0.5, 0.75, 1.0};
     if (hi(kWeight) > 1) weights.push_back(0.5 * (1 + hi(kWeight))), weights.push_back(hi(kWeight));
     for (double mu : muscles)
@@ -207,26 +267,24 @@ MeasurementFit fit_measurements(const MakeHuman& mh, const PersonSpec& person, c
         xs(kMuscle) = mu;
         xs(kWeight) = we;
         xs = xs.cwiseMax(lo).cwiseMin(hi);
-        const Eigen::VectorXd vs = measured(xs);
-        const Eigen::VectorXd rs = residual(xs, vs);
+        const Eigen::VectorXd vs = p.measured(xs);
+        const Eigen::VectorXd rs = p.residual(xs, vs);
         if (rs.squaredNorm() < cost) x = xs, v = vs, r = rs, cost = rs.squaredNorm();
       }
   }
-  // Bounded Levenberg–Marquardt. D (T by P) is the Jacobian of the measured values: by forward
-  // differences at the start and every `refresh_every` steps, Broyden rank-one updates between
-  // (a full difference Jacobian costs P evaluations, an update none).
-  auto difference_jacobian = [&](const Eigen::VectorXd& at, const Eigen::VectorXd& v_at) {
-    Eigen::MatrixXd D(T, P);
-    for (int j = 0; j < P; ++j) {
-      Eigen::VectorXd xj = at;
-      double h = step(j);
-      if (xj(j) + h > hi(j)) h = -h;
-      xj(j) += h;
-      const Eigen::VectorXd vj = measured(xj);
-      for (int k = 0; k < T; ++k) D(k, j) = std::isfinite(vj(k)) && std::isfinite(v_at(k)) ? (vj(k) - v_at(k)) / h : 0;
-    }
-    return D;
-  };
+  return s;
+}
+
+// Bounded Levenberg–Marquardt from s. D (T by P) is the Jacobian of the measured values: by
+// forward differences at the start and every `refresh_every` steps, Broyden rank-one updates
+// between (a full difference Jacobian costs P evaluations, an update none). Returns the
+// iterations.
+int descend(MeasurementProblem& p, FitPoint& s) {
+  const FitMeasurementsOptions& o = p.o;
+  const int P = p.P, T = p.T;
+  const Eigen::VectorXd &lo = p.lo, &hi = p.hi;
+  Eigen::VectorXd &x = s.x, &v = s.v, &r = s.r;
+  double& cost = s.cost;
   Eigen::MatrixXd D;
   int since_refresh = 0, polish = 0;
   double lambda = 1e-3;
@@ -234,15 +292,15 @@ MeasurementFit fit_measurements(const MakeHuman& mh, const PersonSpec& person, c
   bool fresh = false;
   for (; it < o.max_iterations && T > 0; ++it) {
     if (D.size() == 0 || since_refresh >= o.refresh_every) {
-      D = difference_jacobian(x, v);
+      D = p.difference_jacobian(x, v);
       since_refresh = 0;
       fresh = true;
     }
     Eigen::MatrixXd J = Eigen::MatrixXd::Zero(T + 2 * P, P);
-    J.topRows(T) = sigma.cwiseInverse().asDiagonal() * D;
-    J.block(T, 0, P, P).diagonal() = scale.cwiseInverse();
+    J.topRows(T) = p.sigma.cwiseInverse().asDiagonal() * D;
+    J.block(T, 0, P, P).diagonal() = p.scale.cwiseInverse();
     for (int j = 0; j < P; ++j)
-      if (x(j) > range_hi(j) || x(j) < range_lo(j)) J(T + P + j, j) = 1.0 / s_ext(j);
+      if (x(j) > p.range_hi(j) || x(j) < p.range_lo(j)) J(T + P + j, j) = 1.0 / p.s_ext(j);
     const Eigen::VectorXd g = J.transpose() * r;
     // Active set: sliders at a bound that the gradient pushes further out stay there.
     std::vector<int> free;
@@ -263,8 +321,8 @@ MeasurementFit fit_measurements(const MakeHuman& mh, const PersonSpec& person, c
       Eigen::VectorXd xn = x;
       for (size_t c = 0; c < free.size(); ++c) xn(free[c]) += d(c);
       xn = xn.cwiseMax(lo).cwiseMin(hi);
-      const Eigen::VectorXd vn = measured(xn);
-      const Eigen::VectorXd rn = residual(xn, vn);
+      const Eigen::VectorXd vn = p.measured(xn);
+      const Eigen::VectorXd rn = p.residual(xn, vn);
       const double cn = rn.squaredNorm();
       // Broyden: the secant condition along the step actually taken.
       const Eigen::VectorXd dx = xn - x;
@@ -274,8 +332,8 @@ MeasurementFit fit_measurements(const MakeHuman& mh, const PersonSpec& person, c
       if (cn < cost) {
         // Converged once the targets are met and a step gains little, or after a few steps that
         // only polish which of the equally measuring bodies is returned (the prior part).
-        if (within_stop(vn)) ++polish;
-        converged = within_stop(vn) && (cost - cn < o.relative_tolerance * cost || polish >= o.polish_steps);
+        if (p.within_stop(vn)) ++polish;
+        converged = p.within_stop(vn) && (cost - cn < o.relative_tolerance * cost || polish >= o.polish_steps);
         x = xn, v = vn, r = rn, cost = cn;
         lambda = std::max(lambda / 3, 1e-7);
         accepted = true;
@@ -293,22 +351,31 @@ MeasurementFit fit_measurements(const MakeHuman& mh, const PersonSpec& person, c
       since_refresh = o.refresh_every;  // the Broyden estimate went stale: difference again
     }
   }
+  return it;
+}
 
+// The fit at x: body, measurements (with the caller's measure options), quality figures, the
+// residual per target and, when a target is missed, the reason (misses and sliders at a bound).
+MeasurementFit fit_at(const MeasurementProblem& p, const Eigen::VectorXd& x, int it) {
+  const MakeHuman& mh = p.mh;
+  const FitMeasurementsOptions& o = p.o;
+  const int M = p.M, P = p.P, T = p.T;
+  const Eigen::MatrixX3i& F = mh.body_faces();
   MeasurementFit fit;
   fit.sliders = settings_of(x);
   fit.modifiers = x.tail(M);
-  fit.V = body_of(x);
-  fit.measured = measure_body(fit.V, F, person.sex, o.measure);
+  fit.V = p.body_of(x);
+  fit.measured = measure_body(fit.V, F, p.person.sex, o.measure);
   fit.iterations = it;
   fit.roughness = roughness(fit.V, F, mh.trunk_and_limbs_region());
   fit.self_intersections = self_intersecting_triangle_pairs(fit.V, F);
-  fit.evaluations = evaluations;
+  fit.evaluations = p.evaluations;
   fit.reached = true;
   std::vector<std::string> misses;
   for (int k = 0; k < T; ++k) {
     MeasurementResidual res;
-    res.name = person.targets[k].name;
-    res.target = target(k);
+    res.name = p.person.targets[k].name;
+    res.target = p.target(k);
     res.achieved = measurement_value(fit.measured, res.name);
     res.within = std::abs(res.residual()) <= reach_tolerance(res.name, o);
     if (!res.within) {
@@ -326,7 +393,7 @@ MeasurementFit fit_measurements(const MakeHuman& mh, const PersonSpec& person, c
     std::vector<std::string> bounds;
     for (int j = 0; j < P; ++j) {
       if (j == kGender || j == kAge || (j >= kAfrican && j < kMacroCount)) continue;  // fixed by the person
-      if (x(j) <= lo(j) + 1e-9 || x(j) >= hi(j) - 1e-9) {
+      if (x(j) <= p.lo(j) + 1e-9 || x(j) >= p.hi(j) - 1e-9) {
         const std::string name = j < kMacroCount ? kMacroNames[j] : mh.measure_modifier_names()[j - kMacroCount];
         bounds.push_back(fmt::format("{}={:.2f}", name, x(j)));
       }
@@ -335,6 +402,23 @@ MeasurementFit fit_measurements(const MakeHuman& mh, const PersonSpec& person, c
                              bounds.empty() ? std::string("no slider at a bound (conflicting measurements)")
                                             : "sliders at their bound: " + fmt::format("{}", fmt::join(bounds, " ")));
   }
+  return fit;
+}
+
+}  // namespace
+
+MeasurementFit fit_measurements(const MakeHuman& mh, const PersonSpec& person, const FitMeasurementsOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  check_person(mh, person);
+  MeasurementProblem p(mh, person, o);
+  set_parameter_space(p);
+  set_targets(p);
+  p.bo.allow_extrapolation = true;
+  set_ranges(p);
+
+  FitPoint s = grid_start(p);
+  const int it = descend(p, s);
+  MeasurementFit fit = fit_at(p, s.x, it);
   fit.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return fit;
 }

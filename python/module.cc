@@ -290,15 +290,11 @@ using namespace bodymodel::py;
 namespace pyb = pybind11;
 using namespace pybind11::literals;
 
-PYBIND11_MODULE(bodymodel, m) {
-  m.doc() = R"(bodymodel: body scans, a PCA body model with semantic labels, and skinning, on numpy arrays.
+namespace {
 
-Units: millimetres, +y up, bodies face +z. Vertices are float64 (n, 3) arrays, triangles int32
-(m, 3) arrays of 0-based indices (any integer dtype is accepted; float indices are refused).
-Errors raise bodymodel.InputError (a ValueError) or bodymodel.NumericalError with the command
-line's one-line messages. Long calls release the GIL and take progress=callable(fraction, what);
-returning False from it stops the work with bodymodel.Cancelled. Reference: docs/python.md.)";
-
+// The Python exception types and the translator from the C++ errors; registered before any binding
+// so that every call raises InputError, NumericalError or Cancelled.
+void bind_errors(pyb::module_& m) {
   static pyb::exception<InputError> input_error(m, "InputError", PyExc_ValueError);
   static pyb::exception<NumericalError> numerical_error(m, "NumericalError", PyExc_RuntimeError);
   static pyb::exception<Cancelled> cancelled(m, "Cancelled", PyExc_Exception);
@@ -313,11 +309,10 @@ returning False from it stops the work with bodymodel.Cancelled. Reference: docs
       PyErr_SetString(cancelled.ptr(), "cancelled by the progress callback");
     }
   });
+}
 
-  m.def("data_path", [](const std::string& rel) { return data_file(rel).string(); }, "relative"_a = "",
-        "The shared data folder ($BODYMODEL_DATA, default set at build time) joined with `relative`.");
-
-  // ---- meshes ----------------------------------------------------------------------------------
+// Mesh and point-cloud file I/O: read_mesh, write_mesh, read_point_cloud.
+void bind_meshes(pyb::module_& m) {
   m.def("read_mesh", [](const std::string& path) {
           Mesh mesh;
           {
@@ -350,8 +345,10 @@ The file appears complete or not at all (written to a temporary and renamed).)")
           return pyb::make_tuple(to_array(Eigen::MatrixXd(c.P)), to_array(Eigen::MatrixXd(c.N)));
         }, "path"_a,
         "read_point_cloud(path) -> (P, N): a PLY point cloud; P (n, 3), N (n, 3) unit normals or (0, 3).");
+}
 
-  // ---- MakeHuman and measurements --------------------------------------------------------------
+// MakeHuman bodies from macro sliders and body measurements: the two calls on whole bodies.
+void bind_measurements(pyb::module_& m) {
   m.def("makehuman_body", [](double gender, double age, double muscle, double weight, double height,
                              double proportions, double cup, double firmness, pyb::object african,
                              pyb::object asian, pyb::object caucasian, const std::string& data) {
@@ -401,8 +398,10 @@ measure`: height_cm (extent along the up axis), volume_l, weight_kg (volume × d
 neck/chest/waist/hips girths in cm (convex hull of the torso section) and the heights they
 were found at (*_at_cm), body_fat_pct (U.S. Navy formula; NaN unless sex is female/male).
 V (n, 3) in units of mm_per_unit millimetres, F (m, 3).)");
+}
 
-  // ---- encoding --------------------------------------------------------------------------------
+// The reusable Decoder class and the one-off encode/decode of the relative rotation encoding.
+void bind_encoding(pyb::module_& m) {
   pyb::class_<PyDecoder>(m, "Decoder", R"(A reusable relative-rotation decoder for one template.
 
 Decoder(rest_V, F, **options): the one-time set-up (adjacency, factorisations) for the template
@@ -452,7 +451,27 @@ For many meshes build a Decoder once and call its encode().)");
         R"(decode(encoding, F, rest_V, mean=None) -> V (n, 3)
 
 One-off decode (builds a Decoder each call: for many decodes keep a Decoder).)");
+}
 
+}  // namespace
+
+PYBIND11_MODULE(bodymodel, m) {
+  m.doc() = R"(bodymodel: body scans, a PCA body model with semantic labels, and skinning, on numpy arrays.
+
+Units: millimetres, +y up, bodies face +z. Vertices are float64 (n, 3) arrays, triangles int32
+(m, 3) arrays of 0-based indices (any integer dtype is accepted; float indices are refused).
+Errors raise bodymodel.InputError (a ValueError) or bodymodel.NumericalError with the command
+line's one-line messages. Long calls release the GIL and take progress=callable(fraction, what);
+returning False from it stops the work with bodymodel.Cancelled. Reference: docs/python.md.)";
+
+  bind_errors(m);
+
+  m.def("data_path", [](const std::string& rel) { return data_file(rel).string(); }, "relative"_a = "",
+        "The shared data folder ($BODYMODEL_DATA, default set at build time) joined with `relative`.");
+
+  bind_meshes(m);
+  bind_measurements(m);
+  bind_encoding(m);
   bind_model(m);
   bind_skinning(m);
   bind_regression(m);

@@ -209,6 +209,159 @@ NonrigidRegistration::~NonrigidRegistration() = default;
 NonrigidRegistration::NonrigidRegistration(NonrigidRegistration&&) noexcept = default;
 const NonrigidOptions& NonrigidRegistration::options() const { return impl_->options; }
 
+namespace {
+
+using NonrigidSolver = Eigen::CholmodSupernodalLLT<SparseMatrixd>;
+
+// The argument checks of NonrigidRegistration::fit, before any work.
+void check_fit_inputs(const Eigen::MatrixX3d& V_init, const PointCloud& scan, const std::vector<Landmark>& landmarks,
+                      int n) {
+  if (V_init.rows() != n)
+    throw InputError("non-rigid registration: initial vertices have " +
+                     std::to_string(V_init.rows()) + " rows, the template has " +
+                     std::to_string(n));
+  if (!V_init.allFinite())
+    throw InputError("non-rigid registration: initial vertices are not finite");
+  check_landmarks(landmarks, n, "non-rigid registration");
+  if (scan.P.rows() == 0) throw InputError("non-rigid registration: the scan has no points");
+}
+
+// The unknowns' frame: homogeneous normalised coordinates Q (q_i = [(p_i − c)/s, 1]) and the
+// per-vertex affine maps X (4n by 3), starting at the identity deformation.
+struct AffineFrame {
+  Eigen::MatrixXd Q, X;
+};
+
+AffineFrame identity_deformation(const Eigen::MatrixX3d& V_init, double s) {
+  const int n = int(V_init.rows());
+  AffineFrame fr;
+  // Homogeneous normalised coordinates q_i = [(p_i − c)/s, 1].
+  const Eigen::RowVector3d c = V_init.colwise().mean();
+  fr.Q.resize(n, 4);
+  fr.Q.leftCols(3) = (V_init.rowwise() - c) / s;
+  fr.Q.col(3).setOnes();
+  // X_i = [s·I; c]: the identity deformation.
+  fr.X = Eigen::MatrixXd::Zero(4 * n, 3);
+  for (int i = 0; i < n; ++i) {
+    fr.X.block<3, 3>(4 * i, 0) = s * Eigen::Matrix3d::Identity();
+    fr.X.row(4 * i + 3) = c;
+  }
+  return fr;
+}
+
+// The vertices the affine maps X put the normalised coordinates Q at.
+Eigen::MatrixX3d deformed(const Eigen::MatrixXd& Q, const Eigen::MatrixXd& X) {
+  const int n = int(Q.rows());
+  Eigen::MatrixX3d V(n, 3);
+  for (int i = 0; i < n; ++i) V.row(i) = Q.row(i) * X.block<4, 3>(4 * i, 0);
+  return V;
+}
+
+// The correspondence limits left at 0 in the options, from the scan's point spacing and the
+// template's mean edge length.
+void resolve_offsets(NonrigidOptions& o, const Eigen::MatrixX3d& V_init, const Eigen::MatrixX3i& F,
+                     const PointIndex& scan_index) {
+  if (o.max_tangential_offset <= 0) o.max_tangential_offset = 2.0 * median_point_spacing(scan_index);
+  if (o.inverse_max_tangential_offset <= 0 && o.inverse_tangential_factor > 0) {
+    double len = 0;
+    for (int k = 0; k < F.rows(); ++k)
+      for (int e = 0; e < 3; ++e) len += (V_init.row(F(k, e)) - V_init.row(F(k, (e + 1) % 3))).norm();
+    o.inverse_max_tangential_offset = o.inverse_tangential_factor * len / (3.0 * F.rows());
+  }
+}
+
+// Preconditioned conjugate gradients on A·X = B (3 right-hand sides, each its own CG) with the
+// last numeric factorisation as the preconditioner, from X. On success X holds the solution.
+bool reuse_solve(const SparseMatrixd& A, const NonrigidSolver& solver, const NonrigidOptions& o,
+                 const Eigen::MatrixXd& Bm, Eigen::MatrixXd& Xm, int* its) {
+  const Eigen::RowVector3d bnorm = Bm.colwise().norm();
+  Eigen::MatrixXd Xc = Xm;
+  Eigen::MatrixXd R = Bm - A * Xc;
+  auto converged = [&](const Eigen::MatrixXd& Rm) {
+    for (int k = 0; k < 3; ++k)
+      if (Rm.col(k).norm() > o.reuse_tolerance * std::max(bnorm(k), 1e-300)) return false;
+    return true;
+  };
+  if (converged(R)) return true;
+  Eigen::MatrixXd Z = solver.solve(R);
+  Eigen::MatrixXd P = Z;
+  Eigen::RowVector3d rz = (R.array() * Z.array()).colwise().sum();
+  for (int it = 1; it <= o.reuse_max_iterations; ++it) {
+    *its = it;
+    const Eigen::MatrixXd AP = A * P;
+    const Eigen::RowVector3d pap = (P.array() * AP.array()).colwise().sum();
+    for (int k = 0; k < 3; ++k) {
+      if (!(pap(k) > 0)) return false;
+      const double a = rz(k) / pap(k);
+      Xc.col(k) += a * P.col(k);
+      R.col(k) -= a * AP.col(k);
+    }
+    if (converged(R)) {
+      if (!Xc.allFinite()) return false;
+      Xm = std::move(Xc);
+      return true;
+    }
+    Z = solver.solve(R);
+    const Eigen::RowVector3d rz_new = (R.array() * Z.array()).colwise().sum();
+    for (int k = 0; k < 3; ++k)
+      P.col(k) = Z.col(k) + (rz(k) != 0 ? rz_new(k) / rz(k) : 0.0) * P.col(k);
+    rz = rz_new;
+  }
+  return false;
+}
+
+// One step's weights: stiffness β, data term α, landmarks γ.
+struct StepWeights {
+  double beta, alpha, gamma;
+};
+
+// The step's system in place: A's values = β·smoothness plus the data, landmark and ε terms on
+// the diagonal blocks, B the matching right-hand sides (ε pulls towards the current X).
+void assemble_step(SparseMatrixd& A, const Eigen::VectorXd& smooth_values, const std::vector<int>& diag_block,
+                   const AffineFrame& fr, const InverseCorrespondences& corr, const std::vector<Landmark>& landmarks,
+                   const StepWeights& w, Eigen::MatrixXd& B) {
+  const int n = int(fr.Q.rows());
+  const double eps = 1e-9;  // keeps components without data or landmarks non-singular
+  double* val = A.valuePtr();
+  Eigen::Map<Eigen::VectorXd>(val, A.nonZeros()) = w.beta * smooth_values;
+  B.setZero();
+  auto add_block = [&](int i, double wt, const Eigen::RowVector3d& target) {
+    const Eigen::Vector4d q = fr.Q.row(i).transpose();
+    const Eigen::Matrix4d qq = wt * q * q.transpose();
+    const int* idx = &diag_block[size_t(i) * 16];
+    for (int r = 0; r < 4; ++r)
+      for (int cc = 0; cc < 4; ++cc) val[idx[r * 4 + cc]] += qq(r, cc);
+    B.block<4, 3>(4 * i, 0) += wt * q * target;
+  };
+  for (int i = 0; i < n; ++i) {
+    const int* idx = &diag_block[size_t(i) * 16];
+    for (int r = 0; r < 4; ++r) val[idx[r * 5]] += eps;
+    B.block<4, 3>(4 * i, 0) += eps * fr.X.block<4, 3>(4 * i, 0);
+    if (corr.kind(i) != 0) add_block(i, w.alpha, corr.target.row(i));
+  }
+  for (const Landmark& l : landmarks) add_block(l.vertex, w.gamma, l.target.transpose());
+}
+
+// Residuals of this step's terms at its result V, into the summary.
+void record_step(NonrigidSummary& sum, const Eigen::MatrixX3d& V, const InverseCorrespondences& corr,
+                 const std::vector<Landmark>& landmarks, size_t step, double beta) {
+  const int n = int(V.rows());
+  double d2 = 0;
+  int matched = 0;
+  for (int i = 0; i < n; ++i)
+    if (corr.kind(i) != 0) d2 += (V.row(i) - corr.target.row(i)).squaredNorm(), ++matched;
+  double l2 = 0;
+  for (const Landmark& l : landmarks) l2 += (V.row(l.vertex) - l.target.transpose()).squaredNorm();
+  sum.iterations = int(step) + 1;
+  sum.data_rms = matched ? std::sqrt(d2 / matched) : 0.0;
+  sum.landmark_rms = landmarks.empty() ? 0.0 : std::sqrt(l2 / landmarks.size());
+  sum.matched_vertices = matched;
+  sum.plane_matches = corr.plane_count;
+  sum.final_beta = beta;
+}
+
+}  // namespace
+
 Eigen::MatrixX3d NonrigidRegistration::fit(const Eigen::MatrixX3d& V_init,
                                            const PointCloud& scan,
                                            const std::vector<Landmark>& landmarks,
@@ -218,85 +371,16 @@ Eigen::MatrixX3d NonrigidRegistration::fit(const Eigen::MatrixX3d& V_init,
   NonrigidOptions o = I.options;
   const auto t0 = std::chrono::steady_clock::now();
   const int n = I.n;
-  if (V_init.rows() != n)
-    throw InputError("non-rigid registration: initial vertices have " +
-                     std::to_string(V_init.rows()) + " rows, the template has " +
-                     std::to_string(n));
-  if (!V_init.allFinite())
-    throw InputError("non-rigid registration: initial vertices are not finite");
-  check_landmarks(landmarks, n, "non-rigid registration");
-  if (scan.P.rows() == 0) throw InputError("non-rigid registration: the scan has no points");
+  check_fit_inputs(V_init, scan, landmarks, n);
 
-  // Homogeneous normalised coordinates q_i = [(p_i − c)/s, 1].
-  const Eigen::RowVector3d c = V_init.colwise().mean();
-  const double s = o.normalization_length;
-  Eigen::MatrixXd Q(n, 4);
-  Q.leftCols(3) = (V_init.rowwise() - c) / s;
-  Q.col(3).setOnes();
-  // X_i = [s·I; c]: the identity deformation.
-  Eigen::MatrixXd X = Eigen::MatrixXd::Zero(4 * n, 3);
-  for (int i = 0; i < n; ++i) {
-    X.block<3, 3>(4 * i, 0) = s * Eigen::Matrix3d::Identity();
-    X.row(4 * i + 3) = c;
-  }
-  auto deformed = [&](const Eigen::MatrixXd& X) {
-    Eigen::MatrixX3d V(n, 3);
-    for (int i = 0; i < n; ++i) V.row(i) = Q.row(i) * X.block<4, 3>(4 * i, 0);
-    return V;
-  };
-
+  AffineFrame fr = identity_deformation(V_init, o.normalization_length);
   PointIndex scan_index(scan.P);
-  if (o.max_tangential_offset <= 0) o.max_tangential_offset = 2.0 * median_point_spacing(scan_index);
-  if (o.inverse_max_tangential_offset <= 0 && o.inverse_tangential_factor > 0) {
-    double len = 0;
-    for (int k = 0; k < I.F.rows(); ++k)
-      for (int e = 0; e < 3; ++e) len += (V_init.row(I.F(k, e)) - V_init.row(I.F(k, (e + 1) % 3))).norm();
-    o.inverse_max_tangential_offset = o.inverse_tangential_factor * len / (3.0 * I.F.rows());
-  }
+  resolve_offsets(o, V_init, I.F, scan_index);
   const std::vector<double> betas = nonrigid_schedule(o);
   Eigen::MatrixX3d V = V_init;
   NonrigidSummary sum;
-  const double eps = 1e-9;  // keeps components without data or landmarks non-singular
   Eigen::MatrixXd B(4 * n, 3);
-  // Preconditioned conjugate gradients on A·X = B (3 right-hand sides, each its own CG) with the
-  // last numeric factorisation as the preconditioner, from X. On success X holds the solution.
   bool have_factor = false;
-  auto reuse_solve = [&](const Eigen::MatrixXd& Bm, Eigen::MatrixXd& Xm, int* its) -> bool {
-    const Eigen::RowVector3d bnorm = Bm.colwise().norm();
-    Eigen::MatrixXd Xc = Xm;
-    Eigen::MatrixXd R = Bm - I.A * Xc;
-    auto converged = [&](const Eigen::MatrixXd& Rm) {
-      for (int k = 0; k < 3; ++k)
-        if (Rm.col(k).norm() > o.reuse_tolerance * std::max(bnorm(k), 1e-300)) return false;
-      return true;
-    };
-    if (converged(R)) return true;
-    Eigen::MatrixXd Z = I.solver.solve(R);
-    Eigen::MatrixXd P = Z;
-    Eigen::RowVector3d rz = (R.array() * Z.array()).colwise().sum();
-    for (int it = 1; it <= o.reuse_max_iterations; ++it) {
-      *its = it;
-      const Eigen::MatrixXd AP = I.A * P;
-      const Eigen::RowVector3d pap = (P.array() * AP.array()).colwise().sum();
-      for (int k = 0; k < 3; ++k) {
-        if (!(pap(k) > 0)) return false;
-        const double a = rz(k) / pap(k);
-        Xc.col(k) += a * P.col(k);
-        R.col(k) -= a * AP.col(k);
-      }
-      if (converged(R)) {
-        if (!Xc.allFinite()) return false;
-        Xm = std::move(Xc);
-        return true;
-      }
-      Z = I.solver.solve(R);
-      const Eigen::RowVector3d rz_new = (R.array() * Z.array()).colwise().sum();
-      for (int k = 0; k < 3; ++k)
-        P.col(k) = Z.col(k) + (rz(k) != 0 ? rz_new(k) / rz(k) : 0.0) * P.col(k);
-      rz = rz_new;
-    }
-    return false;
-  };
   for (size_t step = 0; step < betas.size(); ++step) {
     report_progress(progress, double(step) / double(betas.size()), "non-rigid fit");
     const double beta = betas[step], gamma = o.landmark_factor * beta, alpha = o.alpha;
@@ -306,29 +390,11 @@ Eigen::MatrixX3d NonrigidRegistration::fit(const Eigen::MatrixX3d& V_init,
     auto ts = std::chrono::steady_clock::now();
     sum.correspondence_seconds += std::chrono::duration<double>(ts - tc).count();
 
-    double* val = I.A.valuePtr();
-    Eigen::Map<Eigen::VectorXd>(val, I.A.nonZeros()) = beta * I.smooth_values;
-    B.setZero();
-    auto add_block = [&](int i, double w, const Eigen::RowVector3d& target) {
-      const Eigen::Vector4d q = Q.row(i).transpose();
-      const Eigen::Matrix4d qq = w * q * q.transpose();
-      const int* idx = &I.diag_block[size_t(i) * 16];
-      for (int r = 0; r < 4; ++r)
-        for (int cc = 0; cc < 4; ++cc) val[idx[r * 4 + cc]] += qq(r, cc);
-      B.block<4, 3>(4 * i, 0) += w * q * target;
-    };
-    for (int i = 0; i < n; ++i) {
-      const int* idx = &I.diag_block[size_t(i) * 16];
-      for (int r = 0; r < 4; ++r) val[idx[r * 5]] += eps;
-      B.block<4, 3>(4 * i, 0) += eps * X.block<4, 3>(4 * i, 0);
-      if (corr.kind(i) != 0) add_block(i, alpha, corr.target.row(i));
-    }
-    for (const Landmark& l : landmarks) add_block(l.vertex, gamma, l.target.transpose());
-
+    assemble_step(I.A, I.smooth_values, I.diag_block, fr, corr, landmarks, {beta, alpha, gamma}, B);
     bool solved = false;
     if (have_factor && o.reuse_max_iterations > 0) {
       int its = 0;
-      solved = reuse_solve(B, X, &its);
+      solved = reuse_solve(I.A, I.solver, o, B, fr.X, &its);
       sum.reuse_iterations += its;
     }
     if (!solved) {
@@ -342,25 +408,12 @@ Eigen::MatrixX3d NonrigidRegistration::fit(const Eigen::MatrixX3d& V_init,
       if (I.solver.info() != Eigen::Success || !Xn.allFinite())
         throw NumericalError("non-rigid registration: solve failed at step " +
                              std::to_string(step));
-      X = std::move(Xn);
+      fr.X = std::move(Xn);
     }
     sum.solve_seconds +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
-    V = deformed(X);
-
-    // Residuals of this step's terms.
-    double d2 = 0;
-    int matched = 0;
-    for (int i = 0; i < n; ++i)
-      if (corr.kind(i) != 0) d2 += (V.row(i) - corr.target.row(i)).squaredNorm(), ++matched;
-    double l2 = 0;
-    for (const Landmark& l : landmarks) l2 += (V.row(l.vertex) - l.target.transpose()).squaredNorm();
-    sum.iterations = int(step) + 1;
-    sum.data_rms = matched ? std::sqrt(d2 / matched) : 0.0;
-    sum.landmark_rms = landmarks.empty() ? 0.0 : std::sqrt(l2 / landmarks.size());
-    sum.matched_vertices = matched;
-    sum.plane_matches = corr.plane_count;
-    sum.final_beta = beta;
+    V = deformed(fr.Q, fr.X);
+    record_step(sum, V, corr, landmarks, step, beta);
   }
   report_progress(progress, 1.0, "non-rigid fit");
   sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -114,13 +114,8 @@ class Problem {
   double scale_ = 1.0;
 };
 
-}  // namespace
-
-ShapeFitResult fit_shape(const MakeHuman& mh, const MacroSettings& start, double scale,
-                         const Pose& pose, const PointCloud& scan,
-                         const std::vector<Landmark>& landmarks, const ShapeFitOptions& o,
-                         ShapeFitSummary* summary) {
-  const auto t0 = std::chrono::steady_clock::now();
+// The argument checks of fit_shape on the scan, the scale and the starting sliders.
+void check_shape_inputs(const MacroSettings& start, double scale, const PointCloud& scan, const ShapeFitOptions& o) {
   if (scan.P.rows() == 0 || scan.N.rows() != scan.P.rows())
     throw InputError("shape fit: the scan needs points and one normal per point, found " +
                      std::to_string(scan.P.rows()) + " points and " +
@@ -130,18 +125,15 @@ ShapeFitResult fit_shape(const MakeHuman& mh, const MacroSettings& start, double
                      std::to_string(scale));
   for (const auto& n : o.sliders) macro_slider(start, n);  // names checked
   start.validate();
-  Problem prob(mh, start, scale, pose, o);
-  const Layout& L = prob.layout();
-  const int nv = MakeHuman::kBodyVertexCount;
-  for (const Landmark& l : landmarks)
-    if (l.vertex < 0 || l.vertex >= nv)
-      throw InputError("shape fit: landmark '" + l.name + "' has vertex " +
-                       std::to_string(l.vertex) + ", expected 0.." + std::to_string(nv - 1));
+}
 
-  // Sample vertices: not mostly bound below the excluded bones (hands).
-  MakeHuman::Body body;
-  Eigen::VectorXd theta = prob.theta0();
-  Eigen::MatrixX3d V = prob.posed(theta, &body);
+// Template vertices that may pair with the scan (not mostly bound below the excluded bones, e.g.
+// the hands), and the evenly strided subset of them matched to the scan.
+struct TemplateSamples {
+  std::vector<int> allowed, samples;
+};
+
+TemplateSamples template_samples(const MakeHuman::Body& body, const ShapeFitOptions& o, int nv) {
   const Skeleton& sk = body.skeleton;
   std::vector<char> excluded_bone(sk.bone_count(), 0);
   for (int b = 0; b < sk.bone_count(); ++b) {
@@ -150,25 +142,30 @@ ShapeFitResult fit_shape(const MakeHuman& mh, const MacroSettings& start, double
     for (const auto& n : o.excluded_below)
       if (sk.names[b] == n) excluded_bone[b] = 1;
   }
-  std::vector<int> allowed;
+  TemplateSamples ts;
+  std::vector<int>& allowed = ts.allowed;
   for (int i = 0; i < body.weights.outerSize() && i < nv; ++i) {
     double w_ex = 0;
     for (SkinWeights::InnerIterator it(body.weights, i); it; ++it)
       if (excluded_bone[it.col()]) w_ex += it.value();
     if (w_ex < 0.5) allowed.push_back(i);
   }
-  std::vector<int> samples;
   const int stride_t = std::max(1, int(allowed.size()) / std::max(1, o.sample_vertices));
-  for (size_t k = 0; k < allowed.size(); k += stride_t) samples.push_back(allowed[k]);
-  const PointIndex scan_index(scan.P);
-  const int stride_s = std::max(1, int(scan.P.rows()) / std::max(1, o.scan_samples));
-  const double cos_max = std::cos(o.max_normal_angle_deg * M_PI / 180.0);
-  const Eigen::MatrixX3i& F = mh.body_faces();
+  for (size_t k = 0; k < allowed.size(); k += stride_t) ts.samples.push_back(allowed[k]);
+  return ts;
+}
 
-  // Residuals for the pairs, landmarks and prior at posed vertices V and parameters th.
-  std::vector<Pair> pairs;
-  const double ptp = std::sqrt(o.point_to_point_weight);
-  auto residuals = [&](const Eigen::MatrixX3d& Vp, const Eigen::VectorXd& th) {
+// The residuals for the pairs, landmarks and prior at posed vertices Vp and parameters th: the one
+// objective both the Jacobian and the step test evaluate.
+struct Residuals {
+  const std::vector<Pair>& pairs;
+  const std::vector<Landmark>& landmarks;
+  const Layout& L;
+  const Eigen::VectorXd& theta0;
+  const ShapeFitOptions& o;
+  double ptp;   // √(point-to-point weight)
+
+  Eigen::VectorXd operator()(const Eigen::MatrixX3d& Vp, const Eigen::VectorXd& th) const {
     const int np = int(pairs.size()), nl = int(landmarks.size());
     Eigen::VectorXd r(4 * np + 3 * nl + L.sliders + (L.scale >= 0 ? 1 : 0));
     const double wn = np > 0 ? 1.0 / np : 0.0;
@@ -185,113 +182,181 @@ ShapeFitResult fit_shape(const MakeHuman& mh, const MacroSettings& start, double
           wl * (Vp.row(landmarks[k].vertex).transpose() - landmarks[k].target);
     const int base = 4 * np + 3 * nl;
     for (int k = 0; k < L.sliders; ++k)
-      r[base + k] = std::sqrt(o.prior_weight) * (th[k] - prob.theta0()[k]);
+      r[base + k] = std::sqrt(o.prior_weight) * (th[k] - theta0[k]);
     if (L.scale >= 0) r[base + L.sliders] = std::sqrt(o.scale_prior) * (th[L.scale] - 1.0);
     return r;
+  }
+};
+
+// The fixed inputs of the pair search: the scan and its index, the template's sampled and allowed
+// vertices, its faces (for normals) and the acceptance limits.
+struct PairSearch {
+  const PointCloud& scan;
+  const PointIndex& scan_index;
+  const TemplateSamples& ts;
+  const Eigen::MatrixX3i& F;
+  const ShapeFitOptions& o;
+  int stride_s;
+  double cos_max;
+};
+
+// Pair update: template samples → scan, scan samples → allowed template vertices, each kept when
+// close and with agreeing normals; both directions weigh the same in total. Returns the sum of
+// the squared plane distances of the pairs.
+double find_pairs(const PairSearch& ps, const Eigen::MatrixX3d& V, double max_dist, std::vector<Pair>& pairs) {
+  const PointCloud& scan = ps.scan;
+  const ShapeFitOptions& o = ps.o;
+  const std::vector<int>& allowed = ps.ts.allowed;
+  const Eigen::MatrixX3d N = vertex_normals(V, ps.F);
+  pairs.clear();
+  double plane2 = 0;
+  auto accept = [&](int v, int s) {
+    const Eigen::Vector3d p = scan.P.row(s).transpose();
+    const Eigen::Vector3d n = scan.N.row(s).transpose();
+    const Eigen::Vector3d d = V.row(v).transpose() - p;
+    if (d.norm() > max_dist) return;
+    double c = n.dot(N.row(v).transpose());
+    if (o.unsigned_normals) c = std::abs(c);
+    if (c < ps.cos_max) return;
+    const double e = std::abs(n.dot(d));
+    pairs.push_back({v, p, n, e <= o.robust_scale ? 1.0 : o.robust_scale / e});
+    plane2 += e * e;
   };
+  for (int v : ps.ts.samples) accept(v, ps.scan_index.nearest(V.row(v).transpose()));
+  const int n_forward = int(pairs.size());
+  {
+    Eigen::MatrixX3d A(allowed.size(), 3);
+    for (size_t k = 0; k < allowed.size(); ++k) A.row(k) = V.row(allowed[k]);
+    const PointIndex tpl_index(A);
+    for (int s = 0; s < scan.P.rows(); s += ps.stride_s)
+      accept(allowed[tpl_index.nearest(scan.P.row(s).transpose())], s);
+  }
+  // Both directions weigh the same in total.
+  const int n_back = int(pairs.size()) - n_forward;
+  if (n_forward > 0 && n_back > 0)
+    for (int k = n_forward; k < int(pairs.size()); ++k) pairs[k].w *= double(n_forward) / n_back;
+  return plane2;
+}
+
+// What the solver improves: the parameters, the posed template and the body it was built from.
+struct ShapeState {
+  Eigen::VectorXd theta;
+  Eigen::MatrixX3d V;
+  MakeHuman::Body body;
+};
+
+// Levenberg–Marquardt on the parameters for fixed pairs: Jacobian by finite differences for the
+// sliders and the scale (exact for the translation), damped steps kept only when the cost drops.
+void solve_for_pairs(Problem& prob, const Residuals& residuals, const ShapeFitOptions& o, ShapeState& st,
+                     ShapeFitSummary& sum) {
+  const Layout& L = prob.layout();
+  Eigen::VectorXd r = residuals(st.V, st.theta);
+  double cost = r.squaredNorm();
+  double mu = 1e-3;
+  for (int step = 0; step < o.solver_iterations; ++step) {
+    // Jacobian: finite differences for the sliders and the scale, exact for the translation.
+    Eigen::MatrixXd J = Eigen::MatrixXd::Zero(r.size(), L.count);
+    for (int k = 0; k < L.count; ++k) {
+      if (L.translation >= 0 && k >= L.translation && k < L.translation + 3) {
+        Eigen::VectorXd th = st.theta;
+        th[k] += 1.0;
+        Eigen::MatrixX3d Vt = st.V.rowwise() + Eigen::RowVector3d::Unit(k - L.translation);
+        J.col(k) = residuals(Vt, th) - r;
+        continue;
+      }
+      Eigen::VectorXd th = st.theta;
+      double h = o.fd_step;
+      if (k < L.sliders && th[k] + h > 1.0) h = -h;
+      th[k] += h;
+      J.col(k) = (residuals(prob.posed(th), th) - r) / h;
+    }
+    const Eigen::MatrixXd JtJ = J.transpose() * J;
+    const Eigen::VectorXd g = J.transpose() * r;
+    bool accepted = false;
+    for (int tries = 0; tries < 6 && !accepted; ++tries) {
+      Eigen::MatrixXd A = JtJ;
+      A.diagonal() += mu * JtJ.diagonal() + Eigen::VectorXd::Constant(L.count, 1e-9);
+      Eigen::VectorXd th = st.theta - A.ldlt().solve(g);
+      for (int k = 0; k < L.sliders; ++k) th[k] = std::clamp(th[k], 0.0, 1.0);
+      if (L.scale >= 0) th[L.scale] = std::clamp(th[L.scale], 0.5, 2.0);
+      if (!th.allFinite()) {
+        mu *= 10;
+        continue;
+      }
+      MakeHuman::Body bt;
+      Eigen::MatrixX3d Vt = prob.posed(th, &bt);
+      const Eigen::VectorXd rt = residuals(Vt, th);
+      const double ct = rt.squaredNorm();
+      if (ct < cost) {
+        st.theta = th, st.V = std::move(Vt), st.body = std::move(bt), r = rt, cost = ct;
+        mu = std::max(1e-6, mu / 3);
+        accepted = true;
+        ++sum.solver_steps;
+      } else {
+        mu *= 8;
+      }
+    }
+    if (!accepted) break;
+  }
+}
+
+}  // namespace
+
+ShapeFitResult fit_shape(const MakeHuman& mh, const MacroSettings& start, double scale,
+                         const Pose& pose, const PointCloud& scan,
+                         const std::vector<Landmark>& landmarks, const ShapeFitOptions& o,
+                         ShapeFitSummary* summary) {
+  const auto t0 = std::chrono::steady_clock::now();
+  check_shape_inputs(start, scale, scan, o);
+  Problem prob(mh, start, scale, pose, o);
+  const Layout& L = prob.layout();
+  const int nv = MakeHuman::kBodyVertexCount;
+  for (const Landmark& l : landmarks)
+    if (l.vertex < 0 || l.vertex >= nv)
+      throw InputError("shape fit: landmark '" + l.name + "' has vertex " +
+                       std::to_string(l.vertex) + ", expected 0.." + std::to_string(nv - 1));
+
+  // Sample vertices: not mostly bound below the excluded bones (hands).
+  ShapeState st;
+  st.theta = prob.theta0();
+  st.V = prob.posed(st.theta, &st.body);
+  const TemplateSamples ts = template_samples(st.body, o, nv);
+  const PointIndex scan_index(scan.P);
+  const int stride_s = std::max(1, int(scan.P.rows()) / std::max(1, o.scan_samples));
+  const double cos_max = std::cos(o.max_normal_angle_deg * M_PI / 180.0);
+  const PairSearch search{scan, scan_index, ts, mh.body_faces(), o, stride_s, cos_max};
+
+  // Residuals for the pairs, landmarks and prior at posed vertices V and parameters th.
+  std::vector<Pair> pairs;
+  const Residuals residuals{pairs, landmarks, L, prob.theta0(), o, std::sqrt(o.point_to_point_weight)};
 
   ShapeFitSummary sum;
   double max_dist = o.initial_max_distance;
   for (int it = 0; it < o.icp_iterations; ++it) {
-    // Pair update: template samples → scan, scan samples → allowed template vertices.
-    const Eigen::MatrixX3d N = vertex_normals(V, F);
-    pairs.clear();
-    double plane2 = 0;
-    auto accept = [&](int v, int s) {
-      const Eigen::Vector3d p = scan.P.row(s).transpose();
-      const Eigen::Vector3d n = scan.N.row(s).transpose();
-      const Eigen::Vector3d d = V.row(v).transpose() - p;
-      if (d.norm() > max_dist) return;
-      double c = n.dot(N.row(v).transpose());
-      if (o.unsigned_normals) c = std::abs(c);
-      if (c < cos_max) return;
-      const double e = std::abs(n.dot(d));
-      pairs.push_back({v, p, n, e <= o.robust_scale ? 1.0 : o.robust_scale / e});
-      plane2 += e * e;
-    };
-    for (int v : samples) accept(v, scan_index.nearest(V.row(v).transpose()));
-    const int n_forward = int(pairs.size());
-    {
-      Eigen::MatrixX3d A(allowed.size(), 3);
-      for (size_t k = 0; k < allowed.size(); ++k) A.row(k) = V.row(allowed[k]);
-      const PointIndex tpl_index(A);
-      for (int s = 0; s < scan.P.rows(); s += stride_s)
-        accept(allowed[tpl_index.nearest(scan.P.row(s).transpose())], s);
-    }
-    // Both directions weigh the same in total.
-    const int n_back = int(pairs.size()) - n_forward;
-    if (n_forward > 0 && n_back > 0)
-      for (int k = n_forward; k < int(pairs.size()); ++k) pairs[k].w *= double(n_forward) / n_back;
+    const double plane2 = find_pairs(search, st.V, max_dist, pairs);
     if (pairs.empty()) break;
     const double rms = std::sqrt(plane2 / pairs.size());
     if (it == 0) sum.rms_before = rms;
     sum.rms_after = rms;
     ++sum.icp_iterations;
 
-    const Eigen::VectorXd theta_it = theta;
-    Eigen::VectorXd r = residuals(V, theta);
-    double cost = r.squaredNorm();
-    double mu = 1e-3;
-    for (int step = 0; step < o.solver_iterations; ++step) {
-      // Jacobian: finite differences for the sliders and the scale, exact for the translation.
-      Eigen::MatrixXd J = Eigen::MatrixXd::Zero(r.size(), L.count);
-      for (int k = 0; k < L.count; ++k) {
-        if (L.translation >= 0 && k >= L.translation && k < L.translation + 3) {
-          Eigen::VectorXd th = theta;
-          th[k] += 1.0;
-          Eigen::MatrixX3d Vt = V.rowwise() + Eigen::RowVector3d::Unit(k - L.translation);
-          J.col(k) = residuals(Vt, th) - r;
-          continue;
-        }
-        Eigen::VectorXd th = theta;
-        double h = o.fd_step;
-        if (k < L.sliders && th[k] + h > 1.0) h = -h;
-        th[k] += h;
-        J.col(k) = (residuals(prob.posed(th), th) - r) / h;
-      }
-      const Eigen::MatrixXd JtJ = J.transpose() * J;
-      const Eigen::VectorXd g = J.transpose() * r;
-      bool accepted = false;
-      for (int tries = 0; tries < 6 && !accepted; ++tries) {
-        Eigen::MatrixXd A = JtJ;
-        A.diagonal() += mu * JtJ.diagonal() + Eigen::VectorXd::Constant(L.count, 1e-9);
-        Eigen::VectorXd th = theta - A.ldlt().solve(g);
-        for (int k = 0; k < L.sliders; ++k) th[k] = std::clamp(th[k], 0.0, 1.0);
-        if (L.scale >= 0) th[L.scale] = std::clamp(th[L.scale], 0.5, 2.0);
-        if (!th.allFinite()) {
-          mu *= 10;
-          continue;
-        }
-        MakeHuman::Body bt;
-        Eigen::MatrixX3d Vt = prob.posed(th, &bt);
-        const Eigen::VectorXd rt = residuals(Vt, th);
-        const double ct = rt.squaredNorm();
-        if (ct < cost) {
-          theta = th, V = std::move(Vt), body = std::move(bt), r = rt, cost = ct;
-          mu = std::max(1e-6, mu / 3);
-          accepted = true;
-          ++sum.solver_steps;
-        } else {
-          mu *= 8;
-        }
-      }
-      if (!accepted) break;
-    }
+    const Eigen::VectorXd theta_it = st.theta;
+    solve_for_pairs(prob, residuals, o, st, sum);
     max_dist = std::max(o.max_distance, max_dist * 0.5);
-    const double moved = L.sliders > 0 ? (theta - theta_it).head(L.sliders).cwiseAbs().maxCoeff() : 0;
+    const double moved = L.sliders > 0 ? (st.theta - theta_it).head(L.sliders).cwiseAbs().maxCoeff() : 0;
     if (moved < o.convergence && max_dist <= o.max_distance && it > 0) break;
   }
   double lm2 = 0;
-  for (const Landmark& l : landmarks) lm2 += (V.row(l.vertex).transpose() - l.target).squaredNorm();
+  for (const Landmark& l : landmarks) lm2 += (st.V.row(l.vertex).transpose() - l.target).squaredNorm();
   sum.landmark_rms = landmarks.empty() ? 0.0 : std::sqrt(lm2 / landmarks.size());
   sum.builds = prob.builds;
 
   ShapeFitResult res;
-  res.settings = prob.settings(theta);
-  res.scale = prob.scale(theta);
-  res.pose = prob.pose(body, theta);
-  res.body = std::move(body);
-  res.V = std::move(V);
+  res.settings = prob.settings(st.theta);
+  res.scale = prob.scale(st.theta);
+  res.pose = prob.pose(st.body, st.theta);
+  res.body = std::move(st.body);
+  res.V = std::move(st.V);
   if (!res.V.allFinite()) throw NumericalError("shape fit produced non-finite vertices");
   sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (summary) *summary = sum;

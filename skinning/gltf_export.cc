@@ -158,10 +158,12 @@ SkinWeights gltf_top4_weights(const SkinWeights& W) {
   return out;
 }
 
-std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const Eigen::MatrixX3d& N_in,
-                               const Skeleton& skeleton, const SkinWeights& W, const GltfAnimation* animation,
-                               const GltfExportOptions& options, GltfExportSummary* summary) {
-  // ---- checks ----
+namespace {
+
+// The argument checks of skinned_gltf_bytes on the mesh, skeleton, weights and options, before
+// anything is built so a bad call fails with the first problem.
+void check_skinned_inputs(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const Skeleton& skeleton,
+                          const SkinWeights& W, const GltfExportOptions& options) {
   skeleton.validate();
   const int n = static_cast<int>(V.rows()), B = skeleton.bone_count();
   if (n == 0 || F.rows() == 0) throw InputError("glTF export: the mesh is empty (" + std::to_string(n) + " vertices, " +
@@ -177,6 +179,11 @@ std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i
   if (W.rows() != n || W.cols() != B)
     throw InputError("glTF export: weights are " + std::to_string(W.rows()) + " by " + std::to_string(W.cols()) +
                      ", expected #V " + std::to_string(n) + " by #bones " + std::to_string(B));
+}
+
+// The given normals, or the mesh's vertex normals when none are given; checked either way.
+Eigen::MatrixX3d checked_normals(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const Eigen::MatrixX3d& N_in) {
+  const int n = static_cast<int>(V.rows());
   Eigen::MatrixX3d N = N_in;
   if (N.size() == 0) {
     N = vertex_normals(V, F);
@@ -184,29 +191,21 @@ std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i
     throw InputError("glTF export: " + std::to_string(N.rows()) + " normals for " + std::to_string(n) + " vertices");
   }
   check_finite(N, "the normals");
-  GltfExportSummary sum;
-  sum.vertices = n;
-  sum.triangles = static_cast<int>(F.rows());
-  sum.joints = B;
-  const double s = options.unit_scale;
-  // Rest translation of joint b relative to its parent (input units).
-  auto rest_offset = [&](int b) -> Eigen::Vector3d {
-    const int p = skeleton.parents[static_cast<size_t>(b)];
-    Eigen::Vector3d t = skeleton.heads.row(b).transpose();
-    if (p >= 0) t -= skeleton.heads.row(p).transpose();
-    return t;
-  };
+  return N;
+}
 
-  tinygltf::Model model;
-  model.asset.version = "2.0";
-  model.asset.generator = options.generator;
-  BufferBuilder buf(&model);
+// Rest translation of joint b relative to its parent (input units): a joint node's translation.
+Eigen::Vector3d rest_offset(const Skeleton& skeleton, int b) {
+  const int p = skeleton.parents[static_cast<size_t>(b)];
+  Eigen::Vector3d t = skeleton.heads.row(b).transpose();
+  if (p >= 0) t -= skeleton.heads.row(p).transpose();
+  return t;
+}
 
-  // ---- mesh attributes (the buffer holds positions, normals, joints, weights, indices) ----
-  tinygltf::Primitive prim;
-  add_positions_and_normals(buf, prim, V, N, s);
-
-  // ---- weights: top 4, renormalised ----
+// The JOINTS_0 and WEIGHTS_0 attributes: each vertex's top 4 weights, renormalised, counting in
+// the summary the vertices that lost weight; refuses negative, non-finite or all-zero weights.
+void add_joints_and_weights(BufferBuilder& buf, tinygltf::Primitive& prim, const SkinWeights& W, int n, int B,
+                            GltfExportSummary& sum) {
   const SkinWeights W4 = gltf_top4_weights(W);
   const bool short_joints = B > 256;
   std::vector<uint8_t> j8;
@@ -247,17 +246,17 @@ std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i
                                                TINYGLTF_TYPE_VEC4, n, TINYGLTF_TARGET_ARRAY_BUFFER);
   prim.attributes["WEIGHTS_0"] = buf.accessor(w4.data(), w4.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT,
                                               TINYGLTF_TYPE_VEC4, n, TINYGLTF_TARGET_ARRAY_BUFFER);
-  add_indices(buf, prim, F);
-  tinygltf::Mesh mesh;
-  mesh.name = options.mesh_name;
-  mesh.primitives.push_back(prim);
-  model.meshes.push_back(mesh);
+}
 
-  // ---- joints: nodes 0..B-1, the mesh node B ----
+// The joint nodes 0..B-1, the skin with its inverse bind matrices, the mesh node B and the scene
+// (with a common root node B + 1 when the skeleton has several roots).
+void add_skeleton_and_scene(tinygltf::Model& model, BufferBuilder& buf, const Skeleton& skeleton, double s,
+                            const GltfExportOptions& options) {
+  const int B = skeleton.bone_count();
   for (int b = 0; b < B; ++b) {
     tinygltf::Node node;
     node.name = skeleton.names[static_cast<size_t>(b)];
-    const Eigen::Vector3d t = rest_offset(b) * s;
+    const Eigen::Vector3d t = rest_offset(skeleton, b) * s;
     if (t.squaredNorm() > 0) node.translation = {t(0), t(1), t(2)};
     model.nodes.push_back(node);
   }
@@ -305,76 +304,138 @@ std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i
   model.skins.push_back(skin);
   model.scenes.push_back(scene);
   model.defaultScene = 0;
+}
+
+// Per joint, the animation's local rotations (xyzw) and translations frame by frame, and whether
+// the joint ever leaves its rest offset (only those get a translation channel).
+struct JointTracks {
+  std::vector<std::vector<float>> rot, tra;
+  std::vector<bool> moves;
+};
+
+// The joint tracks of an animation: each frame's bone maps checked rigid, projected onto
+// rotations and made relative to the parent joint.
+JointTracks joint_tracks(const Skeleton& skeleton, const GltfAnimation& animation, const GltfExportOptions& options,
+                         double s) {
+  const int B = skeleton.bone_count();
+  const int T = static_cast<int>(animation.frames.size());
+  JointTracks tracks;
+  auto& rot = tracks.rot;
+  auto& tra = tracks.tra;
+  auto& moves = tracks.moves;
+  rot.resize(static_cast<size_t>(B));
+  tra.resize(static_cast<size_t>(B));
+  std::vector<Eigen::Vector4d> prev(static_cast<size_t>(B));
+  moves.assign(static_cast<size_t>(B), false);
+  std::vector<Eigen::Matrix3d> Q(static_cast<size_t>(B));
+  std::vector<Eigen::Vector3d> head(static_cast<size_t>(B));
+  for (int t = 0; t < T; ++t) {
+    const BoneTransforms& M = animation.frames[static_cast<size_t>(t)];
+    if (static_cast<int>(M.size()) != B)
+      throw InputError("glTF export: animation frame " + std::to_string(t) + " has " + std::to_string(M.size()) +
+                       " bone transforms, expected " + std::to_string(B));
+    for (int b = 0; b < B; ++b) {
+      const Eigen::Matrix3d R = M[static_cast<size_t>(b)].linear();
+      check_finite(M[static_cast<size_t>(b)].matrix(), "animation frame " + std::to_string(t) + ", bone " + std::to_string(b));
+      const double dev = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+      if (dev > options.rigid_tolerance || R.determinant() < 0)
+        throw InputError("glTF export: animation frame " + std::to_string(t) + ", bone " +
+                         skeleton.names[static_cast<size_t>(b)] + " is not a rigid motion (|RᵀR − I| = " +
+                         std::to_string(dev) + ", det " + std::to_string(R.determinant()) + ")");
+      // Project onto the nearest rotation so the quaternion is exact.
+      Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
+      Q[static_cast<size_t>(b)] = svd.matrixU() * svd.matrixV().transpose();
+      head[static_cast<size_t>(b)] = M[static_cast<size_t>(b)] * Eigen::Vector3d(skeleton.heads.row(b).transpose());
+    }
+    for (int b = 0; b < B; ++b) {
+      const int p = skeleton.parents[static_cast<size_t>(b)];
+      const Eigen::Matrix3d local_R = p >= 0 ? Eigen::Matrix3d(Q[static_cast<size_t>(p)].transpose() * Q[static_cast<size_t>(b)])
+                                             : Q[static_cast<size_t>(b)];
+      const Eigen::Vector3d local_t =
+          (p >= 0 ? Eigen::Vector3d(Q[static_cast<size_t>(p)].transpose() * (head[static_cast<size_t>(b)] - head[static_cast<size_t>(p)]))
+                  : head[static_cast<size_t>(b)]) * s;
+      const Eigen::Vector4d q = quaternion_xyzw(local_R, t ? &prev[static_cast<size_t>(b)] : nullptr);
+      prev[static_cast<size_t>(b)] = q;
+      for (int d = 0; d < 4; ++d) rot[static_cast<size_t>(b)].push_back(static_cast<float>(q(d)));
+      for (int d = 0; d < 3; ++d) tra[static_cast<size_t>(b)].push_back(static_cast<float>(local_t(d)));
+      const Eigen::Vector3d rest_t = rest_offset(skeleton, b) * s;
+      if (p < 0 || (local_t - rest_t).norm() > 1e-6 * std::max(1.0, rest_t.norm())) moves[static_cast<size_t>(b)] = true;
+    }
+  }
+  return tracks;
+}
+
+// The animation: one linear sampler per joint rotation (and per moving joint's translation) over
+// the shared frame times.
+void add_animation(tinygltf::Model& model, BufferBuilder& buf, const Skeleton& skeleton, const GltfAnimation& animation,
+                   const GltfExportOptions& options, double s, GltfExportSummary& sum) {
+  const int B = skeleton.bone_count();
+  const int T = static_cast<int>(animation.frames.size());
+  if (!(animation.frame_time > 0) || !std::isfinite(animation.frame_time))
+    throw InputError("glTF export: animation frame time must be positive, found " + std::to_string(animation.frame_time));
+  sum.frames = T;
+  const JointTracks tracks = joint_tracks(skeleton, animation, options, s);
+  std::vector<float> times(static_cast<size_t>(T));
+  for (int t = 0; t < T; ++t) times[static_cast<size_t>(t)] = static_cast<float>(t * animation.frame_time);
+  const int input = buf.accessor(times.data(), times.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR,
+                                 static_cast<size_t>(T), 0, {double(times.front())}, {double(times.back())});
+  tinygltf::Animation anim;
+  anim.name = animation.name;
+  auto add = [&](int node, const std::vector<float>& values, int type, const char* path) {
+    tinygltf::AnimationSampler sampler;
+    sampler.input = input;
+    sampler.interpolation = "LINEAR";
+    sampler.output = buf.accessor(values.data(), values.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT, type,
+                                  static_cast<size_t>(T), 0);
+    anim.samplers.push_back(sampler);
+    tinygltf::AnimationChannel ch;
+    ch.sampler = static_cast<int>(anim.samplers.size()) - 1;
+    ch.target_node = node;
+    ch.target_path = path;
+    anim.channels.push_back(ch);
+  };
+  for (int b = 0; b < B; ++b) {
+    add(b, tracks.rot[static_cast<size_t>(b)], TINYGLTF_TYPE_VEC4, "rotation");
+    if (tracks.moves[static_cast<size_t>(b)]) add(b, tracks.tra[static_cast<size_t>(b)], TINYGLTF_TYPE_VEC3, "translation");
+  }
+  model.animations.push_back(anim);
+}
+
+}  // namespace
+
+std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const Eigen::MatrixX3d& N_in,
+                               const Skeleton& skeleton, const SkinWeights& W, const GltfAnimation* animation,
+                               const GltfExportOptions& options, GltfExportSummary* summary) {
+  // ---- checks ----
+  check_skinned_inputs(V, F, skeleton, W, options);
+  const int n = static_cast<int>(V.rows()), B = skeleton.bone_count();
+  const Eigen::MatrixX3d N = checked_normals(V, F, N_in);
+  GltfExportSummary sum;
+  sum.vertices = n;
+  sum.triangles = static_cast<int>(F.rows());
+  sum.joints = B;
+  const double s = options.unit_scale;
+
+  tinygltf::Model model;
+  model.asset.version = "2.0";
+  model.asset.generator = options.generator;
+  BufferBuilder buf(&model);
+
+  // ---- mesh attributes (the buffer holds positions, normals, joints, weights, indices) ----
+  tinygltf::Primitive prim;
+  add_positions_and_normals(buf, prim, V, N, s);
+  add_joints_and_weights(buf, prim, W, n, B, sum);
+  add_indices(buf, prim, F);
+  tinygltf::Mesh mesh;
+  mesh.name = options.mesh_name;
+  mesh.primitives.push_back(prim);
+  model.meshes.push_back(mesh);
+
+  // ---- joints: nodes 0..B-1, the mesh node B ----
+  add_skeleton_and_scene(model, buf, skeleton, s, options);
 
   // ---- animation ----
-  if (animation && !animation->frames.empty()) {
-    const int T = static_cast<int>(animation->frames.size());
-    if (!(animation->frame_time > 0) || !std::isfinite(animation->frame_time))
-      throw InputError("glTF export: animation frame time must be positive, found " + std::to_string(animation->frame_time));
-    sum.frames = T;
-    std::vector<std::vector<float>> rot(static_cast<size_t>(B)), tra(static_cast<size_t>(B));
-    std::vector<Eigen::Vector4d> prev(static_cast<size_t>(B));
-    std::vector<bool> moves(static_cast<size_t>(B), false);
-    std::vector<Eigen::Matrix3d> Q(static_cast<size_t>(B));
-    std::vector<Eigen::Vector3d> head(static_cast<size_t>(B));
-    for (int t = 0; t < T; ++t) {
-      const BoneTransforms& M = animation->frames[static_cast<size_t>(t)];
-      if (static_cast<int>(M.size()) != B)
-        throw InputError("glTF export: animation frame " + std::to_string(t) + " has " + std::to_string(M.size()) +
-                         " bone transforms, expected " + std::to_string(B));
-      for (int b = 0; b < B; ++b) {
-        const Eigen::Matrix3d R = M[static_cast<size_t>(b)].linear();
-        check_finite(M[static_cast<size_t>(b)].matrix(), "animation frame " + std::to_string(t) + ", bone " + std::to_string(b));
-        const double dev = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
-        if (dev > options.rigid_tolerance || R.determinant() < 0)
-          throw InputError("glTF export: animation frame " + std::to_string(t) + ", bone " +
-                           skeleton.names[static_cast<size_t>(b)] + " is not a rigid motion (|RᵀR − I| = " +
-                           std::to_string(dev) + ", det " + std::to_string(R.determinant()) + ")");
-        // Project onto the nearest rotation so the quaternion is exact.
-        Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
-        Q[static_cast<size_t>(b)] = svd.matrixU() * svd.matrixV().transpose();
-        head[static_cast<size_t>(b)] = M[static_cast<size_t>(b)] * Eigen::Vector3d(skeleton.heads.row(b).transpose());
-      }
-      for (int b = 0; b < B; ++b) {
-        const int p = skeleton.parents[static_cast<size_t>(b)];
-        const Eigen::Matrix3d local_R = p >= 0 ? Eigen::Matrix3d(Q[static_cast<size_t>(p)].transpose() * Q[static_cast<size_t>(b)])
-                                               : Q[static_cast<size_t>(b)];
-        const Eigen::Vector3d local_t =
-            (p >= 0 ? Eigen::Vector3d(Q[static_cast<size_t>(p)].transpose() * (head[static_cast<size_t>(b)] - head[static_cast<size_t>(p)]))
-                    : head[static_cast<size_t>(b)]) * s;
-        const Eigen::Vector4d q = quaternion_xyzw(local_R, t ? &prev[static_cast<size_t>(b)] : nullptr);
-        prev[static_cast<size_t>(b)] = q;
-        for (int d = 0; d < 4; ++d) rot[static_cast<size_t>(b)].push_back(static_cast<float>(q(d)));
-        for (int d = 0; d < 3; ++d) tra[static_cast<size_t>(b)].push_back(static_cast<float>(local_t(d)));
-        const Eigen::Vector3d rest_t = rest_offset(b) * s;
-        if (p < 0 || (local_t - rest_t).norm() > 1e-6 * std::max(1.0, rest_t.norm())) moves[static_cast<size_t>(b)] = true;
-      }
-    }
-    std::vector<float> times(static_cast<size_t>(T));
-    for (int t = 0; t < T; ++t) times[static_cast<size_t>(t)] = static_cast<float>(t * animation->frame_time);
-    const int input = buf.accessor(times.data(), times.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR,
-                                   static_cast<size_t>(T), 0, {double(times.front())}, {double(times.back())});
-    tinygltf::Animation anim;
-    anim.name = animation->name;
-    auto add = [&](int node, const std::vector<float>& values, int type, const char* path) {
-      tinygltf::AnimationSampler sampler;
-      sampler.input = input;
-      sampler.interpolation = "LINEAR";
-      sampler.output = buf.accessor(values.data(), values.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT, type,
-                                    static_cast<size_t>(T), 0);
-      anim.samplers.push_back(sampler);
-      tinygltf::AnimationChannel ch;
-      ch.sampler = static_cast<int>(anim.samplers.size()) - 1;
-      ch.target_node = node;
-      ch.target_path = path;
-      anim.channels.push_back(ch);
-    };
-    for (int b = 0; b < B; ++b) {
-      add(b, rot[static_cast<size_t>(b)], TINYGLTF_TYPE_VEC4, "rotation");
-      if (moves[static_cast<size_t>(b)]) add(b, tra[static_cast<size_t>(b)], TINYGLTF_TYPE_VEC3, "translation");
-    }
-    model.animations.push_back(anim);
-  }
+  if (animation && !animation->frames.empty()) add_animation(model, buf, skeleton, *animation, options, s, sum);
 
   // ---- serialise ----
   std::ostringstream out;

@@ -301,10 +301,27 @@ void PoseSpaceRig::validate(const std::string& what) const {
   }
 }
 
-PoseSpaceRig fit_pose_space(const SkinningExamples& ex, const SkinningRig& lbs, const PoseSpaceOptions& o,
-                            PoseSpaceFitSummary* summary, const ProgressCallback& progress) {
-  const auto t0 = std::chrono::steady_clock::now();
-  const std::string who = pose_space_method_name(o.method);
+namespace {
+
+// What the stages of fit_pose_space share: the inputs, the rig being filled in, and what passes
+// from one stage to the next (neighbourhoods, distances between the examples, correction targets).
+struct PoseSpaceFit {
+  const SkinningExamples& ex;
+  const SkinningRig& lbs;
+  const PoseSpaceOptions& o;
+  PoseSpaceRig& rig;
+  Eigen::Index n, K;
+  int B, P;
+  std::vector<Eigen::Index> primary_slots;                 // per vertex, the slot of its primary bone
+  std::vector<std::vector<Eigen::Index>> group_vertices;   // per neighbourhood, its vertices
+  std::vector<Eigen::MatrixXd> Gd;                         // per pair, P by P squared example distances
+  std::vector<Eigen::MatrixXd> group_D2;                   // per neighbourhood, its combined distances
+  Eigen::MatrixXd target;                                  // #V by 3P corrections to interpolate
+};
+
+// The argument checks of fit_pose_space, all before any work so a bad call fails at once.
+void check_fit_inputs(const SkinningExamples& ex, const SkinningRig& lbs, const PoseSpaceOptions& o,
+                      const std::string& who) {
   validate_examples(ex, true);
   if (lbs.method != SkinningMethod::lbs || lbs.vertex_count() != ex.vertex_count() || lbs.bone_count != ex.bone_count())
     throw InputError(who + ": the base rig must be an ssd rig with the examples' " + std::to_string(ex.vertex_count()) +
@@ -315,216 +332,262 @@ PoseSpaceRig fit_pose_space(const SkinningExamples& ex, const SkinningRig& lbs, 
   if (!(o.kernel_width > 0) || !(o.rbf_ridge >= 0) || !(o.inverse_damping >= 0) || !(o.quadratic_ridge >= 0) ||
       o.eigenskin_modes < 1)
     throw InputError(who + ": kernel width must be > 0, ridges and damping ≥ 0, modes ≥ 1");
-  const Eigen::Index n = ex.rest.rows(), K = lbs.influences.cols();
-  const int B = lbs.bone_count;
+}
 
-  PoseSpaceRig rig;
-  rig.method = o.method;
-  rig.base = lbs;
-  rig.poses = P;
+// Primary bones, the vertex neighbourhoods (primary, second bone if weighty) and, for quadratic,
+// the parts, with the pose descriptor of each: the bone pairs the interpolation looks at.
+void build_descriptors(PoseSpaceFit& f) {
+  const SkinningRig& lbs = f.lbs;
+  PoseSpaceRig& rig = f.rig;
+  const Eigen::Index n = f.n, K = f.K;
   std::map<std::pair<int, int>, int> pair_index;
-  std::vector<Eigen::Index> primary_slots(static_cast<size_t>(n));
+  f.primary_slots.resize(static_cast<size_t>(n));
   rig.primary.resize(n);
   for (Eigen::Index i = 0; i < n; ++i) {
-    primary_slots[static_cast<size_t>(i)] = primary_slot(lbs, i);
-    rig.primary(i) = lbs.influences(i, primary_slots[static_cast<size_t>(i)]);
+    f.primary_slots[static_cast<size_t>(i)] = primary_slot(lbs, i);
+    rig.primary(i) = lbs.influences(i, f.primary_slots[static_cast<size_t>(i)]);
   }
   // Neighbourhoods: (primary, second bone if weighty).
-  std::vector<std::vector<Eigen::Index>> group_vertices;
   {
     std::map<std::pair<int, int>, int> key;
     rig.vertex_group.resize(n);
     for (Eigen::Index i = 0; i < n; ++i) {
       int second = -1;
-      double w2 = o.neighbourhood_weight;
+      double w2 = f.o.neighbourhood_weight;
       for (Eigen::Index k = 0; k < K; ++k)
-        if (k != primary_slots[static_cast<size_t>(i)] && lbs.influences(i, k) >= 0 && lbs.coefficients(i, k) >= w2)
+        if (k != f.primary_slots[static_cast<size_t>(i)] && lbs.influences(i, k) >= 0 && lbs.coefficients(i, k) >= w2)
           w2 = lbs.coefficients(i, k), second = lbs.influences(i, k);
       auto [it, inserted] = key.emplace(std::make_pair(rig.primary(i), second), static_cast<int>(key.size()));
-      if (inserted) group_vertices.emplace_back();
-      group_vertices[static_cast<size_t>(it->second)].push_back(i);
+      if (inserted) f.group_vertices.emplace_back();
+      f.group_vertices[static_cast<size_t>(it->second)].push_back(i);
       rig.vertex_group(i) = it->second;
     }
   }
-  const size_t G = group_vertices.size();
+  const size_t G = f.group_vertices.size();
   rig.group_pairs.assign(G, {});
   rig.group_omega.assign(G, {});
-  const std::vector<std::vector<char>> adj = bone_adjacency(lbs, o.neighbourhood_weight);
+  const std::vector<std::vector<char>> adj = bone_adjacency(lbs, f.o.neighbourhood_weight);
   for (size_t g = 0; g < G; ++g)
-    descriptor_of(lbs, group_vertices[g], rig.primary, adj, pair_index, &rig.group_pairs[g], &rig.group_omega[g]);
+    descriptor_of(lbs, f.group_vertices[g], rig.primary, adj, pair_index, &rig.group_pairs[g], &rig.group_omega[g]);
   std::vector<std::vector<Eigen::Index>> part_vertices;
-  if (o.method == PoseSpaceMethod::quadratic) {
-    part_vertices.assign(static_cast<size_t>(B), {});
+  if (f.o.method == PoseSpaceMethod::quadratic) {
+    part_vertices.assign(static_cast<size_t>(f.B), {});
     for (Eigen::Index i = 0; i < n; ++i) part_vertices[static_cast<size_t>(rig.primary(i))].push_back(i);
-    rig.part_pairs.assign(static_cast<size_t>(B), {});
-    rig.part_omega.assign(static_cast<size_t>(B), {});
-    for (int b = 0; b < B; ++b)
+    rig.part_pairs.assign(static_cast<size_t>(f.B), {});
+    rig.part_omega.assign(static_cast<size_t>(f.B), {});
+    for (int b = 0; b < f.B; ++b)
       descriptor_of(lbs, part_vertices[static_cast<size_t>(b)], rig.primary, adj, pair_index,
                     &rig.part_pairs[static_cast<size_t>(b)], &rig.part_omega[static_cast<size_t>(b)]);
   }
   rig.pairs.resize(static_cast<Eigen::Index>(pair_index.size()), 2);
   for (const auto& [ab, k] : pair_index) rig.pairs.row(k) << ab.first, ab.second;
+}
+
+// The pair features of every example, their distances per pair, and per neighbourhood the
+// combined distances and kernel width: everything the RBFs are built on.
+void example_distances(PoseSpaceFit& f) {
+  PoseSpaceRig& rig = f.rig;
+  const int P = f.P;
   const Eigen::Index np = rig.pairs.rows();
   rig.pair_features.resize(np, 9 * P);
   for (Eigen::Index k = 0; k < np; ++k)
     for (int p = 0; p < P; ++p)
-      rig.pair_features.block<1, 9>(k, 9 * p) = pair_feature(ex.transforms[static_cast<size_t>(p)], rig.pairs(k, 0),
+      rig.pair_features.block<1, 9>(k, 9 * p) = pair_feature(f.ex.transforms[static_cast<size_t>(p)], rig.pairs(k, 0),
                                                             rig.pairs(k, 1));
   // Per pair, P by P squared distances between the examples.
-  std::vector<Eigen::MatrixXd> Gd(static_cast<size_t>(np), Eigen::MatrixXd::Zero(P, P));
+  f.Gd.assign(static_cast<size_t>(np), Eigen::MatrixXd::Zero(P, P));
   for (Eigen::Index k = 0; k < np; ++k)
     for (int p = 0; p < P; ++p)
       for (int q = p + 1; q < P; ++q)
-        Gd[static_cast<size_t>(k)](p, q) = Gd[static_cast<size_t>(k)](q, p) =
+        f.Gd[static_cast<size_t>(k)](p, q) = f.Gd[static_cast<size_t>(k)](q, p) =
             (rig.pair_features.block<1, 9>(k, 9 * p) - rig.pair_features.block<1, 9>(k, 9 * q)).squaredNorm();
-  std::vector<Eigen::MatrixXd> group_D2(G);
+  const size_t G = f.group_vertices.size();
+  f.group_D2.resize(G);
   rig.group_sigma = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(G));
   for (size_t g = 0; g < G; ++g) {
-    group_D2[g] = combine(Gd, rig.group_pairs[g], rig.group_omega[g], P, P);
-    rig.group_sigma(static_cast<Eigen::Index>(g)) = o.kernel_width * median_positive(group_D2[g].cwiseSqrt());
+    f.group_D2[g] = combine(f.Gd, rig.group_pairs[g], rig.group_omega[g], P, P);
+    rig.group_sigma(static_cast<Eigen::Index>(g)) = f.o.kernel_width * median_positive(f.group_D2[g].cwiseSqrt());
   }
-  report_progress(progress, 0.05, who + ": corrections at the examples");
+}
 
-  // Targets per vertex and example: #V by 3P, example-major.
-  Eigen::MatrixXd target(n, 3 * P);
-  rig.vertex_mean = Eigen::MatrixXd::Zero(n, 3);
-  if (o.method != PoseSpaceMethod::quadratic) {
-    // Pre-skinning displacements d = (LᵀL + εI)⁻¹ Lᵀ (q − SSD).
-    tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, n, 256), [&](const auto& r) {
-      for (Eigen::Index i = r.begin(); i < r.end(); ++i)
-        for (int p = 0; p < P; ++p) {
-          Eigen::Matrix3d L;
-          Eigen::Vector3d x;
-          ssd_at(lbs, i, ex.transforms[static_cast<size_t>(p)], &L, &x);
-          const Eigen::Vector3d res = ex.poses[static_cast<size_t>(p)].row(i).transpose() - x;
-          const Eigen::Vector3d d =
-              (L.transpose() * L + o.inverse_damping * Eigen::Matrix3d::Identity()).ldlt().solve(L.transpose() * res);
-          target.block<1, 3>(i, 3 * p) = d.transpose();
-        }
-    });
-  } else {
-    // Part frames (centroid, principal axes, RMS radius of the members in the rest pose).
-    rig.member = Eigen::MatrixXi::Zero(n, K);
-    std::vector<std::vector<Eigen::Index>> members(static_cast<size_t>(B));
-    for (Eigen::Index i = 0; i < n; ++i)
-      for (Eigen::Index k = 0; k < K; ++k) {
-        const int b = lbs.influences(i, k);
-        if (b < 0) continue;
-        if (k == primary_slots[static_cast<size_t>(i)] || lbs.coefficients(i, k) >= o.membership_weight) {
-          rig.member(i, k) = 1;
-          members[static_cast<size_t>(b)].push_back(i);
-        }
-      }
-    rig.part_centroid = Eigen::MatrixX3d::Zero(B, 3);
-    rig.part_axes.assign(static_cast<size_t>(B), Eigen::Matrix3d::Identity());
-    rig.part_scale = Eigen::VectorXd::Ones(B);
-    for (int b = 0; b < B; ++b) {
-      const auto& mem = members[static_cast<size_t>(b)];
-      if (mem.empty()) continue;
-      Eigen::Vector3d c = Eigen::Vector3d::Zero();
-      for (Eigen::Index i : mem) c += ex.rest.row(i).transpose();
-      c /= double(mem.size());
-      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-      for (Eigen::Index i : mem) {
-        const Eigen::Vector3d d = ex.rest.row(i).transpose() - c;
-        cov += d * d.transpose();
-      }
-      cov /= double(mem.size());
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-      Eigen::Matrix3d E = eig.eigenvectors().rowwise().reverse();
-      if (E.determinant() < 0) E.col(2) *= -1;
-      rig.part_centroid.row(b) = c.transpose();
-      rig.part_axes[static_cast<size_t>(b)] = E;
-      rig.part_scale(b) = std::max(std::sqrt(std::max(cov.trace(), 0.0)), 1e-12);
-    }
-    auto local_of = [&](int b, const Eigen::Vector3d& x) -> Eigen::Vector3d {
-      return rig.part_axes[static_cast<size_t>(b)].transpose() * (x - rig.part_centroid.row(b).transpose()) /
-             rig.part_scale(b);
-    };
-    rig.vertex_quadratic = Eigen::MatrixXd::Zero(n, kQ * K);
-    for (Eigen::Index i = 0; i < n; ++i)
-      for (Eigen::Index k = 0; k < K; ++k)
-        if (rig.member(i, k))
-          rig.vertex_quadratic.block<1, kQ>(i, kQ * k) =
-              quadratic_vector(local_of(lbs.influences(i, k), ex.rest.row(i).transpose()));
-    // Per part and example: A (3 by 10) with Ŷ ≈ Q Aᵀ, ridge towards [I 0 0] (eq. 6).
-    std::vector<Eigen::MatrixXd> A(static_cast<size_t>(B), Eigen::MatrixXd::Zero(P, kA));
-    Eigen::Matrix<double, kQ, 3> A0t = Eigen::Matrix<double, kQ, 3>::Zero();
-    A0t.topRows<3>().setIdentity();
-    tbb::parallel_for(0, B, [&](int b) {
-      const auto& mem = members[static_cast<size_t>(b)];
-      const Eigen::Index m = static_cast<Eigen::Index>(mem.size());
-      Eigen::MatrixXd Q(m, kQ);
-      for (Eigen::Index r = 0; r < m; ++r)
-        Q.row(r) = quadratic_vector(local_of(b, ex.rest.row(mem[static_cast<size_t>(r)]).transpose()));
-      Eigen::Matrix<double, kQ, kQ> H = Q.transpose() * Q;
-      const double mu = o.quadratic_ridge * std::max(H.trace() / kQ, 1e-12) + 1e-12;
-      H.diagonal().array() += mu;
-      const Eigen::LDLT<Eigen::Matrix<double, kQ, kQ>> ldlt(H);
-      for (int p = 0; p < P; ++p) {
-        const Eigen::Affine3d Minv = ex.transforms[static_cast<size_t>(p)][static_cast<size_t>(b)].inverse();
-        Eigen::MatrixXd Y(m, 3);
-        for (Eigen::Index r = 0; r < m; ++r)
-          Y.row(r) = local_of(b, Minv * Eigen::Vector3d(ex.poses[static_cast<size_t>(p)].row(mem[static_cast<size_t>(r)])))
-                         .transpose();
-        const Eigen::Matrix<double, kQ, 3> At = ldlt.solve(Q.transpose() * Y + mu * A0t);
-        for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < kQ; ++c) A[static_cast<size_t>(b)](p, kQ * r + c) = At(c, r);
-      }
-    });
-    // Interpolate A over each part's pose descriptor; keep the interpolated A at the examples.
-    rig.part_sigma = Eigen::VectorXd::Zero(B);
-    rig.part_coef.assign(static_cast<size_t>(B), Eigen::MatrixXd::Zero(P, kA));
-    rig.part_mean = Eigen::MatrixXd::Zero(B, kA);
-    std::vector<Eigen::MatrixXd> predicted(static_cast<size_t>(P), Eigen::MatrixXd(B, kA));
-    for (int b = 0; b < B; ++b) {
-      const Eigen::MatrixXd& Ab = A[static_cast<size_t>(b)];
-      Eigen::RowVectorXd mean = Ab.colwise().mean();
-      if (members[static_cast<size_t>(b)].empty()) {
-        mean.setZero();
-        mean(0) = mean(kQ + 1) = mean(2 * kQ + 2) = 1;   // unused part: rigid
-      }
-      rig.part_mean.row(b) = mean;
-      const Eigen::MatrixXd D2 =
-          combine(Gd, rig.part_pairs[static_cast<size_t>(b)], rig.part_omega[static_cast<size_t>(b)], P, P);
-      const double sigma = members[static_cast<size_t>(b)].empty() ? 0.0 : o.kernel_width * median_positive(D2.cwiseSqrt());
-      rig.part_sigma(b) = sigma;
-      Eigen::MatrixXd pred = mean.replicate(P, 1);
-      if (sigma > 0) {
-        rig.part_coef[static_cast<size_t>(b)] = rbf_factor(D2, sigma, o.rbf_ridge).solve(Eigen::MatrixXd(Ab.rowwise() - mean));
-        pred += kernel(D2, sigma) * rig.part_coef[static_cast<size_t>(b)];
-      }
-      for (int p = 0; p < P; ++p) predicted[static_cast<size_t>(p)].row(b) = pred.row(p);
-    }
-    // Residual targets in the primary part's axes, after the interpolated A.
-    tbb::parallel_for(0, P, [&](int p) {
-      const BoneTransforms& M = ex.transforms[static_cast<size_t>(p)];
-      for (Eigen::Index i = 0; i < n; ++i) {
-        const Eigen::Vector3d x = quadratic_blend(rig, i, M, predicted[static_cast<size_t>(p)]);
+// psd and eigenskin targets: pre-skinning displacements d = (LᵀL + εI)⁻¹ Lᵀ (q − SSD) per vertex
+// and example, so that skinning the corrected rest vertex reproduces the example.
+void displacement_targets(PoseSpaceFit& f) {
+  const SkinningExamples& ex = f.ex;
+  tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, f.n, 256), [&](const auto& r) {
+    for (Eigen::Index i = r.begin(); i < r.end(); ++i)
+      for (int p = 0; p < f.P; ++p) {
+        Eigen::Matrix3d L;
+        Eigen::Vector3d x;
+        ssd_at(f.lbs, i, ex.transforms[static_cast<size_t>(p)], &L, &x);
         const Eigen::Vector3d res = ex.poses[static_cast<size_t>(p)].row(i).transpose() - x;
-        const Eigen::Vector3d local = M[static_cast<size_t>(rig.primary(i))].linear().transpose() * res;
-        target.block<1, 3>(i, 3 * p) = o.quadratic_residual ? Eigen::RowVector3d(local.transpose()) : Eigen::RowVector3d::Zero();
+        const Eigen::Vector3d d =
+            (L.transpose() * L + f.o.inverse_damping * Eigen::Matrix3d::Identity()).ldlt().solve(L.transpose() * res);
+        f.target.block<1, 3>(i, 3 * p) = d.transpose();
       }
-    });
-  }
-  report_progress(progress, 0.4, who + ": pose-space interpolation");
+  });
+}
 
-  // Per neighbourhood: the mean correction of each vertex, then the RBF (psd, quadratic residual:
-  // every vertex's corrections; eigenskin: the coefficients of the leading modes).
-  if (o.method != PoseSpaceMethod::eigenskin) rig.vertex_coef = Eigen::MatrixXd::Zero(n, 3 * P);
+// Quadratic: x in part b's frame (centroid, principal axes, RMS radius), where its A acts.
+Eigen::Vector3d part_local(const PoseSpaceRig& rig, int b, const Eigen::Vector3d& x) {
+  return rig.part_axes[static_cast<size_t>(b)].transpose() * (x - rig.part_centroid.row(b).transpose()) /
+         rig.part_scale(b);
+}
+
+// Quadratic: the members of each part, the part frames (centroid, principal axes, RMS radius of
+// the members in the rest pose) and every member's quadratic vector in its part's frame; returns
+// the members per part.
+std::vector<std::vector<Eigen::Index>> part_frames(PoseSpaceFit& f) {
+  const SkinningRig& lbs = f.lbs;
+  const SkinningExamples& ex = f.ex;
+  PoseSpaceRig& rig = f.rig;
+  const Eigen::Index n = f.n, K = f.K;
+  const int B = f.B;
+  rig.member = Eigen::MatrixXi::Zero(n, K);
+  std::vector<std::vector<Eigen::Index>> members(static_cast<size_t>(B));
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (Eigen::Index k = 0; k < K; ++k) {
+      const int b = lbs.influences(i, k);
+      if (b < 0) continue;
+      if (k == f.primary_slots[static_cast<size_t>(i)] || lbs.coefficients(i, k) >= f.o.membership_weight) {
+        rig.member(i, k) = 1;
+        members[static_cast<size_t>(b)].push_back(i);
+      }
+    }
+  rig.part_centroid = Eigen::MatrixX3d::Zero(B, 3);
+  rig.part_axes.assign(static_cast<size_t>(B), Eigen::Matrix3d::Identity());
+  rig.part_scale = Eigen::VectorXd::Ones(B);
+  for (int b = 0; b < B; ++b) {
+    const auto& mem = members[static_cast<size_t>(b)];
+    if (mem.empty()) continue;
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (Eigen::Index i : mem) c += ex.rest.row(i).transpose();
+    c /= double(mem.size());
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (Eigen::Index i : mem) {
+      const Eigen::Vector3d d = ex.rest.row(i).transpose() - c;
+      cov += d * d.transpose();
+    }
+    cov /= double(mem.size());
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+    Eigen::Matrix3d E = eig.eigenvectors().rowwise().reverse();
+    if (E.determinant() < 0) E.col(2) *= -1;
+    rig.part_centroid.row(b) = c.transpose();
+    rig.part_axes[static_cast<size_t>(b)] = E;
+    rig.part_scale(b) = std::max(std::sqrt(std::max(cov.trace(), 0.0)), 1e-12);
+  }
+  rig.vertex_quadratic = Eigen::MatrixXd::Zero(n, kQ * K);
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (Eigen::Index k = 0; k < K; ++k)
+      if (rig.member(i, k))
+        rig.vertex_quadratic.block<1, kQ>(i, kQ * k) =
+            quadratic_vector(part_local(rig, lbs.influences(i, k), ex.rest.row(i).transpose()));
+  return members;
+}
+
+// Quadratic: per part and example, A (3 by 10) with Ŷ ≈ Q Aᵀ, ridge towards [I 0 0] (eq. 6);
+// returns per part the P by 30 deformations, one row per example.
+std::vector<Eigen::MatrixXd> part_deformations(const PoseSpaceFit& f, const std::vector<std::vector<Eigen::Index>>& members) {
+  const SkinningExamples& ex = f.ex;
+  const PoseSpaceRig& rig = f.rig;
+  const int P = f.P;
+  std::vector<Eigen::MatrixXd> A(static_cast<size_t>(f.B), Eigen::MatrixXd::Zero(P, kA));
+  Eigen::Matrix<double, kQ, 3> A0t = Eigen::Matrix<double, kQ, 3>::Zero();
+  A0t.topRows<3>().setIdentity();
+  tbb::parallel_for(0, f.B, [&](int b) {
+    const auto& mem = members[static_cast<size_t>(b)];
+    const Eigen::Index m = static_cast<Eigen::Index>(mem.size());
+    Eigen::MatrixXd Q(m, kQ);
+    for (Eigen::Index r = 0; r < m; ++r)
+      Q.row(r) = quadratic_vector(part_local(rig, b, ex.rest.row(mem[static_cast<size_t>(r)]).transpose()));
+    Eigen::Matrix<double, kQ, kQ> H = Q.transpose() * Q;
+    const double mu = f.o.quadratic_ridge * std::max(H.trace() / kQ, 1e-12) + 1e-12;
+    H.diagonal().array() += mu;
+    const Eigen::LDLT<Eigen::Matrix<double, kQ, kQ>> ldlt(H);
+    for (int p = 0; p < P; ++p) {
+      const Eigen::Affine3d Minv = ex.transforms[static_cast<size_t>(p)][static_cast<size_t>(b)].inverse();
+      Eigen::MatrixXd Y(m, 3);
+      for (Eigen::Index r = 0; r < m; ++r)
+        Y.row(r) = part_local(rig, b, Minv * Eigen::Vector3d(ex.poses[static_cast<size_t>(p)].row(mem[static_cast<size_t>(r)])))
+                       .transpose();
+      const Eigen::Matrix<double, kQ, 3> At = ldlt.solve(Q.transpose() * Y + mu * A0t);
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < kQ; ++c) A[static_cast<size_t>(b)](p, kQ * r + c) = At(c, r);
+    }
+  });
+  return A;
+}
+
+// Quadratic: interpolate A over each part's pose descriptor; returns per example the interpolated
+// A of every part (#B by 30), which the residual targets are taken after.
+std::vector<Eigen::MatrixXd> interpolate_parts(PoseSpaceFit& f, const std::vector<std::vector<Eigen::Index>>& members,
+                                               const std::vector<Eigen::MatrixXd>& A) {
+  PoseSpaceRig& rig = f.rig;
+  const int B = f.B, P = f.P;
+  rig.part_sigma = Eigen::VectorXd::Zero(B);
+  rig.part_coef.assign(static_cast<size_t>(B), Eigen::MatrixXd::Zero(P, kA));
+  rig.part_mean = Eigen::MatrixXd::Zero(B, kA);
+  std::vector<Eigen::MatrixXd> predicted(static_cast<size_t>(P), Eigen::MatrixXd(B, kA));
+  for (int b = 0; b < B; ++b) {
+    const Eigen::MatrixXd& Ab = A[static_cast<size_t>(b)];
+    Eigen::RowVectorXd mean = Ab.colwise().mean();
+    if (members[static_cast<size_t>(b)].empty()) {
+      mean.setZero();
+      mean(0) = mean(kQ + 1) = mean(2 * kQ + 2) = 1;   // unused part: rigid
+    }
+    rig.part_mean.row(b) = mean;
+    const Eigen::MatrixXd D2 =
+        combine(f.Gd, rig.part_pairs[static_cast<size_t>(b)], rig.part_omega[static_cast<size_t>(b)], P, P);
+    const double sigma = members[static_cast<size_t>(b)].empty() ? 0.0 : f.o.kernel_width * median_positive(D2.cwiseSqrt());
+    rig.part_sigma(b) = sigma;
+    Eigen::MatrixXd pred = mean.replicate(P, 1);
+    if (sigma > 0) {
+      rig.part_coef[static_cast<size_t>(b)] = rbf_factor(D2, sigma, f.o.rbf_ridge).solve(Eigen::MatrixXd(Ab.rowwise() - mean));
+      pred += kernel(D2, sigma) * rig.part_coef[static_cast<size_t>(b)];
+    }
+    for (int p = 0; p < P; ++p) predicted[static_cast<size_t>(p)].row(b) = pred.row(p);
+  }
+  return predicted;
+}
+
+// Quadratic: residual targets in the primary part's axes, after the interpolated A (zero unless
+// the options ask for the residual correction).
+void quadratic_residual_targets(PoseSpaceFit& f, const std::vector<Eigen::MatrixXd>& predicted) {
+  const SkinningExamples& ex = f.ex;
+  const PoseSpaceRig& rig = f.rig;
+  tbb::parallel_for(0, f.P, [&](int p) {
+    const BoneTransforms& M = ex.transforms[static_cast<size_t>(p)];
+    for (Eigen::Index i = 0; i < f.n; ++i) {
+      const Eigen::Vector3d x = quadratic_blend(rig, i, M, predicted[static_cast<size_t>(p)]);
+      const Eigen::Vector3d res = ex.poses[static_cast<size_t>(p)].row(i).transpose() - x;
+      const Eigen::Vector3d local = M[static_cast<size_t>(rig.primary(i))].linear().transpose() * res;
+      f.target.block<1, 3>(i, 3 * p) = f.o.quadratic_residual ? Eigen::RowVector3d(local.transpose()) : Eigen::RowVector3d::Zero();
+    }
+  });
+}
+
+// Per neighbourhood: the mean correction of each vertex, then the RBF (psd, quadratic residual:
+// every vertex's corrections; eigenskin: the coefficients of the leading modes). Returns the modes
+// kept per neighbourhood (eigenskin).
+std::vector<int> fit_corrections(PoseSpaceFit& f) {
+  const PoseSpaceOptions& o = f.o;
+  PoseSpaceRig& rig = f.rig;
+  const int P = f.P;
+  const size_t G = f.group_vertices.size();
+  if (o.method != PoseSpaceMethod::eigenskin) rig.vertex_coef = Eigen::MatrixXd::Zero(f.n, 3 * P);
   if (o.method == PoseSpaceMethod::eigenskin) {
     rig.group_coef.assign(G, Eigen::MatrixXd());
-    rig.vertex_modes.assign(static_cast<size_t>(n), Eigen::RowVectorXd());
+    rig.vertex_modes.assign(static_cast<size_t>(f.n), Eigen::RowVectorXd());
   }
   std::vector<int> modes_kept(G, 0);
   tbb::parallel_for(size_t(0), G, [&](size_t g) {
-    const auto& vs = group_vertices[g];
+    const auto& vs = f.group_vertices[g];
     const Eigen::Index ng = static_cast<Eigen::Index>(vs.size());
     // D: P by 3n_g, example-major rows, the mean of each column removed.
     Eigen::MatrixXd D(P, 3 * ng);
     for (Eigen::Index r = 0; r < ng; ++r) {
       const Eigen::Index i = vs[static_cast<size_t>(r)];
-      for (int p = 0; p < P; ++p) D.block<1, 3>(p, 3 * r) = target.block<1, 3>(i, 3 * p);
+      for (int p = 0; p < P; ++p) D.block<1, 3>(p, 3 * r) = f.target.block<1, 3>(i, 3 * p);
       const Eigen::RowVector3d mean = D.middleCols<3>(3 * r).colwise().mean();
       rig.vertex_mean.row(i) = mean;
       D.middleCols<3>(3 * r).rowwise() -= mean;
@@ -532,7 +595,7 @@ PoseSpaceRig fit_pose_space(const SkinningExamples& ex, const SkinningRig& lbs, 
     const double sigma = rig.group_sigma(static_cast<Eigen::Index>(g));
     if (o.method != PoseSpaceMethod::eigenskin) {
       if (sigma <= 0) return;
-      const Eigen::MatrixXd C = rbf_factor(group_D2[g], sigma, o.rbf_ridge).solve(D);   // P by 3n_g
+      const Eigen::MatrixXd C = rbf_factor(f.group_D2[g], sigma, o.rbf_ridge).solve(D);   // P by 3n_g
       for (Eigen::Index r = 0; r < ng; ++r) {
         const Eigen::Index i = vs[static_cast<size_t>(r)];
         for (int p = 0; p < P; ++p) rig.vertex_coef.block<1, 3>(i, 3 * p) = C.block<1, 3>(p, 3 * r);
@@ -549,7 +612,7 @@ PoseSpaceRig fit_pose_space(const SkinningExamples& ex, const SkinningRig& lbs, 
     Eigen::MatrixXd U = D.transpose() * V.leftCols(m);               // 3n_g by m (= U S)
     for (int c = 0; c < m; ++c) U.col(c) /= std::sqrt(ev(c));        // orthonormal modes
     const Eigen::MatrixXd alpha = D * U;                              // P by m mode coefficients
-    rig.group_coef[g] = sigma > 0 && m > 0 ? Eigen::MatrixXd(rbf_factor(group_D2[g], sigma, o.rbf_ridge).solve(alpha))
+    rig.group_coef[g] = sigma > 0 && m > 0 ? Eigen::MatrixXd(rbf_factor(f.group_D2[g], sigma, o.rbf_ridge).solve(alpha))
                                            : Eigen::MatrixXd::Zero(P, m);
     for (Eigen::Index r = 0; r < ng; ++r) {
       Eigen::RowVectorXd modes(3 * m);
@@ -558,28 +621,70 @@ PoseSpaceRig fit_pose_space(const SkinningExamples& ex, const SkinningRig& lbs, 
     }
     modes_kept[g] = m;
   });
+  return modes_kept;
+}
+
+// The fit summary: sizes, modes kept, and the residual of the finished rig at the examples.
+void summarize_fit(const PoseSpaceFit& f, const std::vector<int>& modes_kept,
+                   std::chrono::steady_clock::time_point t0, PoseSpaceFitSummary* summary) {
+  const int P = f.P;
+  const size_t G = f.group_vertices.size();
+  summary->method = f.o.method;
+  summary->vertices = static_cast<int>(f.n);
+  summary->poses = P;
+  summary->groups = static_cast<int>(G);
+  double sm = 0;
+  for (int m : modes_kept) sm += m;
+  summary->mean_modes = G ? sm / double(G) : 0;
+  double s = 0, mx = 0;
+  for (int p = 0; p < P; ++p) {
+    const Eigen::VectorXd e =
+        (evaluate_pose_space(f.rig, f.ex.transforms[static_cast<size_t>(p)]) - f.ex.poses[static_cast<size_t>(p)]).rowwise().norm();
+    s += e.squaredNorm();
+    mx = std::max(mx, e.maxCoeff());
+  }
+  summary->rms_residual = std::sqrt(s / (double(P) * double(f.n)));
+  summary->max_residual = mx;
+  summary->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+PoseSpaceRig fit_pose_space(const SkinningExamples& ex, const SkinningRig& lbs, const PoseSpaceOptions& o,
+                            PoseSpaceFitSummary* summary, const ProgressCallback& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::string who = pose_space_method_name(o.method);
+  check_fit_inputs(ex, lbs, o, who);
+  const int P = ex.pose_count();
+  const Eigen::Index n = ex.rest.rows(), K = lbs.influences.cols();
+  const int B = lbs.bone_count;
+
+  PoseSpaceRig rig;
+  rig.method = o.method;
+  rig.base = lbs;
+  rig.poses = P;
+  PoseSpaceFit f{ex, lbs, o, rig, n, K, B, P, {}, {}, {}, {}, {}};
+  build_descriptors(f);
+  example_distances(f);
+  report_progress(progress, 0.05, who + ": corrections at the examples");
+
+  // Targets per vertex and example: #V by 3P, example-major.
+  f.target.resize(n, 3 * P);
+  rig.vertex_mean = Eigen::MatrixXd::Zero(n, 3);
+  if (o.method != PoseSpaceMethod::quadratic) {
+    displacement_targets(f);
+  } else {
+    const std::vector<std::vector<Eigen::Index>> members = part_frames(f);
+    const std::vector<Eigen::MatrixXd> A = part_deformations(f, members);
+    quadratic_residual_targets(f, interpolate_parts(f, members, A));
+  }
+  report_progress(progress, 0.4, who + ": pose-space interpolation");
+
+  const std::vector<int> modes_kept = fit_corrections(f);
   report_progress(progress, 1.0, who + ": done");
   if (!rig.vertex_coef.allFinite() || !rig.vertex_mean.allFinite())
     throw NumericalError(who + ": the RBF solve produced non-finite coefficients");
-  if (summary) {
-    summary->method = o.method;
-    summary->vertices = static_cast<int>(n);
-    summary->poses = P;
-    summary->groups = static_cast<int>(G);
-    double sm = 0;
-    for (int m : modes_kept) sm += m;
-    summary->mean_modes = G ? sm / double(G) : 0;
-    double s = 0, mx = 0;
-    for (int p = 0; p < P; ++p) {
-      const Eigen::VectorXd e =
-          (evaluate_pose_space(rig, ex.transforms[static_cast<size_t>(p)]) - ex.poses[static_cast<size_t>(p)]).rowwise().norm();
-      s += e.squaredNorm();
-      mx = std::max(mx, e.maxCoeff());
-    }
-    summary->rms_residual = std::sqrt(s / (double(P) * double(n)));
-    summary->max_residual = mx;
-    summary->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  }
+  if (summary) summarize_fit(f, modes_kept, t0, summary);
   return rig;
 }
 

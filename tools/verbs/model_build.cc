@@ -36,6 +36,159 @@ int axis_of(const std::string& s) {
 
 }  // namespace
 
+namespace {
+
+void add_build_options(CLI::App* cmd, BuildArgs& a) {
+  cmd->add_option("registered", a.reg, "Folder of registered meshes of one topology")->required();
+  auto* db = cmd->add_option("--db", a.db, "synth-db database folder (scans.csv, subjects.csv, truth/)");
+  auto* subj = cmd->add_option("--subjects", a.subjects, "CSV with columns mesh,subject,pose (+ label columns)");
+  db->excludes(subj);
+  subj->excludes(db);
+  cmd->add_option("--out", a.out, "Output model (.npz)")->required();
+  cmd->add_option("--scale", a.scale, "Millimetres per mesh unit (1000 for metres: FAUST, SCAPE); models are in mm")
+      ->capture_default_str();
+  cmd->add_option("--standard-pose", a.standard_pose,
+                  "Pose name of each subject's standard-pose mesh (--subjects; a subject without one uses its "
+                  "first listed mesh)")
+      ->capture_default_str();
+  cmd->add_option("--up", a.up, "Up axis of the meshes for the measured labels: x, y or z")->capture_default_str();
+  cmd->add_flag("--no-measure", a.no_measure, "Do not measure height, weight and girths on the meshes");
+  cmd->add_flag("--first-mesh-faces", a.first_mesh_faces,
+                "With --subjects: the meshes share their vertices but not their triangles (SCAPE re-triangulates "
+                "each pose): use the first mesh's triangles for all");
+  cmd->add_option("--shape-variance", a.shape_variance,
+                  "Fraction of variance the shape model's components keep")
+      ->capture_default_str();
+  cmd->add_option("--full-variance", a.full_variance,
+                  "Fraction of variance the full model's components keep")
+      ->capture_default_str();
+  cmd->add_option("--components,--max-components", a.max_components,
+                  "Keep at most this many components per model (-1: as many as the variance thresholds keep)")
+      ->capture_default_str();
+  cmd->add_flag("--no-rig", a.no_rig,
+                "Do not attach the MakeHuman skeleton (pose morphing and region masks need it; only "
+                "attached to MakeHuman-topology models)");
+}
+
+// The meshes and labels: a folder of registrations with a subjects table, or a scan database's
+// registrations.
+ModelBuildInput read_build_input(const BuildArgs& a) {
+  ModelBuildInput in;
+  cli::ProgressBar read_bar("reading");
+  if (!a.subjects.empty()) {
+    RegisteredFolderOptions ro;
+    ro.mm_per_unit = a.scale;
+    ro.standard_pose = a.standard_pose;
+    ro.up_axis = axis_of(a.up);
+    ro.measure_labels = !a.no_measure;
+    ro.use_first_mesh_faces = a.first_mesh_faces;
+    RegisteredFolderSummary rs;
+    in = read_registered_folder(a.reg, a.subjects, ro, &rs, read_bar.callback());
+    read_bar.finish(fmt::format("{} meshes of {} subjects", rs.meshes, rs.subjects));
+    if (rs.meshes_with_other_faces > 0)
+      cli::info(fmt::format("{} meshes had other triangles than the first: the first mesh's are used for all",
+                            rs.meshes_with_other_faces));
+    if (rs.subjects_without_standard_pose > 0)
+      cli::info(fmt::format("{} of {} subjects have no mesh with pose '{}': their first listed mesh is their "
+                            "standard pose",
+                            rs.subjects_without_standard_pose, rs.subjects, a.standard_pose));
+    if (!rs.measured_labels.empty())
+      cli::info(fmt::format("measured on each subject's standard-pose mesh (up = {}, 1.01 kg/L): {}", a.up,
+                            fmt::join(rs.measured_labels, ", ")));
+    if (rs.measurement_failures > 0)
+      cli::warn(fmt::format("{} subjects could not be measured (labels unknown), first: {}", rs.measurement_failures,
+                            rs.first_measurement_failure));
+    if (!rs.dropped_labels.empty())
+      cli::info(fmt::format("labels dropped (fewer than two subjects with different values): {}",
+                            fmt::join(rs.dropped_labels, ", ")));
+  } else {
+    DatabaseReadSummary rs;
+    in = read_registered_database(a.reg, a.db, &rs, read_bar.callback());
+    read_bar.finish(fmt::format("{} of {} scans ({} with pose labels)", rs.scans_read, rs.scans_listed,
+                                rs.scans_with_pose_labels));
+    if (!rs.missing.empty())
+      cli::warn(fmt::format("{} scans listed in scans.csv have no mesh in {} (first: {}); built without them",
+                            rs.missing.size(), a.reg, rs.missing[0]));
+  }
+  return in;
+}
+
+// The MakeHuman skeleton and its joint regressor, when the meshes have MakeHuman's topology.
+void attach_rig(const BuildArgs& a, const ModelBuildInput& in, BodyModel& model) {
+  const bool makehuman_topology = in.meshes.empty() || in.meshes[0].rows() == MakeHuman::kBodyVertexCount;
+  if (!a.no_rig && !makehuman_topology) {
+    cli::info(fmt::format("{} vertices, not MakeHuman's {}: no skeleton attached (pose morphing and region "
+                          "masks unavailable; fit, generate and morph work)",
+                          in.meshes[0].rows(), MakeHuman::kBodyVertexCount));
+  } else if (!a.no_rig) {
+    try {
+      cli::info("attaching the MakeHuman skeleton (joint regressor fitted on random bodies)");
+      ModelRigSummary rsum;
+      model.rig = fit_makehuman_rig(MakeHuman::load(), {}, &rsum);
+      model.metadata["rig_joint_error_mm"] = {{"mean", rsum.mean_joint_error_mm}, {"max", rsum.max_joint_error_mm}};
+      cli::info(fmt::format("joint regressor error: mean {:.2f} mm, max {:.2f} mm", rsum.mean_joint_error_mm,
+                            rsum.max_joint_error_mm));
+    } catch (const InputError& e) {
+      cli::warn(std::string("no skeleton attached (pose morphing and masks unavailable): ") + e.what());
+    }
+  }
+}
+
+void run_build(BuildArgs& a) {
+  if (a.db.empty() && a.subjects.empty())
+    throw InputError("build needs --subjects CSV (mesh,subject,pose) or --db DB/ to say which meshes to use");
+  if (!(a.scale > 0) || !std::isfinite(a.scale))
+    throw InputError(fmt::format("--scale must be a positive number of millimetres per mesh unit, got {}", a.scale));
+  if (a.max_components == 0 || a.max_components < -1)
+    throw InputError(fmt::format("--components must be ≥ 1 or -1, got {}", a.max_components));
+  ModelBuildInput in = read_build_input(a);
+  // A body in metres read as millimetres is 2 mm tall: say so before building nonsense labels.
+  if (!in.meshes.empty()) {
+    const Eigen::MatrixX3d& V = in.meshes[0];
+    const double extent = (V.colwise().maxCoeff() - V.colwise().minCoeff()).maxCoeff();
+    if (extent < 100)
+      cli::warn(fmt::format("the first mesh is {:.3g} mm across after --scale {}: if the files are in metres, "
+                            "use --scale 1000",
+                            extent, a.scale));
+  }
+  ModelBuildOptions o;
+  o.shape_pca.variance_threshold = a.shape_variance;
+  o.full_pca.variance_threshold = a.full_variance;
+  o.shape_pca.max_components = o.full_pca.max_components = a.max_components;
+  o.allow_pose_only = !a.subjects.empty();
+  cli::ProgressBar bar("build");
+  ModelBuildSummary s;
+  BodyModel model = build_body_model(in, o, &s, bar.callback());
+  bar.finish();
+  if (model.metadata.value("shape_model", "") == "full")
+    cli::info("one subject: a pose model (the shape model is the full model)");
+  else
+    cli::info(fmt::format("shape model: {} subjects, {} components keep {:.2f}% of the variance (threshold {})",
+                          s.shape_pca.samples, s.shape_pca.components, 100 * s.shape_pca.explained,
+                          a.shape_variance));
+  cli::info(fmt::format("full model:  {} meshes, {} components keep {:.2f}% of the variance (threshold {})",
+                        s.full_pca.samples, s.full_pca.components, 100 * s.full_pca.explained,
+                        a.full_variance));
+  cli::info(fmt::format("labels: {} subject labels, {} joint-angle labels ({} never vary: dropped)",
+                        in.subject_labels.size(), s.pose_labels_kept, s.pose_labels_dropped));
+  attach_rig(a, in, model);
+  namespace fs = std::filesystem;
+  auto absolute = [](const std::string& p) { return fs::absolute(p).lexically_normal().string(); };
+  if (!a.subjects.empty())
+    model.metadata["source"] = {{"registered", absolute(a.reg)},
+                                {"subjects", absolute(a.subjects)},
+                                {"mm_per_unit", a.scale},
+                                {"up_axis", a.up},
+                                {"standard_pose", a.standard_pose},
+                                {"first_mesh_faces", a.first_mesh_faces}};
+  else
+    model.metadata["source"] = {{"registered", a.reg}, {"database", a.db}, {"mm_per_unit", 1.0}};
+  save_model(a.out, model);
+  cli::info("wrote " + a.out);
+}
+
+}  // namespace
+
 BODYMODEL_VERB(add_model_build_verb) {
   auto a = std::make_shared<BuildArgs>();
   auto* cmd = app.add_subcommand(
@@ -53,139 +206,8 @@ BODYMODEL_VERB(add_model_build_verb) {
       "  bodymodel build $BODYMODEL_DATA/faust-registrations --subjects faust.csv --scale 1000 \\\n"
       "      --standard-pose p0 --out faust.npz\n"
       "  bodymodel build DB/truth --db DB/ --out model.npz");
-  cmd->add_option("registered", a->reg, "Folder of registered meshes of one topology")->required();
-  auto* db = cmd->add_option("--db", a->db, "synth-db database folder (scans.csv, subjects.csv, truth/)");
-  auto* subj = cmd->add_option("--subjects", a->subjects, "CSV with columns mesh,subject,pose (+ label columns)");
-  db->excludes(subj);
-  subj->excludes(db);
-  cmd->add_option("--out", a->out, "Output model (.npz)")->required();
-  cmd->add_option("--scale", a->scale, "Millimetres per mesh unit (1000 for metres: FAUST, SCAPE); models are in mm")
-      ->capture_default_str();
-  cmd->add_option("--standard-pose", a->standard_pose,
-                  "Pose name of each subject's standard-pose mesh (--subjects; a subject without one uses its "
-                  "first listed mesh)")
-      ->capture_default_str();
-  cmd->add_option("--up", a->up, "Up axis of the meshes for the measured labels: x, y or z")->capture_default_str();
-  cmd->add_flag("--no-measure", a->no_measure, "Do not measure height, weight and girths on the meshes");
-  cmd->add_flag("--first-mesh-faces", a->first_mesh_faces,
-                "With --subjects: the meshes share their vertices but not their triangles (SCAPE re-triangulates "
-                "each pose): use the first mesh's triangles for all");
-  cmd->add_option("--shape-variance", a->shape_variance,
-                  "Fraction of variance the shape model's components keep")
-      ->capture_default_str();
-  cmd->add_option("--full-variance", a->full_variance,
-                  "Fraction of variance the full model's components keep")
-      ->capture_default_str();
-  cmd->add_option("--components,--max-components", a->max_components,
-                  "Keep at most this many components per model (-1: as many as the variance thresholds keep)")
-      ->capture_default_str();
-  cmd->add_flag("--no-rig", a->no_rig,
-                "Do not attach the MakeHuman skeleton (pose morphing and region masks need it; only "
-                "attached to MakeHuman-topology models)");
-  cmd->callback([a] {
-    if (a->db.empty() && a->subjects.empty())
-      throw InputError("build needs --subjects CSV (mesh,subject,pose) or --db DB/ to say which meshes to use");
-    if (!(a->scale > 0) || !std::isfinite(a->scale))
-      throw InputError(fmt::format("--scale must be a positive number of millimetres per mesh unit, got {}", a->scale));
-    if (a->max_components == 0 || a->max_components < -1)
-      throw InputError(fmt::format("--components must be ≥ 1 or -1, got {}", a->max_components));
-    ModelBuildInput in;
-    cli::ProgressBar read_bar("reading");
-    if (!a->subjects.empty()) {
-      RegisteredFolderOptions ro;
-      ro.mm_per_unit = a->scale;
-      ro.standard_pose = a->standard_pose;
-      ro.up_axis = axis_of(a->up);
-      ro.measure_labels = !a->no_measure;
-      ro.use_first_mesh_faces = a->first_mesh_faces;
-      RegisteredFolderSummary rs;
-      in = read_registered_folder(a->reg, a->subjects, ro, &rs, read_bar.callback());
-      read_bar.finish(fmt::format("{} meshes of {} subjects", rs.meshes, rs.subjects));
-      if (rs.meshes_with_other_faces > 0)
-        cli::info(fmt::format("{} meshes had other triangles than the first: the first mesh's are used for all",
-                              rs.meshes_with_other_faces));
-      if (rs.subjects_without_standard_pose > 0)
-        cli::info(fmt::format("{} of {} subjects have no mesh with pose '{}': their first listed mesh is their "
-                              "standard pose",
-                              rs.subjects_without_standard_pose, rs.subjects, a->standard_pose));
-      if (!rs.measured_labels.empty())
-        cli::info(fmt::format("measured on each subject's standard-pose mesh (up = {}, 1.01 kg/L): {}", a->up,
-                              fmt::join(rs.measured_labels, ", ")));
-      if (rs.measurement_failures > 0)
-        cli::warn(fmt::format("{} subjects could not be measured (labels unknown), first: {}", rs.measurement_failures,
-                              rs.first_measurement_failure));
-      if (!rs.dropped_labels.empty())
-        cli::info(fmt::format("labels dropped (fewer than two subjects with different values): {}",
-                              fmt::join(rs.dropped_labels, ", ")));
-    } else {
-      DatabaseReadSummary rs;
-      in = read_registered_database(a->reg, a->db, &rs, read_bar.callback());
-      read_bar.finish(fmt::format("{} of {} scans ({} with pose labels)", rs.scans_read, rs.scans_listed,
-                                  rs.scans_with_pose_labels));
-      if (!rs.missing.empty())
-        cli::warn(fmt::format("{} scans listed in scans.csv have no mesh in {} (first: {}); built without them",
-                              rs.missing.size(), a->reg, rs.missing[0]));
-    }
-    // A body in metres read as millimetres is 2 mm tall: say so before building nonsense labels.
-    if (!in.meshes.empty()) {
-      const Eigen::MatrixX3d& V = in.meshes[0];
-      const double extent = (V.colwise().maxCoeff() - V.colwise().minCoeff()).maxCoeff();
-      if (extent < 100)
-        cli::warn(fmt::format("the first mesh is {:.3g} mm across after --scale {}: if the files are in metres, "
-                              "use --scale 1000",
-                              extent, a->scale));
-    }
-    ModelBuildOptions o;
-    o.shape_pca.variance_threshold = a->shape_variance;
-    o.full_pca.variance_threshold = a->full_variance;
-    o.shape_pca.max_components = o.full_pca.max_components = a->max_components;
-    o.allow_pose_only = !a->subjects.empty();
-    cli::ProgressBar bar("build");
-    ModelBuildSummary s;
-    BodyModel model = build_body_model(in, o, &s, bar.callback());
-    bar.finish();
-    if (model.metadata.value("shape_model", "") == "full")
-      cli::info("one subject: a pose model (the shape model is the full model)");
-    else
-      cli::info(fmt::format("shape model: {} subjects, {} components keep {:.2f}% of the variance (threshold {})",
-                            s.shape_pca.samples, s.shape_pca.components, 100 * s.shape_pca.explained,
-                            a->shape_variance));
-    cli::info(fmt::format("full model:  {} meshes, {} components keep {:.2f}% of the variance (threshold {})",
-                          s.full_pca.samples, s.full_pca.components, 100 * s.full_pca.explained,
-                          a->full_variance));
-    cli::info(fmt::format("labels: {} subject labels, {} joint-angle labels ({} never vary: dropped)",
-                          in.subject_labels.size(), s.pose_labels_kept, s.pose_labels_dropped));
-    const bool makehuman_topology = in.meshes.empty() || in.meshes[0].rows() == MakeHuman::kBodyVertexCount;
-    if (!a->no_rig && !makehuman_topology) {
-      cli::info(fmt::format("{} vertices, not MakeHuman's {}: no skeleton attached (pose morphing and region "
-                            "masks unavailable; fit, generate and morph work)",
-                            in.meshes[0].rows(), MakeHuman::kBodyVertexCount));
-    } else if (!a->no_rig) {
-      try {
-        cli::info("attaching the MakeHuman skeleton (joint regressor fitted on random bodies)");
-        ModelRigSummary rsum;
-        model.rig = fit_makehuman_rig(MakeHuman::load(), {}, &rsum);
-        model.metadata["rig_joint_error_mm"] = {{"mean", rsum.mean_joint_error_mm}, {"max", rsum.max_joint_error_mm}};
-        cli::info(fmt::format("joint regressor error: mean {:.2f} mm, max {:.2f} mm", rsum.mean_joint_error_mm,
-                              rsum.max_joint_error_mm));
-      } catch (const InputError& e) {
-        cli::warn(std::string("no skeleton attached (pose morphing and masks unavailable): ") + e.what());
-      }
-    }
-    namespace fs = std::filesystem;
-    auto absolute = [](const std::string& p) { return fs::absolute(p).lexically_normal().string(); };
-    if (!a->subjects.empty())
-      model.metadata["source"] = {{"registered", absolute(a->reg)},
-                                  {"subjects", absolute(a->subjects)},
-                                  {"mm_per_unit", a->scale},
-                                  {"up_axis", a->up},
-                                  {"standard_pose", a->standard_pose},
-                                  {"first_mesh_faces", a->first_mesh_faces}};
-    else
-      model.metadata["source"] = {{"registered", a->reg}, {"database", a->db}, {"mm_per_unit", 1.0}};
-    save_model(a->out, model);
-    cli::info("wrote " + a->out);
-  });
+  add_build_options(cmd, *a);
+  cmd->callback([a] { run_build(*a); });
 }
 
 }  // namespace bodymodel
