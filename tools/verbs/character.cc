@@ -153,6 +153,155 @@ void print_judge_table(const std::vector<JudgeRow>& rows, const std::vector<Judg
 
 }  // namespace
 
+namespace {
+
+void add_character_options(CLI::App* cmd, CharacterArgs& a) {
+  cmd->add_option("model", a.model, "Model (.npz from `bodymodel build`, with its skeleton)")->required();
+  cmd->add_option("--where", a.where, "LABEL=VALUE or LABEL=LO..HI for the generated body, repeatable");
+  cmd->add_option("--seed", a.seed, "Random seed of the generated body")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--in", a.in, "Use this body (model topology, standard pose, mm) instead of generating one");
+  cmd->add_option("--out", a.out, "Output folder (must not exist unless --force)")->required();
+  cmd->add_flag("--force", a.force, "Replace an existing output folder");
+  cmd->add_flag("--unpose", a.unpose,
+                "The --in body is posed (e.g. a registration of a real person): unpose it by inverting linear blend "
+                "skinning in a pose fitted to it, pulled towards <in>.pose.csv beside it (register-mesh writes "
+                "one); body.obj is the unposed body");
+  cmd->add_option("--judge-scans", a.judge_scans,
+                  "Folder of the scans the judge poses were registered to (<stem>.off/.ply/.obj, in the unit and "
+                  "axes register-mesh.json beside the registrations records): also the posed rigs' two-sided "
+                  "surface distance to them")
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--judge-poses", a.judge_poses,
+                  "Also judge every rig on these real poses of the body (meshes of the model's topology, mm, +y up, "
+                  "e.g. `register-mesh` outputs; each <stem>.pose.csv beside a mesh starts its pose fit): judge.csv")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--mwe-s", a.mwe_s, "MWE ridge scale s, relative (λ_h = s·d⁴/σ²(c_h), skinning/fit_mwe.h)")
+      ->capture_default_str();
+  cmd->add_option("--mwe-components", a.mwe_components, "MWE principal components kept (0 = all with variance)")
+      ->capture_default_str();
+  cmd->add_flag("--paper-pose-morph", a.paper_pose_morph,
+                "Pose morphs as the paper (limb tips only, decoded volume) instead of the model's defaults "
+                "(torso anchored, volume kept); for comparisons");
+  cmd->add_flag("--no-fold-repair", a.no_fold_repair,
+                "Do not repair folds of the pose morphs before fitting (for comparisons)");
+  cmd->add_option("--mwe-smoothing-steps", a.mwe_smoothing_steps,
+                  "Smoothing steps of MWE's refinement over the SSD (tools/pipeline/character.h)")
+      ->capture_default_str();
+  cmd->add_option("--mwe-mask-steps", a.mwe_mask_steps,
+                  "Smoothing steps of the hands/feet/head mask of MWE's refinement (< 0 = no mask)")
+      ->capture_default_str();
+  cmd->add_option("--mwe-mask-bones", a.mwe_mask_bones,
+                  "Bone name prefixes (with descendants) whose vertices keep the SSD (no MWE refinement)")
+      ->capture_default_str();
+  cmd->add_option("--fold-max-move-mm", a.fold_max_move_mm,
+                  "Fold repair of the pose morphs: refuse region solves moving a vertex farther (mm)")
+      ->capture_default_str();
+  cmd->add_flag("--fold-rest-reference", a.fold_rest_reference,
+                "Fold repair from the rest body's local shape instead of the body skinned into the pose");
+  cmd->add_option("--threads", a.threads, "Threads for the pose morphs (0 = all cores)")->capture_default_str();
+}
+
+void run_character(CharacterArgs& a) {
+  if (!a.in.empty() && !a.where.empty()) throw InputError("character: give --where or --in, not both");
+  CharacterJobOptions o;
+  o.character.threads = a.threads;
+  o.character.mwe.ridge_scale = a.mwe_s;
+  o.character.mwe.components = a.mwe_components;
+  if (a.paper_pose_morph) {
+    o.character.pose_morph.anchor_torso = false;
+    o.character.pose_morph.preserve_volume = false;
+  }
+  o.character.repair_folds = !a.no_fold_repair;
+  o.character.fold_reference_skinned = !a.fold_rest_reference;
+  o.character.fold_repair.max_displacement = a.fold_max_move_mm;
+  o.character.mwe_smoothing_steps = a.mwe_smoothing_steps;
+  o.character.mwe_mask_steps = a.mwe_mask_steps;
+  o.character.mwe_mask_bones = a.mwe_mask_bones;
+  validate_character_options(o.character);  // before any work
+  if (a.unpose && a.in.empty()) throw InputError("character: --unpose needs --in (the posed body)");
+  if (!a.judge_scans.empty() && a.judge_poses.empty())
+    throw InputError("character: --judge-scans needs --judge-poses (the registrations of those scans)");
+  StagedFolder out(a.out, a.force);
+  auto model = std::make_shared<const BodyModel>(load_model(a.model));
+  if (model->rig.empty())
+    throw InputError("'" + a.model + "' has no skeleton: rebuild it without --no-rig (a character needs one)");
+  // Judge poses read and checked before any work.
+  for (auto& f : a.judge_poses) {
+    Mesh m = read_mesh(f);
+    model->check_topology(m.V, m.F, "'" + f + "'");
+    check_body_size(m.V, "--judge-poses '" + f + "'");
+    JudgePose p;
+    p.name = fs::path(f).stem().string();
+    p.target = m.V;
+    p.start = start_pose_for(f, model->rig.bone_names);
+    const auto reg = registration_distances(f);
+    if (auto it = reg.find(p.name); it != reg.end()) p.registration_mm = it->second;
+    if (!a.judge_scans.empty()) p.scan = judge_scan_for(f, a.judge_scans);
+    o.judge_poses.push_back(std::move(p));
+  }
+  Eigen::MatrixX3d V;
+  // The description goes into rig.npz: file names only, not the folders of this machine.
+  nlohmann::json desc = {{"model", path_label(a.model)}};
+  if (!a.in.empty()) {
+    Mesh body = read_mesh(a.in);
+    model->check_topology(body.V, body.F, "'" + a.in + "'");
+    check_body_size(body.V, "'" + a.in + "'");
+    V = body.V;
+    desc["input"] = path_label(a.in);
+    if (a.unpose) {
+      cli::ProgressBar ub("unpose");
+      // The pose is fitted, pulled towards the registration's own pose when register-mesh wrote one.
+      const fs::path pose_file = pose_file_beside(a.in);
+      std::error_code ec;
+      UnposeOptions uo = unpose_with_prior();
+      if (!fs::exists(pose_file, ec)) {
+        uo.fit.prior_mm_per_rad = 0;
+        cli::warn("no " + pose_file.string() + ": the pose is fitted from rest without a prior (see docs/skinning.md)");
+      }
+      const UnposeResult u = unpose_body(*model, V, start_pose_for(a.in, model->rig.bone_names), uo, ub.callback());
+      ub.finish(fmt::format("posed template to the body, RMS per round {:.2f} mm ... {:.2f} mm", u.rms_mm.front(),
+                            u.rms_mm.back()));
+      V = u.rest;
+      desc["unposed"] = true;
+      desc["unpose_rms_mm"] = u.rms_mm.back();
+      desc["unpose_prior_mm_per_rad"] = uo.fit.prior_mm_per_rad;
+    }
+  } else {
+    std::vector<LabelCondition> cond = parse_conditions(model->shape.regression, a.where);
+    ShapeMorpher morpher(model);
+    GenerateOptions go;
+    go.morph.sex = sex_of(cond);
+    GeneratedBody g = generate_body(morpher, cond, a.seed, go);
+    if (!g.satisfied) cli::warn("the generated body does not meet every --where condition:\n" + g.summary.report());
+    V = g.V;
+    desc["seed"] = a.seed;
+    desc["where"] = a.where;
+    cli::info(fmt::format("generated body: {:.1f} cm, {:.1f} kg (measured)", g.measured.height_cm,
+                          g.measured.weight_kg));
+  }
+  cli::ProgressBar bar("character");
+  CharacterJobResult r = write_character(*model, V, out.path(), desc, o, bar.callback());
+  bar.finish(fmt::format("{} training + {} held-out poses; examples {:.0f} s, fits {:.0f} s{}", r.training_poses,
+                         r.held_out_poses, r.examples_seconds, r.fit_seconds,
+                         r.judged.empty() ? "" : fmt::format(", real poses {:.0f} s", r.judge_seconds)));
+  out.commit();
+  print_fit_table(r.errors);
+  const RigErrorRow& lbs = find_row(r.errors, "lbs", "held_out");
+  const RigErrorRow& mwe = find_row(r.errors, "mwe", "held_out");
+  fmt::print("held-out poses: MWE mean {:.2f} / max {:.2f} mm vs SSD {:.2f} / {:.2f} mm ({})\n", mwe.mean_mm,
+             mwe.max_mm, lbs.mean_mm, lbs.max_mm,
+             mwe.mean_mm < lbs.mean_mm && mwe.max_mm < lbs.max_mm ? "MWE better" : "MWE NOT better in both");
+  fmt::print("flipped triangles over the range of motion: {} as morphed, {} after the fold repair\n",
+             r.flipped_before_repair, r.flipped_after_repair);
+  if (!r.judged.empty()) print_judge_table(r.judged, o.judge_poses);
+  if (!r.wrote_glb) cli::warn("no character.glb: " + r.glb_note);
+  cli::info("wrote " + a.out);
+}
+
+}  // namespace
+
 BODYMODEL_VERB(add_character_verb) {
   auto a = std::make_shared<CharacterArgs>();
   auto* cmd = app.add_subcommand(
@@ -164,147 +313,8 @@ BODYMODEL_VERB(add_character_verb) {
       "OUT/poses.csv, OUT/skinning_error.png and OUT/character.glb (SSD rig, glTF 2.0); with\n"
       "--judge-poses also OUT/judge.csv: every rig posed onto real poses of the body by the same\n"
       "pose fit, and its vertex error there (docs/skinning.md, character rigs on real poses).");
-  cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`, with its skeleton)")->required();
-  cmd->add_option("--where", a->where, "LABEL=VALUE or LABEL=LO..HI for the generated body, repeatable");
-  cmd->add_option("--seed", a->seed, "Random seed of the generated body")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
-  cmd->add_option("--in", a->in, "Use this body (model topology, standard pose, mm) instead of generating one");
-  cmd->add_option("--out", a->out, "Output folder (must not exist unless --force)")->required();
-  cmd->add_flag("--force", a->force, "Replace an existing output folder");
-  cmd->add_flag("--unpose", a->unpose,
-                "The --in body is posed (e.g. a registration of a real person): unpose it by inverting linear blend "
-                "skinning in a pose fitted to it, pulled towards <in>.pose.csv beside it (register-mesh writes "
-                "one); body.obj is the unposed body");
-  cmd->add_option("--judge-scans", a->judge_scans,
-                  "Folder of the scans the judge poses were registered to (<stem>.off/.ply/.obj, in the unit and "
-                  "axes register-mesh.json beside the registrations records): also the posed rigs' two-sided "
-                  "surface distance to them")
-      ->check(CLI::ExistingDirectory);
-  cmd->add_option("--judge-poses", a->judge_poses,
-                  "Also judge every rig on these real poses of the body (meshes of the model's topology, mm, +y up, "
-                  "e.g. `register-mesh` outputs; each <stem>.pose.csv beside a mesh starts its pose fit): judge.csv")
-      ->check(CLI::ExistingFile);
-  cmd->add_option("--mwe-s", a->mwe_s, "MWE ridge scale s, relative (λ_h = s·d⁴/σ²(c_h), skinning/fit_mwe.h)")
-      ->capture_default_str();
-  cmd->add_option("--mwe-components", a->mwe_components, "MWE principal components kept (0 = all with variance)")
-      ->capture_default_str();
-  cmd->add_flag("--paper-pose-morph", a->paper_pose_morph,
-                "Pose morphs as the paper (limb tips only, decoded volume) instead of the model's defaults "
-                "(torso anchored, volume kept); for comparisons");
-  cmd->add_flag("--no-fold-repair", a->no_fold_repair,
-                "Do not repair folds of the pose morphs before fitting (for comparisons)");
-  cmd->add_option("--mwe-smoothing-steps", a->mwe_smoothing_steps,
-                  "Smoothing steps of MWE's refinement over the SSD (tools/pipeline/character.h)")
-      ->capture_default_str();
-  cmd->add_option("--mwe-mask-steps", a->mwe_mask_steps,
-                  "Smoothing steps of the hands/feet/head mask of MWE's refinement (< 0 = no mask)")
-      ->capture_default_str();
-  cmd->add_option("--mwe-mask-bones", a->mwe_mask_bones,
-                  "Bone name prefixes (with descendants) whose vertices keep the SSD (no MWE refinement)")
-      ->capture_default_str();
-  cmd->add_option("--fold-max-move-mm", a->fold_max_move_mm,
-                  "Fold repair of the pose morphs: refuse region solves moving a vertex farther (mm)")
-      ->capture_default_str();
-  cmd->add_flag("--fold-rest-reference", a->fold_rest_reference,
-                "Fold repair from the rest body's local shape instead of the body skinned into the pose");
-  cmd->add_option("--threads", a->threads, "Threads for the pose morphs (0 = all cores)")->capture_default_str();
-  cmd->callback([a] {
-    if (!a->in.empty() && !a->where.empty()) throw InputError("character: give --where or --in, not both");
-    CharacterJobOptions o;
-    o.character.threads = a->threads;
-    o.character.mwe.ridge_scale = a->mwe_s;
-    o.character.mwe.components = a->mwe_components;
-    if (a->paper_pose_morph) {
-      o.character.pose_morph.anchor_torso = false;
-      o.character.pose_morph.preserve_volume = false;
-    }
-    o.character.repair_folds = !a->no_fold_repair;
-    o.character.fold_reference_skinned = !a->fold_rest_reference;
-    o.character.fold_repair.max_displacement = a->fold_max_move_mm;
-    o.character.mwe_smoothing_steps = a->mwe_smoothing_steps;
-    o.character.mwe_mask_steps = a->mwe_mask_steps;
-    o.character.mwe_mask_bones = a->mwe_mask_bones;
-    validate_character_options(o.character);  // before any work
-    if (a->unpose && a->in.empty()) throw InputError("character: --unpose needs --in (the posed body)");
-    if (!a->judge_scans.empty() && a->judge_poses.empty())
-      throw InputError("character: --judge-scans needs --judge-poses (the registrations of those scans)");
-    StagedFolder out(a->out, a->force);
-    auto model = std::make_shared<const BodyModel>(load_model(a->model));
-    if (model->rig.empty())
-      throw InputError("'" + a->model + "' has no skeleton: rebuild it without --no-rig (a character needs one)");
-    // Judge poses read and checked before any work.
-    for (auto& f : a->judge_poses) {
-      Mesh m = read_mesh(f);
-      model->check_topology(m.V, m.F, "'" + f + "'");
-      check_body_size(m.V, "--judge-poses '" + f + "'");
-      JudgePose p;
-      p.name = fs::path(f).stem().string();
-      p.target = m.V;
-      p.start = start_pose_for(f, model->rig.bone_names);
-      const auto reg = registration_distances(f);
-      if (auto it = reg.find(p.name); it != reg.end()) p.registration_mm = it->second;
-      if (!a->judge_scans.empty()) p.scan = judge_scan_for(f, a->judge_scans);
-      o.judge_poses.push_back(std::move(p));
-    }
-    Eigen::MatrixX3d V;
-    // The description goes into rig.npz: file names only, not the folders of this machine.
-    nlohmann::json desc = {{"model", path_label(a->model)}};
-    if (!a->in.empty()) {
-      Mesh body = read_mesh(a->in);
-      model->check_topology(body.V, body.F, "'" + a->in + "'");
-      check_body_size(body.V, "'" + a->in + "'");
-      V = body.V;
-      desc["input"] = path_label(a->in);
-      if (a->unpose) {
-        cli::ProgressBar ub("unpose");
-        // The pose is fitted, pulled towards the registration's own pose when register-mesh wrote one.
-        const fs::path pose_file = pose_file_beside(a->in);
-        std::error_code ec;
-        UnposeOptions uo = unpose_with_prior();
-        if (!fs::exists(pose_file, ec)) {
-          uo.fit.prior_mm_per_rad = 0;
-          cli::warn("no " + pose_file.string() + ": the pose is fitted from rest without a prior (see docs/skinning.md)");
-        }
-        const UnposeResult u = unpose_body(*model, V, start_pose_for(a->in, model->rig.bone_names), uo, ub.callback());
-        ub.finish(fmt::format("posed template to the body, RMS per round {:.2f} mm ... {:.2f} mm", u.rms_mm.front(),
-                              u.rms_mm.back()));
-        V = u.rest;
-        desc["unposed"] = true;
-        desc["unpose_rms_mm"] = u.rms_mm.back();
-        desc["unpose_prior_mm_per_rad"] = uo.fit.prior_mm_per_rad;
-      }
-    } else {
-      std::vector<LabelCondition> cond = parse_conditions(model->shape.regression, a->where);
-      ShapeMorpher morpher(model);
-      GenerateOptions go;
-      go.morph.sex = sex_of(cond);
-      GeneratedBody g = generate_body(morpher, cond, a->seed, go);
-      if (!g.satisfied) cli::warn("the generated body does not meet every --where condition:\n" + g.summary.report());
-      V = g.V;
-      desc["seed"] = a->seed;
-      desc["where"] = a->where;
-      cli::info(fmt::format("generated body: {:.1f} cm, {:.1f} kg (measured)", g.measured.height_cm,
-                            g.measured.weight_kg));
-    }
-    cli::ProgressBar bar("character");
-    CharacterJobResult r = write_character(*model, V, out.path(), desc, o, bar.callback());
-    bar.finish(fmt::format("{} training + {} held-out poses; examples {:.0f} s, fits {:.0f} s{}", r.training_poses,
-                           r.held_out_poses, r.examples_seconds, r.fit_seconds,
-                           r.judged.empty() ? "" : fmt::format(", real poses {:.0f} s", r.judge_seconds)));
-    out.commit();
-    print_fit_table(r.errors);
-    const RigErrorRow& lbs = find_row(r.errors, "lbs", "held_out");
-    const RigErrorRow& mwe = find_row(r.errors, "mwe", "held_out");
-    fmt::print("held-out poses: MWE mean {:.2f} / max {:.2f} mm vs SSD {:.2f} / {:.2f} mm ({})\n", mwe.mean_mm,
-               mwe.max_mm, lbs.mean_mm, lbs.max_mm,
-               mwe.mean_mm < lbs.mean_mm && mwe.max_mm < lbs.max_mm ? "MWE better" : "MWE NOT better in both");
-    fmt::print("flipped triangles over the range of motion: {} as morphed, {} after the fold repair\n",
-               r.flipped_before_repair, r.flipped_after_repair);
-    if (!r.judged.empty()) print_judge_table(r.judged, o.judge_poses);
-    if (!r.wrote_glb) cli::warn("no character.glb: " + r.glb_note);
-    cli::info("wrote " + a->out);
-  });
+  add_character_options(cmd, *a);
+  cmd->callback([a] { run_character(*a); });
 }
 
 }  // namespace bodymodel

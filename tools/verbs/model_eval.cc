@@ -146,6 +146,207 @@ void write_reports(const StagedFolder& out, const std::vector<QualityRow>& rows,
 
 }  // namespace
 
+namespace {
+
+void add_eval_model_options(CLI::App* cmd, EvalArgs& a) {
+  cmd->add_option("model", a.model, "Model (.npz from `bodymodel build`)");
+  cmd->add_option("--test", a.test, "Folder of test meshes (the model's topology)");
+  cmd->add_option("--test-subjects", a.test_subjects, "CSV (mesh,subject,pose) selecting the test meshes of --test");
+  cmd->add_option("--train", a.train, "Folder of the model's training meshes (the one `build` read; needed for the specificity and the baseline)");
+  auto* cv = cmd->add_option("--cross-validate", a.cross_validate,
+                             "subject: leave one subject out; pose: leave one pose name out (instead of a model)")
+                 ->check(CLI::IsMember({"subject", "pose"}));
+  cmd->add_option("--registered", a.registered, "With --cross-validate: folder of registered meshes");
+  cmd->add_option("--subjects", a.subjects, "With --cross-validate: CSV mesh,subject,pose");
+  cmd->add_option("--standard-pose", a.standard_pose, "With --cross-validate: standard pose name (as in build)")
+      ->capture_default_str();
+  cmd->add_option("--full-variance", a.full_variance,
+                  "With --cross-validate: variance fraction each fold's model keeps (1: every component)")
+      ->capture_default_str();
+  cmd->add_option("--components", a.components,
+                  "Comma-separated K values (default 1,2,5,10,20,40,80,... and each model's maximum)");
+  cmd->add_option("--samples", a.samples, "Random samples for the specificity (0: skip it)")->capture_default_str();
+  cmd->add_option("--specificity-components", a.specificity_components,
+                  "Comma-separated K values for the specificity (default 5,20 and each model's maximum)");
+  cmd->add_option("--seed", a.seed, "Seed of the specificity samples")->capture_default_str();
+  cmd->add_option("--scale", a.scale, "Millimetres per mesh unit (0: the model's, from build --scale)")
+      ->capture_default_str();
+  cmd->add_flag("--no-baseline", a.no_baseline, "Skip the vertex-PCA baseline");
+  cmd->add_flag("--first-mesh-faces", a.first_mesh_faces,
+                "With --cross-validate: meshes share their vertices, not their triangles (as build --first-mesh-faces)");
+  cmd->add_option("--out", a.out, "Output folder")->required();
+  cmd->add_flag("--force", a.force, "Replace an existing output folder");
+  (void)cv;
+}
+
+// One fold's training input (every mesh but those of `key`) and its test meshes; a subject
+// whose standard pose is left out takes its first listed mesh instead.
+struct FoldData {
+  ModelBuildInput in;
+  std::vector<Eigen::MatrixX3d> test;
+  std::vector<std::string> names;
+};
+
+FoldData fold_data(const EvalArgs& a, const ModelBuildInput& all, const std::vector<MeshTableRow>& table,
+                   const std::string& key) {
+  FoldData d;
+  ModelBuildInput& in = d.in;
+  std::vector<Eigen::MatrixX3d>& test = d.test;
+  std::vector<std::string>& names = d.names;
+  in.F = all.F;
+  std::map<std::string, bool> has_standard;
+  std::vector<int> rows;
+  for (size_t i = 0; i < table.size(); ++i) {
+    const std::string& k = a.cross_validate == "subject" ? table[i].subject : table[i].pose;
+    if (k == key) {
+      test.push_back(all.meshes[i]);
+      names.push_back(table[i].mesh);
+    } else {
+      rows.push_back(static_cast<int>(i));
+    }
+  }
+  for (int i : rows) {
+    in.meshes.push_back(all.meshes[i]);
+    in.scan_ids.push_back(table[i].mesh);
+    in.subject_ids.push_back(table[i].subject);
+    const bool standard = table[i].pose == a.standard_pose && !has_standard[table[i].subject];
+    if (standard) has_standard[table[i].subject] = true;
+    in.is_standard_pose.push_back(standard);
+  }
+  for (size_t r = 0; r < rows.size(); ++r)  // subjects whose standard pose is left out: first listed mesh
+    if (!has_standard[in.subject_ids[r]]) {
+      has_standard[in.subject_ids[r]] = true;
+      in.is_standard_pose[r] = 1;
+    }
+  in.subject_label_values.resize(in.meshes.size(), 0);
+  in.pose_label_values.resize(in.meshes.size(), 0);
+  return d;
+}
+
+// Quality of a model file on --test meshes (and its training meshes for specificity and the
+// vertex-PCA baseline); returns the report's title.
+std::string evaluate_model_file(const EvalArgs& a, const ModelQualityOptions& qo,
+                                std::vector<std::pair<std::string, ModelQuality>>& folds) {
+  if (a.model.empty()) throw InputError("eval-model needs a model (or --cross-validate subject|pose)");
+  if (a.test.empty()) throw InputError("eval-model needs --test DIR with the meshes the model never saw");
+  refuse_existing_output(a.out, a.force);
+  const BodyModel model = model_cli::load_model_for_cli(a.model);
+  // With a model file K is the user's choice for that model: more than it has is an error
+  // (cross-validation folds clamp K to each fold's count instead).
+  for (int K : qo.components)
+    if (K > model.full.component_count())
+      throw InputError(fmt::format("--components {}: the full model of '{}' has {} components", K, a.model,
+                                   model.full.component_count()));
+  double scale = a.scale;
+  const nlohmann::json src = model.metadata.value("source", nlohmann::json::object());
+  if (scale == 0) scale = src.value("mm_per_unit", 1.0);
+  const auto test_list = list_meshes(a.test, a.test_subjects);
+  const auto test = read_checked(model, test_list, scale, a.scale == 0, "test mesh");
+  std::vector<std::string> names;
+  for (const auto& t : test_list) names.push_back(t.first);
+  // Training meshes: from --train or where build read them, named by the full model's samples.
+  std::vector<Eigen::MatrixX3d> train;
+  const std::string train_dir = !a.train.empty() ? a.train : src.value("registered", "");
+  if (!train_dir.empty()) {
+    std::vector<std::pair<std::string, fs::path>> list;
+    std::vector<std::string> missing;
+    for (const auto& id : model.full.sample_ids) {
+      fs::path p = find_registered_mesh(train_dir, id);
+      if (p.empty()) missing.push_back(id);
+      else list.emplace_back(id, p);
+    }
+    if (!missing.empty())
+      throw InputError(fmt::format("the model's training mesh '{}' is not in '{}' ({} missing): give --train DIR, "
+                                   "or --samples 0 --no-baseline to skip what needs them",
+                                   missing[0], train_dir, missing.size()));
+    train = read_checked(model, list, scale, a.scale == 0, "training mesh");
+  } else if (a.samples > 0 || !a.no_baseline) {
+    throw InputError("the model does not say where its training meshes are: give --train DIR (or --samples 0 "
+                     "--no-baseline)");
+  }
+  std::set<std::string> train_ids(model.full.sample_ids.begin(), model.full.sample_ids.end());
+  std::error_code ec;
+  const bool same_folder = !train_dir.empty() && fs::equivalent(train_dir, a.test, ec);
+  for (const auto& n : names)
+    if (same_folder && train_ids.count(n))
+      cli::warn(fmt::format("test mesh '{}' is one of the model's training meshes: that is not generalisation", n));
+  cli::ProgressBar bar("eval-model");
+  folds.emplace_back("all", evaluate_model_quality(model, train, test, names,
+                                                   model.metadata.value("full_total_variance", 0.0), qo,
+                                                   bar.callback()));
+  bar.finish();
+  return fmt::format("Model quality of {} on {} test meshes", a.model, test.size());
+}
+
+// Leave-one-subject-out or leave-one-pose-out: a model built per fold; returns the title.
+std::string cross_validate_models(const EvalArgs& a, const ModelQualityOptions& qo,
+                                  std::vector<std::pair<std::string, ModelQuality>>& folds) {
+  if (!a.model.empty()) throw InputError("--cross-validate builds its own models: do not give a model file");
+  if (a.registered.empty() || a.subjects.empty())
+    throw InputError("--cross-validate needs --registered DIR and --subjects CSV");
+  refuse_existing_output(a.out, a.force);
+  RegisteredFolderOptions ro;
+  ro.mm_per_unit = a.scale > 0 ? a.scale : 1.0;
+  ro.standard_pose = a.standard_pose;
+  ro.measure_labels = false;
+  ro.use_first_mesh_faces = a.first_mesh_faces;
+  cli::ProgressBar read_bar("reading");
+  const ModelBuildInput all = read_registered_folder(a.registered, a.subjects, ro, nullptr, read_bar.callback());
+  read_bar.finish(fmt::format("{} meshes", all.meshes.size()));
+  const auto table = read_mesh_table(a.subjects);
+  std::vector<std::string> keys;
+  for (const auto& r : table) {
+    const std::string& k = a.cross_validate == "subject" ? r.subject : r.pose;
+    if (std::find(keys.begin(), keys.end(), k) == keys.end()) keys.push_back(k);
+  }
+  if (keys.size() < 2)
+    throw InputError(fmt::format("--cross-validate {}: '{}' has only {} distinct {}", a.cross_validate, a.subjects,
+                                 keys.size(), a.cross_validate));
+  for (size_t fi = 0; fi < keys.size(); ++fi) {
+    const std::string& key = keys[fi];
+    FoldData d = fold_data(a, all, table, key);
+    ModelBuildInput& in = d.in;
+    const std::vector<Eigen::MatrixX3d>& test = d.test;
+    const std::vector<std::string>& names = d.names;
+    ModelBuildOptions bo;
+    bo.full_pca.variance_threshold = a.full_variance;
+    bo.shape_pca.variance_threshold = 1.0;
+    bo.allow_pose_only = true;
+    ModelBuildSummary bs;
+    cli::ProgressBar bar(fmt::format("fold {}/{} ({} {})", fi + 1, keys.size(), a.cross_validate, key));
+    const BodyModel model = build_body_model(in, bo, &bs);
+    folds.emplace_back(key, evaluate_model_quality(model, in.meshes, test, names, bs.full_pca.total_variance, qo,
+                                                   bar.callback()));
+    bar.finish(fmt::format("{} training meshes, {} components, {} test meshes", in.meshes.size(),
+                           model.full.component_count(), test.size()));
+  }
+  return fmt::format("Leave-one-{}-out over {} folds ({})", a.cross_validate, keys.size(), a.subjects);
+}
+
+void run_eval_model(EvalArgs& a) {
+  ModelQualityOptions qo;
+  qo.components = parse_components(a.components);
+  qo.specificity_components = parse_components(a.specificity_components);
+  if (a.samples < 0) throw InputError("--samples must be ≥ 0");
+  qo.specificity_samples = a.samples;
+  qo.seed = a.seed;
+  qo.vertex_baseline = !a.no_baseline;
+  if (a.scale < 0 || !std::isfinite(a.scale)) throw InputError("--scale must be positive (or 0)");
+  if (!(a.full_variance > 0 && a.full_variance <= 1)) throw InputError("--full-variance must be in (0, 1]");
+  std::vector<std::pair<std::string, ModelQuality>> folds;
+  const std::string title =
+      a.cross_validate.empty() ? evaluate_model_file(a, qo, folds) : cross_validate_models(a, qo, folds);
+  std::vector<ModelQuality> qs;
+  for (const auto& f : folds) qs.push_back(f.second);
+  const std::vector<QualityRow> rows = pool_model_quality(qs);
+  StagedFolder out(a.out, a.force);
+  write_reports(out, rows, folds, title);
+  out.commit();
+  cli::info(fmt::format("wrote {}/quality.csv, quality.md, generalisation.csv, model_quality.png", a.out));
+}
+
+}  // namespace
+
 BODYMODEL_VERB(add_model_eval_verb) {
   auto a = std::make_shared<EvalArgs>();
   auto* cmd = app.add_subcommand(
@@ -166,172 +367,8 @@ BODYMODEL_VERB(add_model_eval_verb) {
       "      --train $BODYMODEL_DATA/faust-registrations --out q/\n"
       "  bodymodel eval-model --cross-validate subject --registered $BODYMODEL_DATA/faust-registrations \\\n"
       "      --subjects faust.csv --scale 1000 --standard-pose p0 --out loso/");
-  cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`)");
-  cmd->add_option("--test", a->test, "Folder of test meshes (the model's topology)");
-  cmd->add_option("--test-subjects", a->test_subjects, "CSV (mesh,subject,pose) selecting the test meshes of --test");
-  cmd->add_option("--train", a->train, "Folder of the model's training meshes (the one `build` read; needed for the specificity and the baseline)");
-  auto* cv = cmd->add_option("--cross-validate", a->cross_validate,
-                             "subject: leave one subject out; pose: leave one pose name out (instead of a model)")
-                 ->check(CLI::IsMember({"subject", "pose"}));
-  cmd->add_option("--registered", a->registered, "With --cross-validate: folder of registered meshes");
-  cmd->add_option("--subjects", a->subjects, "With --cross-validate: CSV mesh,subject,pose");
-  cmd->add_option("--standard-pose", a->standard_pose, "With --cross-validate: standard pose name (as in build)")
-      ->capture_default_str();
-  cmd->add_option("--full-variance", a->full_variance,
-                  "With --cross-validate: variance fraction each fold's model keeps (1: every component)")
-      ->capture_default_str();
-  cmd->add_option("--components", a->components,
-                  "Comma-separated K values (default 1,2,5,10,20,40,80,... and each model's maximum)");
-  cmd->add_option("--samples", a->samples, "Random samples for the specificity (0: skip it)")->capture_default_str();
-  cmd->add_option("--specificity-components", a->specificity_components,
-                  "Comma-separated K values for the specificity (default 5,20 and each model's maximum)");
-  cmd->add_option("--seed", a->seed, "Seed of the specificity samples")->capture_default_str();
-  cmd->add_option("--scale", a->scale, "Millimetres per mesh unit (0: the model's, from build --scale)")
-      ->capture_default_str();
-  cmd->add_flag("--no-baseline", a->no_baseline, "Skip the vertex-PCA baseline");
-  cmd->add_flag("--first-mesh-faces", a->first_mesh_faces,
-                "With --cross-validate: meshes share their vertices, not their triangles (as build --first-mesh-faces)");
-  cmd->add_option("--out", a->out, "Output folder")->required();
-  cmd->add_flag("--force", a->force, "Replace an existing output folder");
-  (void)cv;
-  cmd->callback([a] {
-    ModelQualityOptions qo;
-    qo.components = parse_components(a->components);
-    qo.specificity_components = parse_components(a->specificity_components);
-    if (a->samples < 0) throw InputError("--samples must be ≥ 0");
-    qo.specificity_samples = a->samples;
-    qo.seed = a->seed;
-    qo.vertex_baseline = !a->no_baseline;
-    if (a->scale < 0 || !std::isfinite(a->scale)) throw InputError("--scale must be positive (or 0)");
-    if (!(a->full_variance > 0 && a->full_variance <= 1)) throw InputError("--full-variance must be in (0, 1]");
-    std::vector<std::pair<std::string, ModelQuality>> folds;
-    std::string title;
-    if (a->cross_validate.empty()) {
-      if (a->model.empty()) throw InputError("eval-model needs a model (or --cross-validate subject|pose)");
-      if (a->test.empty()) throw InputError("eval-model needs --test DIR with the meshes the model never saw");
-      refuse_existing_output(a->out, a->force);
-      const BodyModel model = model_cli::load_model_for_cli(a->model);
-      // With a model file K is the user's choice for that model: more than it has is an error
-      // (cross-validation folds clamp K to each fold's count instead).
-      for (int K : qo.components)
-        if (K > model.full.component_count())
-          throw InputError(fmt::format("--components {}: the full model of '{}' has {} components", K, a->model,
-                                       model.full.component_count()));
-      double scale = a->scale;
-      const nlohmann::json src = model.metadata.value("source", nlohmann::json::object());
-      if (scale == 0) scale = src.value("mm_per_unit", 1.0);
-      const auto test_list = list_meshes(a->test, a->test_subjects);
-      const auto test = read_checked(model, test_list, scale, a->scale == 0, "test mesh");
-      std::vector<std::string> names;
-      for (const auto& t : test_list) names.push_back(t.first);
-      // Training meshes: from --train or where build read them, named by the full model's samples.
-      std::vector<Eigen::MatrixX3d> train;
-      const std::string train_dir = !a->train.empty() ? a->train : src.value("registered", "");
-      if (!train_dir.empty()) {
-        std::vector<std::pair<std::string, fs::path>> list;
-        std::vector<std::string> missing;
-        for (const auto& id : model.full.sample_ids) {
-          fs::path p = find_registered_mesh(train_dir, id);
-          if (p.empty()) missing.push_back(id);
-          else list.emplace_back(id, p);
-        }
-        if (!missing.empty())
-          throw InputError(fmt::format("the model's training mesh '{}' is not in '{}' ({} missing): give --train DIR, "
-                                       "or --samples 0 --no-baseline to skip what needs them",
-                                       missing[0], train_dir, missing.size()));
-        train = read_checked(model, list, scale, a->scale == 0, "training mesh");
-      } else if (a->samples > 0 || !a->no_baseline) {
-        throw InputError("the model does not say where its training meshes are: give --train DIR (or --samples 0 "
-                         "--no-baseline)");
-      }
-      std::set<std::string> train_ids(model.full.sample_ids.begin(), model.full.sample_ids.end());
-      std::error_code ec;
-      const bool same_folder = !train_dir.empty() && fs::equivalent(train_dir, a->test, ec);
-      for (const auto& n : names)
-        if (same_folder && train_ids.count(n))
-          cli::warn(fmt::format("test mesh '{}' is one of the model's training meshes: that is not generalisation", n));
-      cli::ProgressBar bar("eval-model");
-      folds.emplace_back("all", evaluate_model_quality(model, train, test, names,
-                                                       model.metadata.value("full_total_variance", 0.0), qo,
-                                                       bar.callback()));
-      bar.finish();
-      title = fmt::format("Model quality of {} on {} test meshes", a->model, test.size());
-    } else {
-      if (!a->model.empty()) throw InputError("--cross-validate builds its own models: do not give a model file");
-      if (a->registered.empty() || a->subjects.empty())
-        throw InputError("--cross-validate needs --registered DIR and --subjects CSV");
-      refuse_existing_output(a->out, a->force);
-      RegisteredFolderOptions ro;
-      ro.mm_per_unit = a->scale > 0 ? a->scale : 1.0;
-      ro.standard_pose = a->standard_pose;
-      ro.measure_labels = false;
-      ro.use_first_mesh_faces = a->first_mesh_faces;
-      cli::ProgressBar read_bar("reading");
-      const ModelBuildInput all = read_registered_folder(a->registered, a->subjects, ro, nullptr, read_bar.callback());
-      read_bar.finish(fmt::format("{} meshes", all.meshes.size()));
-      const auto table = read_mesh_table(a->subjects);
-      std::vector<std::string> keys;
-      for (const auto& r : table) {
-        const std::string& k = a->cross_validate == "subject" ? r.subject : r.pose;
-        if (std::find(keys.begin(), keys.end(), k) == keys.end()) keys.push_back(k);
-      }
-      if (keys.size() < 2)
-        throw InputError(fmt::format("--cross-validate {}: '{}' has only {} distinct {}", a->cross_validate, a->subjects,
-                                     keys.size(), a->cross_validate));
-      for (size_t fi = 0; fi < keys.size(); ++fi) {
-        const std::string& key = keys[fi];
-        ModelBuildInput in;
-        in.F = all.F;
-        std::vector<Eigen::MatrixX3d> test;
-        std::vector<std::string> names;
-        std::map<std::string, bool> has_standard;
-        std::vector<int> rows;
-        for (size_t i = 0; i < table.size(); ++i) {
-          const std::string& k = a->cross_validate == "subject" ? table[i].subject : table[i].pose;
-          if (k == key) {
-            test.push_back(all.meshes[i]);
-            names.push_back(table[i].mesh);
-          } else {
-            rows.push_back(static_cast<int>(i));
-          }
-        }
-        for (int i : rows) {
-          in.meshes.push_back(all.meshes[i]);
-          in.scan_ids.push_back(table[i].mesh);
-          in.subject_ids.push_back(table[i].subject);
-          const bool standard = table[i].pose == a->standard_pose && !has_standard[table[i].subject];
-          if (standard) has_standard[table[i].subject] = true;
-          in.is_standard_pose.push_back(standard);
-        }
-        for (size_t r = 0; r < rows.size(); ++r)  // subjects whose standard pose is left out: first listed mesh
-          if (!has_standard[in.subject_ids[r]]) {
-            has_standard[in.subject_ids[r]] = true;
-            in.is_standard_pose[r] = 1;
-          }
-        in.subject_label_values.resize(in.meshes.size(), 0);
-        in.pose_label_values.resize(in.meshes.size(), 0);
-        ModelBuildOptions bo;
-        bo.full_pca.variance_threshold = a->full_variance;
-        bo.shape_pca.variance_threshold = 1.0;
-        bo.allow_pose_only = true;
-        ModelBuildSummary bs;
-        cli::ProgressBar bar(fmt::format("fold {}/{} ({} {})", fi + 1, keys.size(), a->cross_validate, key));
-        const BodyModel model = build_body_model(in, bo, &bs);
-        folds.emplace_back(key, evaluate_model_quality(model, in.meshes, test, names, bs.full_pca.total_variance, qo,
-                                                       bar.callback()));
-        bar.finish(fmt::format("{} training meshes, {} components, {} test meshes", in.meshes.size(),
-                               model.full.component_count(), test.size()));
-      }
-      title = fmt::format("Leave-one-{}-out over {} folds ({})", a->cross_validate, keys.size(), a->subjects);
-    }
-    std::vector<ModelQuality> qs;
-    for (const auto& f : folds) qs.push_back(f.second);
-    const std::vector<QualityRow> rows = pool_model_quality(qs);
-    StagedFolder out(a->out, a->force);
-    write_reports(out, rows, folds, title);
-    out.commit();
-    cli::info(fmt::format("wrote {}/quality.csv, quality.md, generalisation.csv, model_quality.png", a->out));
-  });
+  add_eval_model_options(cmd, *a);
+  cmd->callback([a] { run_eval_model(*a); });
 }
 
 }  // namespace bodymodel

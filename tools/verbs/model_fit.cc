@@ -30,6 +30,112 @@ struct FitArgs {
 
 }  // namespace
 
+namespace {
+
+void add_fit_options(CLI::App* cmd, FitArgs& a) {
+  cmd->add_option("model", a.model, "Model (.npz from `bodymodel build`)")->required();
+  cmd->add_option("--in", a.in, "Mesh with the model's topology (OBJ, PLY or OFF)")->required();
+  cmd->add_option("--out", a.out, "Fitted body (OBJ or PLY, mm)")->required();
+  cmd->add_option("--json", a.json, "Coefficients and labels (default: --out with .json)");
+  cmd->add_option("--components", a.components, "Leading components to fit (-1: all)")->capture_default_str();
+  cmd->add_flag("--pose", a.pose,
+                "Fit the full model (pose and shape) instead of the shape-only model (standard-pose bodies)");
+  cmd->add_option("--scale", a.scale,
+                  "Millimetres per unit of --in (0: the unit the model was built from, e.g. 1000 for FAUST)")
+      ->capture_default_str();
+  cmd->add_option("--iterations", a.iterations, "Maximum Levenberg-Marquardt iterations")->capture_default_str();
+  cmd->add_option("--coarse-iterations", a.coarse_iterations,
+                  "At most this many of --iterations fit only the leading 16 components first (0: none)")
+      ->capture_default_str();
+  cmd->add_option("--prior", a.prior,
+                  "Weight (mm²) of a Gaussian prior on the coefficients (0: the plain best fit)")
+      ->capture_default_str();
+  cmd->add_option("--sex", a.sex, "female|male: for the body-fat measurement")
+      ->check(CLI::IsMember({"unknown", "female", "male"}));
+}
+
+void run_fit(FitArgs& a) {
+  namespace fs = std::filesystem;
+  if (a.components == 0 || a.components < -1)
+    throw InputError(fmt::format("--components must be ≥ 1 or -1, got {}", a.components));
+  if (a.scale < 0 || !std::isfinite(a.scale)) throw InputError("--scale must be positive (or 0: the model's)");
+  if (a.iterations < 0) throw InputError("--iterations must be ≥ 0");
+  if (a.coarse_iterations < 0) throw InputError("--coarse-iterations must be ≥ 0");
+  auto model = std::make_shared<const BodyModel>(model_cli::load_model_for_cli(a.model));
+  const bool full = a.pose || model->metadata.value("shape_model", "") == "full";
+  const SubModel& sub = full ? model->full : model->shape;
+  if (a.components > sub.component_count())
+    throw InputError(fmt::format("--components {}: the {} model of '{}' has {} components", a.components,
+                                 full ? "full" : "shape", a.model, sub.component_count()));
+  double scale = a.scale;
+  if (scale == 0) {
+    scale = 1;
+    if (model->metadata.contains("source") && model->metadata["source"].contains("mm_per_unit"))
+      scale = model->metadata["source"]["mm_per_unit"].get<double>();
+  }
+  Mesh mesh = read_mesh(a.in);
+  // A model built with --first-mesh-faces takes meshes with its vertices and any triangles.
+  if (model->metadata.contains("source") && model->metadata["source"].value("first_mesh_faces", false) &&
+      mesh.V.rows() == model->tmpl->vertex_count())
+    mesh.F = model->tmpl->faces();
+  model->check_topology(mesh.V * scale, mesh.F, "'" + a.in + "'");
+  const Eigen::MatrixX3d Y = mesh.V * scale;
+  check_body_size(Y, "'" + a.in + "'", "--scale", scale, a.scale == 0);
+  ModelFitter fitter(model->tmpl, model->mean, sub.pca);
+  ModelFitOptions o;
+  o.components = a.components;
+  o.max_iterations = a.iterations;
+  o.continuation_iterations = a.coarse_iterations;
+  o.prior_weight = a.prior;
+  cli::ProgressBar bar("fit");
+  ModelFit fit = fitter.fit(Y, o, bar.callback());
+  bar.finish(fit.summary.report());
+  write_mesh(a.out, fit.V, mesh.F);
+
+  // Labels: predicted (regression on all components, the unfitted ones 0) and measured.
+  const Sex sex = a.sex == "female" ? Sex::female : a.sex == "male" ? Sex::male : Sex::unknown;
+  nlohmann::json labels = nlohmann::json::object();
+  for (const FitLabel& l : fit_labels(*model, sub, fit.coefficients, Y, fit.V, mesh.F, sex)) {
+    nlohmann::json j = {{"unit", l.unit}};
+    if (l.predicted) j["predicted"] = *l.predicted;
+    if (l.measured_input) j["measured_input"] = *l.measured_input;
+    if (l.measured_fitted) j["measured_fitted"] = *l.measured_fitted;
+    labels[l.name] = j;
+  }
+  nlohmann::json out = {
+      {"model", a.model},
+      {"input", a.in},
+      {"sub_model", full ? "full" : "shape"},
+      {"components", fit.summary.components},
+      {"coefficients", std::vector<double>(fit.coefficients.data(), fit.coefficients.data() + fit.coefficients.size())},
+      {"input_mm_per_unit", scale},
+      {"vertex_error_mm",
+       {{"mean", fit.summary.mean_mm}, {"rms", fit.summary.rms_mm}, {"p95", fit.summary.p95_mm}, {"max", fit.summary.max_mm}}},
+      {"start_mean_vertex_error_mm", fit.summary.start_mean_mm},
+      {"iterations", fit.summary.iterations},
+      {"jacobians", fit.summary.jacobians},
+      {"decodes", fit.summary.evaluations},
+      {"converged", fit.summary.converged},
+      {"history_mean_vertex_error_mm", fit.summary.history_mean_mm},
+      {"seconds", fit.summary.seconds},
+      {"labels", labels},
+      {"note", "measured_* values assume a closed mesh in a standing pose (core/measure.h); predicted values "
+               "come from the model's regression (docs/method.md §4.2)"}};
+  fs::path json_path = a.json.empty() ? fs::path(a.out).replace_extension(".json") : fs::path(a.json);
+  write_text_file(json_path, json_text(out, 2) + "\n");
+  fmt::print("{}\n", fit.summary.report());
+  for (auto& [name, j] : labels.items()) {
+    std::string line = fmt::format("  {:<14}", name);
+    if (j.contains("predicted")) line += fmt::format(" predicted {:>9.3f}", j["predicted"].get<double>());
+    if (j.contains("measured_input")) line += fmt::format("  measured input {:>9.3f}", j["measured_input"].get<double>());
+    if (j.contains("measured_fitted")) line += fmt::format("  fitted {:>9.3f}", j["measured_fitted"].get<double>());
+    fmt::print("{} {}\n", line, j["unit"].get<std::string>());
+  }
+  cli::info(fmt::format("wrote {} and {}", a.out, json_path.string()));
+}
+
+}  // namespace
+
 BODYMODEL_VERB(add_model_fit_verb) {
   auto a = std::make_shared<FitArgs>();
   auto* cmd = app.add_subcommand(
@@ -43,104 +149,8 @@ BODYMODEL_VERB(add_model_fit_verb) {
       "and on the fitted body (measurements assume a standing pose). To morph your own scan: fit,\n"
       "then `bodymodel morph model.npz --in fitted.ply ...`.\n"
       "Example: bodymodel fit faust.npz --in tr_reg_000.off --out fitted.ply --pose");
-  cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`)")->required();
-  cmd->add_option("--in", a->in, "Mesh with the model's topology (OBJ, PLY or OFF)")->required();
-  cmd->add_option("--out", a->out, "Fitted body (OBJ or PLY, mm)")->required();
-  cmd->add_option("--json", a->json, "Coefficients and labels (default: --out with .json)");
-  cmd->add_option("--components", a->components, "Leading components to fit (-1: all)")->capture_default_str();
-  cmd->add_flag("--pose", a->pose,
-                "Fit the full model (pose and shape) instead of the shape-only model (standard-pose bodies)");
-  cmd->add_option("--scale", a->scale,
-                  "Millimetres per unit of --in (0: the unit the model was built from, e.g. 1000 for FAUST)")
-      ->capture_default_str();
-  cmd->add_option("--iterations", a->iterations, "Maximum Levenberg-Marquardt iterations")->capture_default_str();
-  cmd->add_option("--coarse-iterations", a->coarse_iterations,
-                  "At most this many of --iterations fit only the leading 16 components first (0: none)")
-      ->capture_default_str();
-  cmd->add_option("--prior", a->prior,
-                  "Weight (mm²) of a Gaussian prior on the coefficients (0: the plain best fit)")
-      ->capture_default_str();
-  cmd->add_option("--sex", a->sex, "female|male: for the body-fat measurement")
-      ->check(CLI::IsMember({"unknown", "female", "male"}));
-  cmd->callback([a] {
-    namespace fs = std::filesystem;
-    if (a->components == 0 || a->components < -1)
-      throw InputError(fmt::format("--components must be ≥ 1 or -1, got {}", a->components));
-    if (a->scale < 0 || !std::isfinite(a->scale)) throw InputError("--scale must be positive (or 0: the model's)");
-    if (a->iterations < 0) throw InputError("--iterations must be ≥ 0");
-    if (a->coarse_iterations < 0) throw InputError("--coarse-iterations must be ≥ 0");
-    auto model = std::make_shared<const BodyModel>(model_cli::load_model_for_cli(a->model));
-    const bool full = a->pose || model->metadata.value("shape_model", "") == "full";
-    const SubModel& sub = full ? model->full : model->shape;
-    if (a->components > sub.component_count())
-      throw InputError(fmt::format("--components {}: the {} model of '{}' has {} components", a->components,
-                                   full ? "full" : "shape", a->model, sub.component_count()));
-    double scale = a->scale;
-    if (scale == 0) {
-      scale = 1;
-      if (model->metadata.contains("source") && model->metadata["source"].contains("mm_per_unit"))
-        scale = model->metadata["source"]["mm_per_unit"].get<double>();
-    }
-    Mesh mesh = read_mesh(a->in);
-    // A model built with --first-mesh-faces takes meshes with its vertices and any triangles.
-    if (model->metadata.contains("source") && model->metadata["source"].value("first_mesh_faces", false) &&
-        mesh.V.rows() == model->tmpl->vertex_count())
-      mesh.F = model->tmpl->faces();
-    model->check_topology(mesh.V * scale, mesh.F, "'" + a->in + "'");
-    const Eigen::MatrixX3d Y = mesh.V * scale;
-    check_body_size(Y, "'" + a->in + "'", "--scale", scale, a->scale == 0);
-    ModelFitter fitter(model->tmpl, model->mean, sub.pca);
-    ModelFitOptions o;
-    o.components = a->components;
-    o.max_iterations = a->iterations;
-    o.continuation_iterations = a->coarse_iterations;
-    o.prior_weight = a->prior;
-    cli::ProgressBar bar("fit");
-    ModelFit fit = fitter.fit(Y, o, bar.callback());
-    bar.finish(fit.summary.report());
-    write_mesh(a->out, fit.V, mesh.F);
-
-    // Labels: predicted (regression on all components, the unfitted ones 0) and measured.
-    const Sex sex = a->sex == "female" ? Sex::female : a->sex == "male" ? Sex::male : Sex::unknown;
-    nlohmann::json labels = nlohmann::json::object();
-    for (const FitLabel& l : fit_labels(*model, sub, fit.coefficients, Y, fit.V, mesh.F, sex)) {
-      nlohmann::json j = {{"unit", l.unit}};
-      if (l.predicted) j["predicted"] = *l.predicted;
-      if (l.measured_input) j["measured_input"] = *l.measured_input;
-      if (l.measured_fitted) j["measured_fitted"] = *l.measured_fitted;
-      labels[l.name] = j;
-    }
-    nlohmann::json out = {
-        {"model", a->model},
-        {"input", a->in},
-        {"sub_model", full ? "full" : "shape"},
-        {"components", fit.summary.components},
-        {"coefficients", std::vector<double>(fit.coefficients.data(), fit.coefficients.data() + fit.coefficients.size())},
-        {"input_mm_per_unit", scale},
-        {"vertex_error_mm",
-         {{"mean", fit.summary.mean_mm}, {"rms", fit.summary.rms_mm}, {"p95", fit.summary.p95_mm}, {"max", fit.summary.max_mm}}},
-        {"start_mean_vertex_error_mm", fit.summary.start_mean_mm},
-        {"iterations", fit.summary.iterations},
-        {"jacobians", fit.summary.jacobians},
-        {"decodes", fit.summary.evaluations},
-        {"converged", fit.summary.converged},
-        {"history_mean_vertex_error_mm", fit.summary.history_mean_mm},
-        {"seconds", fit.summary.seconds},
-        {"labels", labels},
-        {"note", "measured_* values assume a closed mesh in a standing pose (core/measure.h); predicted values "
-                 "come from the model's regression (docs/method.md §4.2)"}};
-    fs::path json_path = a->json.empty() ? fs::path(a->out).replace_extension(".json") : fs::path(a->json);
-    write_text_file(json_path, json_text(out, 2) + "\n");
-    fmt::print("{}\n", fit.summary.report());
-    for (auto& [name, j] : labels.items()) {
-      std::string line = fmt::format("  {:<14}", name);
-      if (j.contains("predicted")) line += fmt::format(" predicted {:>9.3f}", j["predicted"].get<double>());
-      if (j.contains("measured_input")) line += fmt::format("  measured input {:>9.3f}", j["measured_input"].get<double>());
-      if (j.contains("measured_fitted")) line += fmt::format("  fitted {:>9.3f}", j["measured_fitted"].get<double>());
-      fmt::print("{} {}\n", line, j["unit"].get<std::string>());
-    }
-    cli::info(fmt::format("wrote {} and {}", a->out, json_path.string()));
-  });
+  add_fit_options(cmd, *a);
+  cmd->callback([a] { run_fit(*a); });
 }
 
 }  // namespace bodymodel

@@ -124,6 +124,224 @@ void print_population_match(const PeopleTable& table, const std::vector<int>& el
 
 }  // namespace
 
+namespace {
+
+void add_generate_options(CLI::App* cmd, GenerateArgs& a) {
+  cmd->add_option("model", a.model, "Model (.npz from `bodymodel build`)")->required();
+  cmd->add_option("--count", a.count, "Number of bodies")->capture_default_str()->check(CLI::Range(1, 100000));
+  cmd->add_option("--where", a.where,
+                  "LABEL=VALUE or LABEL=LO..HI, repeatable (sex=female|male); with --population a filter on\n"
+                  "the people's recorded values (sex, age_years, height_cm, weight_kg, ...)");
+  cmd->add_option("--population", a.population,
+                  "A people file (NHANES or own columns, see fit-measurements): each body is a person drawn by\n"
+                  "survey weight (WTMECPRP, seeded) and morphed to that person's --match labels; labels.csv\n"
+                  "adds the person's seqn and recorded values (nhanes_*) beside the measured ones");
+  cmd->add_option("--match", a.match,
+                  "With --population: the person's labels each body is morphed to (comma-separated; add\n"
+                  "waist_iliac_cm,hips_cm for the girths)")
+      ->capture_default_str();
+  // NonNegativeNumber: CLI11 would read -1 into the unsigned seed as 18446744073709551615.
+  cmd->add_option("--seed", a.seed, "Random seed (the crowd is a function of it)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--spread", a.spread,
+                                 "Scale of the random coefficients (1 = the data's spread; with --population the\n"
+                                 "default is 0: each body is its person's typical body, the people give the variety)")
+                     ->capture_default_str();
+  cmd->add_option("--format", a.format, "obj or ply")->check(CLI::IsMember({"obj", "ply"}))->capture_default_str();
+  cmd->add_flag("--no-girths", a.no_girths,
+                "labels.csv without the girths and body fat (height, volume, weight only): faster, the "
+                "girths' sections being a large share of a body's time");
+  cmd->add_flag("--clamp", a.clamp, "Clamp values far outside the data to the data's range");
+  cmd->add_option("--jobs", a.jobs, "Bodies generated in parallel (0 = all cores); the crowd does not depend on it")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 256));
+  cmd->add_flag("--force", a.force,
+                "Replace a crowd generated in OUT with other settings (without it such a folder is refused; "
+                "a rerun with the same settings skips the bodies already written)");
+  cmd->add_option("--out", a.out, "Output folder")->required();
+}
+
+// The people a population crowd is made of: read, filtered by --where, drawn by survey weight.
+struct DrawnPopulation {
+  PeopleTable table;
+  std::vector<int> eligible, drawn;
+  std::vector<std::string> match;
+};
+
+DrawnPopulation draw_population(const GenerateArgs& a) {
+  DrawnPopulation d;
+  PeopleTable& table = d.table;
+  std::vector<int>& eligible = d.eligible;
+  std::vector<int>& drawn = d.drawn;
+  std::vector<std::string>& match = d.match;
+  table = read_people(a.population);
+  match = cli::split_commas(a.match);
+  std::vector<std::string> needed = {"sex", "age_years", "height_cm", "weight_kg"};
+  for (const auto& m : match)
+    if (m != "sex" && m != "age_years" && std::find(needed.begin(), needed.end(), m) == needed.end()) needed.push_back(m);
+  require_columns(table, needed);
+  PopulationFilter filter;
+  filter.required = {"height_cm", "weight_kg"};
+  for (const auto& m : match)
+    if (m != "sex" && m != "age_years" && m != "height_cm" && m != "weight_kg") filter.required.push_back(m);
+  const EligibleSummary e = eligible_people(table, filter);
+  const auto keep = person_filter(a.where);
+  for (int i : e.eligible)
+    if (keep(table.people[i])) eligible.push_back(i);
+  if (eligible.empty())
+    throw InputError(fmt::format("'{}': no adult with a survey weight and {} passes the --where filters "
+                                 "({} incomplete, {} under 18)",
+                                 a.population, fmt::join(filter.required, ", "), e.incomplete, e.children));
+  drawn = sample_population(table, eligible, a.count, a.seed);
+  cli::info(fmt::format("population {}: {} eligible adults; {} drawn by survey weight", a.population,
+                        eligible.size(), drawn.size()));
+  return d;
+}
+
+// The crowd's figures: constraints, folds, diversity against the training subjects, plausibility.
+void print_generate_summary(const GenerateArgs& a, const std::shared_ptr<const BodyModel>& model, Sex sex, int n,
+                            const fs::path& out, const GenerateCrowdSummary& s, const CrowdOutputOptions& co) {
+  const SemanticRegression& reg = model->shape.regression;
+  // Diversity: mean pairwise RMS vertex distance (after rigid fit) of a sample of the crowd
+  // (read back: skipped bodies are only on disk), against that of the model's training
+  // subjects (decoded from their coefficients, in parallel on one thread-safe morpher).
+  const int k = std::min(n, a.diversity_sample);
+  std::vector<Eigen::MatrixX3d> crowd(k);
+  for (int i = 0; i < k; ++i) crowd[i] = read_mesh(out / s.files[i]).V;
+  const auto& C = model->shape.pca.coefficients;
+  std::vector<int> same_sex;
+  int sex_label = reg.find("sex");
+  for (int i = 0; i < C.rows(); ++i)
+    if (static_cast<int>(same_sex.size()) < a.diversity_sample &&
+        (sex == Sex::unknown || sex_label < 0 ||
+         std::abs(model->shape.labels(i, sex_label) - (sex == Sex::male ? 1.0 : 0.0)) < 0.5))
+      same_sex.push_back(i);
+  const ShapeMorpher dm(model);
+  std::vector<Eigen::MatrixX3d> subj(same_sex.size());
+  auto decode_subjects = [&] {
+    tbb::parallel_for(0, static_cast<int>(same_sex.size()), [&](int t) {
+      subj[t] = dm.decode(model->shape.pca.reconstruct(C.row(same_sex[t]).transpose()));
+    });
+  };
+  if (a.jobs > 0) {
+    tbb::task_arena arena(a.jobs);
+    arena.execute(decode_subjects);
+  } else {
+    decode_subjects();
+  }
+  auto mean_pairwise = [](const std::vector<Eigen::MatrixX3d>& b) {
+    double sum = 0;
+    int pairs = 0;
+    for (size_t i = 0; i < b.size(); ++i)
+      for (size_t j = i + 1; j < b.size(); ++j, ++pairs) sum += rms_vertex_distance(b[i], b[j]);
+    return pairs ? sum / pairs : 0.0;
+  };
+  fmt::print("bodies                 {} ({} generated, {} skipped as already written)\n", n, s.generated, s.skipped);
+  fmt::print("constraints met        {} of {} (as measured on each output)\n", s.constraints_met, n);
+  fmt::print("flipped triangles      {} in total, at most {} in a body ({:.4f}% of all triangles), against the "
+             "template after a rigid fit\n",
+             s.flipped_triangles, s.max_flipped_triangles,
+             100.0 * s.flipped_triangles / (double(n) * model->tmpl->triangle_count()));
+  {
+    std::vector<int> b = s.flipped_before_repair;
+    std::sort(b.begin(), b.end());
+    const int total = std::accumulate(b.begin(), b.end(), 0);
+    if (!b.empty())
+      fmt::print("fold repair            {} flipped triangles repaired after decoding: median {}, at most {} in a body\n",
+                 total, 0.5 * (b[(b.size() - 1) / 2] + b[b.size() / 2]), b.back());
+  }
+  fmt::print("diversity              mean pairwise RMS vertex distance {:.1f} mm (first {} bodies)\n",
+             mean_pairwise(crowd), k);
+  fmt::print("                       vs {:.1f} mm between the model's {} training subjects{}\n",
+             mean_pairwise(subj), subj.size(), sex == Sex::unknown ? "" : " of that sex");
+  {
+    std::vector<int> si = s.self_intersections;
+    std::vector<double> rp = s.roughness_p95;
+    std::sort(si.begin(), si.end());
+    std::sort(rp.begin(), rp.end());
+    if (!si.empty())
+      fmt::print("self-intersections     median {} triangle pairs, at most {}; {} of {} bodies have none\n",
+                 0.5 * (si[(si.size() - 1) / 2] + si[si.size() / 2]), si.back(),
+                 std::count(si.begin(), si.end(), 0), si.size());
+    if (!rp.empty())
+      fmt::print("roughness p95          median {:.1f} deg, at most {:.1f} deg ({})\n", rp[rp.size() / 2], rp.back(),
+                 co.roughness_region.empty() ? "every vertex: the model has no rig" : "trunk and limbs");
+  }
+}
+
+void run_generate(GenerateArgs& a, CLI::App* cmd) {
+  // A population is read and drawn before the model is loaded: bad input fails fast.
+  DrawnPopulation d;
+  if (!a.population.empty()) d = draw_population(a);
+  const PeopleTable& table = d.table;
+  const std::vector<int>& eligible = d.eligible;
+  const std::vector<int>& drawn = d.drawn;
+  const std::vector<std::string>& match = d.match;
+  auto model = std::make_shared<const BodyModel>(model_cli::load_model_for_cli(a.model));
+  const SemanticRegression& reg = model->shape.regression;
+  std::vector<LabelCondition> cond;
+  CrowdOutputOptions co;
+  if (a.population.empty()) {
+    for (auto& w : a.where) cond.push_back(parse_where(reg, w, a.clamp));
+  } else {
+    for (const auto& m : match) reg.index(m);  // every matched label must be the model's
+    co.population_source = a.population;
+    co.recorded_names = recorded_measurement_names();
+    for (int i : drawn) {
+      const Person& p = table.people[i];
+      CrowdPerson c;
+      c.id = p.id;
+      c.sex = p.sex == Sex::male ? "male" : "female";
+      c.recorded = p.measurements;
+      for (const auto& m : match) {
+        const int l = reg.index(m);
+        double v = m == "sex" ? (p.sex == Sex::male ? 1.0 : 0.0) : m == "age_years" ? p.age_years : p.measurement(m);
+        // Values outside the model's data are clamped to it (silently: a person is not a typo).
+        if (m != "sex") v = std::clamp(v, reg.labels[l].min, reg.labels[l].max);
+        c.conditions.push_back(LabelCondition::exact(m, v));
+      }
+      co.people.push_back(std::move(c));
+    }
+  }
+  if (!model->rig.empty())
+    co.roughness_region = trunk_and_limbs_region(model->rig.bone_names, model->rig.parents, model->rig.weights);
+  // A population crowd's variety comes from its people; random coefficients on top roughen the
+  // bodies (200 bodies of a 200-person model: self-intersection median 16 at spread 1, 0 at 0).
+  co.crowd.generate.spread = !a.population.empty() && cmd->get_option("--spread")->count() == 0 ? 0.0 : a.spread;
+  co.crowd.generate.measure_girths = !a.no_girths;
+  co.crowd.seed = a.seed;
+  co.crowd.threads = a.jobs;
+  co.format = a.format;
+  co.force = a.force;
+  Sex sex = Sex::unknown;
+  for (auto& c : cond)
+    if (c.label == "sex") sex = c.lo < 0.5 ? Sex::female : Sex::male;
+  const int n = a.population.empty() ? a.count : static_cast<int>(drawn.size());
+  const fs::path out(a.out);
+  GenerateCrowdSummary s;
+  {
+    cli::ProgressBar bar("generate");
+    s = write_crowd(model, cond, n, out, co, bar.callback());
+    bar.finish(fmt::format("{} bodies in {:.1f} s ({:.1f}/s)", s.generated, s.seconds,
+                           s.generated / std::max(s.seconds, 1e-9)));
+  }
+  if (s.skipped > 0) cli::info(fmt::format("skipped {} existing (complete bodies of an earlier run with the same settings)", s.skipped));
+  print_generate_summary(a, model, sex, n, out, s, co);
+  if (!a.population.empty()) print_population_match(table, eligible, out / "labels.csv");
+  if (s.generated > 0)
+    fmt::print("speed                  {:.1f} bodies/s including writing meshes\n", s.generated / std::max(s.seconds, 1e-9));
+  cli::info("wrote " + (out / "labels.csv").string());
+  // A body that misses a condition is a failed item of the batch: everything stays written
+  // (and is skipped on a rerun), but the exit code says the crowd is not what was asked for.
+  if (s.constraints_met < n)
+    throw InputError(fmt::format("{} of {} bodies did not meet every condition as measured (constraints_met "
+                                 "is 0 in their rows of '{}'); the bodies were written",
+                                 n - s.constraints_met, n, (out / "labels.csv").string()));
+}
+
+}  // namespace
+
 BODYMODEL_VERB(add_model_generate_verb) {
   auto a = std::make_shared<GenerateArgs>();
   auto* cmd = app.add_subcommand(
@@ -133,192 +351,8 @@ BODYMODEL_VERB(add_model_generate_verb) {
       "each output (model/morph.h). Writes OUT/body_NNN.obj, OUT/labels.csv with the measured\n"
       "labels of every body and OUT/generate.json with the settings. Body k depends only on the\n"
       "seed and k. A rerun with the same settings skips the bodies already written (tools/pipeline/crowd_output.h).");
-  cmd->add_option("model", a->model, "Model (.npz from `bodymodel build`)")->required();
-  cmd->add_option("--count", a->count, "Number of bodies")->capture_default_str()->check(CLI::Range(1, 100000));
-  cmd->add_option("--where", a->where,
-                  "LABEL=VALUE or LABEL=LO..HI, repeatable (sex=female|male); with --population a filter on\n"
-                  "the people's recorded values (sex, age_years, height_cm, weight_kg, ...)");
-  cmd->add_option("--population", a->population,
-                  "A people file (NHANES or own columns, see fit-measurements): each body is a person drawn by\n"
-                  "survey weight (WTMECPRP, seeded) and morphed to that person's --match labels; labels.csv\n"
-                  "adds the person's seqn and recorded values (nhanes_*) beside the measured ones");
-  cmd->add_option("--match", a->match,
-                  "With --population: the person's labels each body is morphed to (comma-separated; add\n"
-                  "waist_iliac_cm,hips_cm for the girths)")
-      ->capture_default_str();
-  // NonNegativeNumber: CLI11 would read -1 into the unsigned seed as 18446744073709551615.
-  cmd->add_option("--seed", a->seed, "Random seed (the crowd is a function of it)")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
-  auto* spread = cmd->add_option("--spread", a->spread,
-                                 "Scale of the random coefficients (1 = the data's spread; with --population the\n"
-                                 "default is 0: each body is its person's typical body, the people give the variety)")
-                     ->capture_default_str();
-  cmd->add_option("--format", a->format, "obj or ply")->check(CLI::IsMember({"obj", "ply"}))->capture_default_str();
-  cmd->add_flag("--no-girths", a->no_girths,
-                "labels.csv without the girths and body fat (height, volume, weight only): faster, the "
-                "girths' sections being a large share of a body's time");
-  cmd->add_flag("--clamp", a->clamp, "Clamp values far outside the data to the data's range");
-  cmd->add_option("--jobs", a->jobs, "Bodies generated in parallel (0 = all cores); the crowd does not depend on it")
-      ->capture_default_str()
-      ->check(CLI::Range(0, 256));
-  cmd->add_flag("--force", a->force,
-                "Replace a crowd generated in OUT with other settings (without it such a folder is refused; "
-                "a rerun with the same settings skips the bodies already written)");
-  cmd->add_option("--out", a->out, "Output folder")->required();
-  cmd->callback([a, spread] {
-    // A population is read and drawn before the model is loaded: bad input fails fast.
-    PeopleTable table;
-    std::vector<int> eligible, drawn;
-    std::vector<std::string> match;
-    if (!a->population.empty()) {
-      table = read_people(a->population);
-      match = cli::split_commas(a->match);
-      std::vector<std::string> needed = {"sex", "age_years", "height_cm", "weight_kg"};
-      for (const auto& m : match)
-        if (m != "sex" && m != "age_years" && std::find(needed.begin(), needed.end(), m) == needed.end()) needed.push_back(m);
-      require_columns(table, needed);
-      PopulationFilter filter;
-      filter.required = {"height_cm", "weight_kg"};
-      for (const auto& m : match)
-        if (m != "sex" && m != "age_years" && m != "height_cm" && m != "weight_kg") filter.required.push_back(m);
-      const EligibleSummary e = eligible_people(table, filter);
-      const auto keep = person_filter(a->where);
-      for (int i : e.eligible)
-        if (keep(table.people[i])) eligible.push_back(i);
-      if (eligible.empty())
-        throw InputError(fmt::format("'{}': no adult with a survey weight and {} passes the --where filters "
-                                     "({} incomplete, {} under 18)",
-                                     a->population, fmt::join(filter.required, ", "), e.incomplete, e.children));
-      drawn = sample_population(table, eligible, a->count, a->seed);
-      cli::info(fmt::format("population {}: {} eligible adults; {} drawn by survey weight", a->population,
-                            eligible.size(), drawn.size()));
-    }
-    auto model = std::make_shared<const BodyModel>(model_cli::load_model_for_cli(a->model));
-    const SemanticRegression& reg = model->shape.regression;
-    std::vector<LabelCondition> cond;
-    CrowdOutputOptions co;
-    if (a->population.empty()) {
-      for (auto& w : a->where) cond.push_back(parse_where(reg, w, a->clamp));
-    } else {
-      for (const auto& m : match) reg.index(m);  // every matched label must be the model's
-      co.population_source = a->population;
-      co.recorded_names = recorded_measurement_names();
-      for (int i : drawn) {
-        const Person& p = table.people[i];
-        CrowdPerson c;
-        c.id = p.id;
-        c.sex = p.sex == Sex::male ? "male" : "female";
-        c.recorded = p.measurements;
-        for (const auto& m : match) {
-          const int l = reg.index(m);
-          double v = m == "sex" ? (p.sex == Sex::male ? 1.0 : 0.0) : m == "age_years" ? p.age_years : p.measurement(m);
-          // Values outside the model's data are clamped to it (silently: a person is not a typo).
-          if (m != "sex") v = std::clamp(v, reg.labels[l].min, reg.labels[l].max);
-          c.conditions.push_back(LabelCondition::exact(m, v));
-        }
-        co.people.push_back(std::move(c));
-      }
-    }
-    if (!model->rig.empty())
-      co.roughness_region = trunk_and_limbs_region(model->rig.bone_names, model->rig.parents, model->rig.weights);
-    // A population crowd's variety comes from its people; random coefficients on top roughen the
-    // bodies (200 bodies of a 200-person model: self-intersection median 16 at spread 1, 0 at 0).
-    co.crowd.generate.spread = !a->population.empty() && spread->count() == 0 ? 0.0 : a->spread;
-    co.crowd.generate.measure_girths = !a->no_girths;
-    co.crowd.seed = a->seed;
-    co.crowd.threads = a->jobs;
-    co.format = a->format;
-    co.force = a->force;
-    Sex sex = Sex::unknown;
-    for (auto& c : cond)
-      if (c.label == "sex") sex = c.lo < 0.5 ? Sex::female : Sex::male;
-    const int n = a->population.empty() ? a->count : static_cast<int>(drawn.size());
-    const fs::path out(a->out);
-    GenerateCrowdSummary s;
-    {
-      cli::ProgressBar bar("generate");
-      s = write_crowd(model, cond, n, out, co, bar.callback());
-      bar.finish(fmt::format("{} bodies in {:.1f} s ({:.1f}/s)", s.generated, s.seconds,
-                             s.generated / std::max(s.seconds, 1e-9)));
-    }
-    if (s.skipped > 0) cli::info(fmt::format("skipped {} existing (complete bodies of an earlier run with the same settings)", s.skipped));
-    // Diversity: mean pairwise RMS vertex distance (after rigid fit) of a sample of the crowd
-    // (read back: skipped bodies are only on disk), against that of the model's training
-    // subjects (decoded from their coefficients, in parallel on one thread-safe morpher).
-    const int k = std::min(n, a->diversity_sample);
-    std::vector<Eigen::MatrixX3d> crowd(k);
-    for (int i = 0; i < k; ++i) crowd[i] = read_mesh(out / s.files[i]).V;
-    const auto& C = model->shape.pca.coefficients;
-    std::vector<int> same_sex;
-    int sex_label = reg.find("sex");
-    for (int i = 0; i < C.rows(); ++i)
-      if (static_cast<int>(same_sex.size()) < a->diversity_sample &&
-          (sex == Sex::unknown || sex_label < 0 ||
-           std::abs(model->shape.labels(i, sex_label) - (sex == Sex::male ? 1.0 : 0.0)) < 0.5))
-        same_sex.push_back(i);
-    const ShapeMorpher dm(model);
-    std::vector<Eigen::MatrixX3d> subj(same_sex.size());
-    auto decode_subjects = [&] {
-      tbb::parallel_for(0, static_cast<int>(same_sex.size()), [&](int t) {
-        subj[t] = dm.decode(model->shape.pca.reconstruct(C.row(same_sex[t]).transpose()));
-      });
-    };
-    if (a->jobs > 0) {
-      tbb::task_arena arena(a->jobs);
-      arena.execute(decode_subjects);
-    } else {
-      decode_subjects();
-    }
-    auto mean_pairwise = [](const std::vector<Eigen::MatrixX3d>& b) {
-      double sum = 0;
-      int pairs = 0;
-      for (size_t i = 0; i < b.size(); ++i)
-        for (size_t j = i + 1; j < b.size(); ++j, ++pairs) sum += rms_vertex_distance(b[i], b[j]);
-      return pairs ? sum / pairs : 0.0;
-    };
-    fmt::print("bodies                 {} ({} generated, {} skipped as already written)\n", n, s.generated, s.skipped);
-    fmt::print("constraints met        {} of {} (as measured on each output)\n", s.constraints_met, n);
-    fmt::print("flipped triangles      {} in total, at most {} in a body ({:.4f}% of all triangles), against the "
-               "template after a rigid fit\n",
-               s.flipped_triangles, s.max_flipped_triangles,
-               100.0 * s.flipped_triangles / (double(n) * model->tmpl->triangle_count()));
-    {
-      std::vector<int> b = s.flipped_before_repair;
-      std::sort(b.begin(), b.end());
-      const int total = std::accumulate(b.begin(), b.end(), 0);
-      if (!b.empty())
-        fmt::print("fold repair            {} flipped triangles repaired after decoding: median {}, at most {} in a body\n",
-                   total, 0.5 * (b[(b.size() - 1) / 2] + b[b.size() / 2]), b.back());
-    }
-    fmt::print("diversity              mean pairwise RMS vertex distance {:.1f} mm (first {} bodies)\n",
-               mean_pairwise(crowd), k);
-    fmt::print("                       vs {:.1f} mm between the model's {} training subjects{}\n",
-               mean_pairwise(subj), subj.size(), sex == Sex::unknown ? "" : " of that sex");
-    {
-      std::vector<int> si = s.self_intersections;
-      std::vector<double> rp = s.roughness_p95;
-      std::sort(si.begin(), si.end());
-      std::sort(rp.begin(), rp.end());
-      if (!si.empty())
-        fmt::print("self-intersections     median {} triangle pairs, at most {}; {} of {} bodies have none\n",
-                   0.5 * (si[(si.size() - 1) / 2] + si[si.size() / 2]), si.back(),
-                   std::count(si.begin(), si.end(), 0), si.size());
-      if (!rp.empty())
-        fmt::print("roughness p95          median {:.1f} deg, at most {:.1f} deg ({})\n", rp[rp.size() / 2], rp.back(),
-                   co.roughness_region.empty() ? "every vertex: the model has no rig" : "trunk and limbs");
-    }
-    if (!a->population.empty()) print_population_match(table, eligible, out / "labels.csv");
-    if (s.generated > 0)
-      fmt::print("speed                  {:.1f} bodies/s including writing meshes\n", s.generated / std::max(s.seconds, 1e-9));
-    cli::info("wrote " + (out / "labels.csv").string());
-    // A body that misses a condition is a failed item of the batch: everything stays written
-    // (and is skipped on a rerun), but the exit code says the crowd is not what was asked for.
-    if (s.constraints_met < n)
-      throw InputError(fmt::format("{} of {} bodies did not meet every condition as measured (constraints_met "
-                                   "is 0 in their rows of '{}'); the bodies were written",
-                                   n - s.constraints_met, n, (out / "labels.csv").string()));
-  });
+  add_generate_options(cmd, *a);
+  cmd->callback([a, cmd] { run_generate(*a, cmd); });
 }
 
 }  // namespace bodymodel

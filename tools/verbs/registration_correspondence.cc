@@ -43,6 +43,269 @@ std::string cm(double mm) { return fmt::format("{:.3f}", mm / 10.0); }
 
 }  // namespace
 
+namespace {
+
+void add_eval_correspondence_options(CLI::App* cmd, CorrespondenceArgs& a) {
+  cmd->add_option("reg", a.reg,
+                  "Folder of registrations <stem>.ply|.obj|.off (template topology, mm); each needs its truth")
+      ->required();
+  cmd->add_option("--truth", a.truth,
+                  "Folder of truth meshes <stem>.off|.ply|.obj, one vertex numbering: vertex i the same "
+                  "body point on every mesh")
+      ->required();
+  cmd->add_option("--out", a.out, "Output folder")->required();
+  cmd->add_option("--pairs", a.pairs,
+                  "Ordered pairs evaluated: 'inter' (different subjects), 'intra' (same subject, "
+                  "different poses) or 'all'")
+      ->check(CLI::IsMember({"inter", "intra", "all"}))
+      ->capture_default_str();
+  cmd->add_option("--truth-scale", a.truth_scale,
+                  "Millimetres per truth unit (1000 for FAUST and SCAPE, in metres)")
+      ->capture_default_str();
+  cmd->add_option("--truth-up", a.truth_up,
+                  "Axis the truth bodies stand along (x for SCAPE); rotated onto +y as "
+                  "register-mesh/scanify --up do")
+      ->capture_default_str();
+  cmd->add_option("--subject-regex", a.subject_regex,
+                  "Regular expression on a mesh's stem whose first group is the subject; pairs of "
+                  "one subject are intra-subject. FAUST: 'tr_reg_(\\d\\d)\\d'; one person (SCAPE): "
+                  "'^()'. Default: every mesh its own subject")
+      ->capture_default_str();
+  cmd->add_option("--samples", a.samples,
+                  "Surface samples per side for the two-sided distance")
+      ->capture_default_str();
+}
+
+// Each registration with its truth (by file stem). Every registration is evaluated or the run
+// refuses: one left out without a word would change the pooled errors silently.
+struct RegistrationPairs {
+  std::map<std::string, fs::path> truths;
+  std::vector<std::pair<std::string, fs::path>> found;  // stem, registration
+};
+
+RegistrationPairs pair_registrations(const CorrespondenceArgs& a, const fs::path& reg_dir, const fs::path& truth_dir) {
+  RegistrationPairs P;
+  std::map<std::string, fs::path>& truths = P.truths;
+  std::vector<std::pair<std::string, fs::path>>& found = P.found;
+  // Truths by stem.
+  for (const auto& e : fs::directory_iterator(truth_dir)) {
+    std::string ext = e.path().extension().string();
+    for (auto& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (ext == ".off" || ext == ".ply" || ext == ".obj") truths[e.path().stem().string()] = e.path();
+  }
+  // Every registration is evaluated or the run refuses: one left out without a word would
+  // change the pooled errors silently.
+  std::map<std::string, fs::path> by_stem;
+  std::vector<fs::path> without_truth;
+  for (const auto& e : fs::directory_iterator(reg_dir)) {
+    std::string ext = e.path().extension().string();
+    for (auto& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (ext != ".ply" && ext != ".obj" && ext != ".off") continue;
+    const std::string stem = e.path().stem().string();
+    // <stem>.detailed.ply and the like are derived outputs; '.'-names are temporaries.
+    if (stem.empty() || stem[0] == '.' || stem.find('.') != std::string::npos) continue;
+    const auto [it, inserted] = by_stem.emplace(stem, e.path());
+    if (!inserted)
+      throw InputError("'" + e.path().string() + "' and '" + it->second.string() +
+                       "': two registrations of '" + stem + "'; keep one");
+    if (truths.count(stem)) found.emplace_back(stem, e.path());
+    else without_truth.push_back(e.path());
+  }
+  std::sort(found.begin(), found.end());
+  std::sort(without_truth.begin(), without_truth.end());
+  if (!without_truth.empty())
+    throw InputError("'" + without_truth.front().string() + "': no truth <stem>.off|.ply|.obj for it in '" +
+                     a.truth + "'" +
+                     (without_truth.size() > 1 ? fmt::format(" ({} of {} registrations have none)",
+                                                              without_truth.size(), by_stem.size())
+                                               : std::string()) +
+                     "; every registration in '" + a.reg + "' is evaluated: add its truth or move it out");
+  if (found.size() < 2)
+    throw InputError("'" + a.reg + "': found " + std::to_string(found.size()) +
+                     " registrations <stem>.ply|.obj|.off with a truth <stem>.off|.ply|.obj in '" +
+                     a.truth + "'; need at least two");
+
+  return P;
+}
+
+// Per mesh: two-sided surface distance to its truth and folds (meshes.csv).
+struct PerMeshFigures {
+  std::string csv;
+  std::vector<double> two_sided;
+  std::vector<int> folded, flipped;
+};
+
+PerMeshFigures per_mesh_figures(const CorrespondenceArgs& a, const std::vector<CorrespondenceMesh>& meshes,
+                                const std::vector<Mesh>& truth_meshes, const Eigen::MatrixX3i& reg_F, const Mesh& rest,
+                                const CorrespondenceReport& report) {
+  PerMeshFigures P;
+  std::string& mesh_csv = P.csv;
+  std::vector<double>& two_sided = P.two_sided;
+  std::vector<int>& folded = P.folded;
+  std::vector<int>& flipped = P.flipped;
+  cli::ProgressBar mesh_bar("surface distance and folds per mesh");
+  mesh_csv =
+      "mesh,subject,registered_to_truth_mm,truth_to_registered_mm,two_sided_mm,"
+      "registered_to_truth_p95_mm,truth_to_registered_p95_mm,truth_vertex_location_mm,"
+      "locally_folded,flipped_against_truth\n";
+  two_sided.resize(meshes.size());
+  folded.resize(meshes.size());
+  flipped.resize(meshes.size());
+  for (size_t k = 0; k < meshes.size(); ++k) {
+    const MeshScanDistance d = mesh_scan_distance(meshes[k].registered, reg_F, truth_meshes[k],
+                                                  nullptr, a.samples);
+    const std::vector<char> f = locally_folded_triangles(meshes[k].registered, rest.V, reg_F);
+    folded[k] = int(std::count(f.begin(), f.end(), 1));
+    flipped[k] = d.flipped_against_scan;
+    two_sided[k] = d.two_sided_mean;
+    mesh_csv += fmt::format("{},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{},{}\n",
+                            csv_field(meshes[k].id), csv_field(meshes[k].subject), d.registered_to_scan_mean,
+                            d.scan_to_registered_mean, d.two_sided_mean,
+                            d.registered_to_scan_p95, d.scan_to_registered_p95,
+                            report.location_distance_mean[k], folded[k], flipped[k]);
+    mesh_bar.update(double(k + 1) / double(meshes.size()), meshes[k].id);
+  }
+  mesh_bar.finish();
+
+  return P;
+}
+
+// The registrations and their truths in the project's frame, checked for topology, unit and subject.
+struct ReadMeshes {
+  std::vector<CorrespondenceMesh> meshes;
+  std::vector<Mesh> truth_meshes;
+  Eigen::MatrixX3i reg_F;
+};
+
+ReadMeshes read_correspondence_meshes(const CorrespondenceArgs& a, const RegistrationPairs& paired, const Mesh& rest,
+                                      const Eigen::Matrix3d& up, const std::regex& subject_re) {
+  const std::map<std::string, fs::path>& truths = paired.truths;
+  const std::vector<std::pair<std::string, fs::path>>& found = paired.found;
+  ReadMeshes R;
+  std::vector<CorrespondenceMesh>& meshes = R.meshes;
+  std::vector<Mesh>& truth_meshes = R.truth_meshes;
+  Eigen::MatrixX3i& reg_F = R.reg_F;
+  meshes.resize(found.size());
+  truth_meshes.resize(found.size());
+  cli::ProgressBar read_bar(fmt::format("read {} registrations and truths", found.size()));
+  for (size_t k = 0; k < found.size(); ++k) {
+    const auto& [stem, reg_path] = found[k];
+    Mesh r = read_mesh(reg_path);
+    if (r.V.rows() != rest.V.rows() || r.F != rest.F)
+      throw InputError("'" + reg_path.string() + "': expected a registration in the template's "
+                       "topology (" + std::to_string(rest.V.rows()) + " vertices, " +
+                       std::to_string(rest.F.rows()) + " triangles), found " +
+                       std::to_string(r.V.rows()) + " vertices and " +
+                       std::to_string(r.F.rows()) + " triangles");
+    Mesh t = read_mesh(truths.at(stem));
+    if (k == 0) {
+      reg_F = r.F;
+    } else if (t.V.rows() != meshes[0].truth.rows()) {
+      // The protocol needs vertex i to be one body point on every truth; the faces are used
+      // only for each mesh's own surface distance (SCAPE's files list them differently).
+      throw InputError("'" + truths.at(stem).string() + "': " + std::to_string(t.V.rows()) +
+                       " vertices; '" + truths.at(found[0].first).string() + "' has " +
+                       std::to_string(meshes[0].truth.rows()) +
+                       ": the truths must share one vertex numbering");
+    }
+    t.V = to_project_frame(t.V, a.truth_scale, up);
+    check_body_size(t.V, "'" + truths.at(stem).string() + "'", "--truth-scale", a.truth_scale);
+    const double ratio = bounding_box_diagonal(t.V) / bounding_box_diagonal(r.V);
+    if (ratio > 2.0 || ratio < 0.5)
+      throw InputError("'" + truths.at(stem).string() + "' is " + fmt::format("{:.3g}", ratio) +
+                       " times the size of its registration after --truth-scale " +
+                       fmt::format("{}", a.truth_scale) +
+                       ": wrong --truth-scale (mm per truth unit; 1000 for metres)?");
+    std::smatch m;
+    if (!std::regex_search(stem, m, subject_re) || m.size() < 2)
+      throw InputError("--subject-regex '" + a.subject_regex + "' does not match '" + stem +
+                       "' with a capture group (the subject)");
+    meshes[k].id = stem;
+    meshes[k].subject = m[1].str();
+    meshes[k].truth = t.V;
+    meshes[k].registered = r.V;
+    truth_meshes[k] = std::move(t);
+    read_bar.update(double(k + 1) / double(found.size()), stem);
+  }
+  read_bar.finish();
+  return R;
+}
+
+void run_eval_correspondence(CorrespondenceArgs& a) {
+  if (!(a.truth_scale > 0) || !std::isfinite(a.truth_scale))
+    throw InputError("--truth-scale must be a positive number of millimetres per truth unit");
+  if (a.samples < 100) throw InputError("--samples must be at least 100");
+  const Eigen::Matrix3d up = up_axis_rotation(a.truth_up, "--truth-up");
+  std::regex subject_re;
+  try {
+    subject_re = std::regex(a.subject_regex);
+  } catch (const std::regex_error& e) {
+    throw InputError("--subject-regex '" + a.subject_regex + "': " + e.what());
+  }
+  const fs::path reg_dir = a.reg, truth_dir = a.truth, out = a.out;
+  for (const auto& [d, name] : {std::pair{reg_dir, "registration"}, {truth_dir, "--truth"}})
+    if (!fs::is_directory(d))
+      throw InputError(std::string(name) + " folder '" + d.string() + "' does not exist");
+  const RegistrationPairs paired = pair_registrations(a, reg_dir, truth_dir);
+  MakeHuman mh = MakeHuman::load();
+  const Mesh rest = mh.body(MacroSettings{}).mesh;
+  ReadMeshes read = read_correspondence_meshes(a, paired, rest, up, subject_re);
+  const std::vector<CorrespondenceMesh>& meshes = read.meshes;
+  const std::vector<Mesh>& truth_meshes = read.truth_meshes;
+  const Eigen::MatrixX3i& reg_F = read.reg_F;
+
+  CorrespondenceOptions options;
+  options.pairs = a.pairs == "inter"   ? PairSelection::inter
+                  : a.pairs == "intra" ? PairSelection::intra
+                                        : PairSelection::all;
+  cli::ProgressBar bar("correspondence");
+  const CorrespondenceReport report = evaluate_correspondence(meshes, reg_F, options, bar.callback());
+  bar.finish(fmt::format("{} pairs", report.pairs.size()));
+
+  const PerMeshFigures figures = per_mesh_figures(a, meshes, truth_meshes, reg_F, rest, report);
+  const std::string& mesh_csv = figures.csv;
+  const std::vector<double>& two_sided = figures.two_sided;
+  const std::vector<int>& folded = figures.folded;
+  const std::vector<int>& flipped = figures.flipped;
+  std::string pair_csv = "a,b,subject_a,subject_b,kind,mean_cm,median_cm,p95_cm,max_cm\n";
+  for (const auto& p : report.pairs)
+    pair_csv += fmt::format("{},{},{},{},{},{},{},{},{}\n", csv_field(meshes[p.a].id), csv_field(meshes[p.b].id),
+                            csv_field(meshes[p.a].subject), csv_field(meshes[p.b].subject),
+                            p.inter ? "inter" : "intra", cm(p.stats.mean), cm(p.stats.median),
+                            cm(p.stats.p95), cm(p.stats.max));
+  std::string summary = "kind,pairs,errors,mean_cm,median_cm,p95_cm,max_cm\n";
+  for (const auto& [kind, s] : {std::pair{"inter", report.inter}, {"intra", report.intra}})
+    if (s.pairs > 0)
+      summary += fmt::format("{},{},{},{},{},{},{}\n", kind, s.pairs, s.count, cm(s.mean),
+                             cm(s.median), cm(s.p95), cm(s.max));
+  double ts_mean = 0, ts_max = 0;
+  int fold_total = 0, fold_meshes = 0, flip_total = 0;
+  for (size_t k = 0; k < meshes.size(); ++k) {
+    ts_mean += two_sided[k] / double(meshes.size());
+    ts_max = std::max(ts_max, two_sided[k]);
+    fold_total += folded[k];
+    fold_meshes += folded[k] > 0;
+    flip_total += flipped[k];
+  }
+  summary += fmt::format("# meshes {}: two-sided surface distance mean {:.3f} mm (worst mesh "
+                         "{:.3f}); locally folded triangles {} in {} meshes; flipped against "
+                         "the truth surface {}\n",
+                         meshes.size(), ts_mean, ts_max, fold_total, fold_meshes, flip_total);
+  ensure_directory(out);
+  write_text_file(out / "pairs.csv", pair_csv);
+  write_text_file(out / "meshes.csv", mesh_csv);
+  write_text_file(out / "summary.csv", summary);
+  for (const auto& [kind, s] : {std::pair{"inter", report.inter}, {"intra", report.intra}})
+    if (s.pairs > 0)
+      fmt::print("{}-subject ({} ordered pairs): mean {} cm, median {} cm, p95 {} cm, max {} cm\n",
+                 kind, s.pairs, cm(s.mean), cm(s.median), cm(s.p95), cm(s.max));
+  fmt::print("{} meshes: two-sided surface distance mean {:.2f} mm (worst {:.2f}); locally "
+             "folded triangles {} in {} meshes; flipped against the truth surface {}\n",
+             meshes.size(), ts_mean, ts_max, fold_total, fold_meshes, flip_total);
+}
+
+}  // namespace
+
 BODYMODEL_VERB(add_eval_correspondence_verb) {
   auto a = std::make_shared<CorrespondenceArgs>();
   auto* cmd = app.add_subcommand(
@@ -58,204 +321,8 @@ BODYMODEL_VERB(add_eval_correspondence_verb) {
       "Example (FAUST, in metres; tr_reg_NNN: subject = NNN div 10):\n"
       "  bodymodel eval-correspondence reg/ --truth faust/ --truth-scale 1000 \\\n"
       "      --subject-regex 'tr_reg_(\\d\\d)\\d' --out eval/");
-  cmd->add_option("reg", a->reg,
-                  "Folder of registrations <stem>.ply|.obj|.off (template topology, mm); each needs its truth")
-      ->required();
-  cmd->add_option("--truth", a->truth,
-                  "Folder of truth meshes <stem>.off|.ply|.obj, one vertex numbering: vertex i the same "
-                  "body point on every mesh")
-      ->required();
-  cmd->add_option("--out", a->out, "Output folder")->required();
-  cmd->add_option("--pairs", a->pairs,
-                  "Ordered pairs evaluated: 'inter' (different subjects), 'intra' (same subject, "
-                  "different poses) or 'all'")
-      ->check(CLI::IsMember({"inter", "intra", "all"}))
-      ->capture_default_str();
-  cmd->add_option("--truth-scale", a->truth_scale,
-                  "Millimetres per truth unit (1000 for FAUST and SCAPE, in metres)")
-      ->capture_default_str();
-  cmd->add_option("--truth-up", a->truth_up,
-                  "Axis the truth bodies stand along (x for SCAPE); rotated onto +y as "
-                  "register-mesh/scanify --up do")
-      ->capture_default_str();
-  cmd->add_option("--subject-regex", a->subject_regex,
-                  "Regular expression on a mesh's stem whose first group is the subject; pairs of "
-                  "one subject are intra-subject. FAUST: 'tr_reg_(\\d\\d)\\d'; one person (SCAPE): "
-                  "'^()'. Default: every mesh its own subject")
-      ->capture_default_str();
-  cmd->add_option("--samples", a->samples,
-                  "Surface samples per side for the two-sided distance")
-      ->capture_default_str();
-  cmd->callback([a] {
-    if (!(a->truth_scale > 0) || !std::isfinite(a->truth_scale))
-      throw InputError("--truth-scale must be a positive number of millimetres per truth unit");
-    if (a->samples < 100) throw InputError("--samples must be at least 100");
-    const Eigen::Matrix3d up = up_axis_rotation(a->truth_up, "--truth-up");
-    std::regex subject_re;
-    try {
-      subject_re = std::regex(a->subject_regex);
-    } catch (const std::regex_error& e) {
-      throw InputError("--subject-regex '" + a->subject_regex + "': " + e.what());
-    }
-    const fs::path reg_dir = a->reg, truth_dir = a->truth, out = a->out;
-    for (const auto& [d, name] : {std::pair{reg_dir, "registration"}, {truth_dir, "--truth"}})
-      if (!fs::is_directory(d))
-        throw InputError(std::string(name) + " folder '" + d.string() + "' does not exist");
-    // Truths by stem.
-    std::map<std::string, fs::path> truths;
-    for (const auto& e : fs::directory_iterator(truth_dir)) {
-      std::string ext = e.path().extension().string();
-      for (auto& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-      if (ext == ".off" || ext == ".ply" || ext == ".obj") truths[e.path().stem().string()] = e.path();
-    }
-    // Every registration is evaluated or the run refuses: one left out without a word would
-    // change the pooled errors silently.
-    std::vector<std::pair<std::string, fs::path>> found;  // stem, registration
-    std::map<std::string, fs::path> by_stem;
-    std::vector<fs::path> without_truth;
-    for (const auto& e : fs::directory_iterator(reg_dir)) {
-      std::string ext = e.path().extension().string();
-      for (auto& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-      if (ext != ".ply" && ext != ".obj" && ext != ".off") continue;
-      const std::string stem = e.path().stem().string();
-      // <stem>.detailed.ply and the like are derived outputs; '.'-names are temporaries.
-      if (stem.empty() || stem[0] == '.' || stem.find('.') != std::string::npos) continue;
-      const auto [it, inserted] = by_stem.emplace(stem, e.path());
-      if (!inserted)
-        throw InputError("'" + e.path().string() + "' and '" + it->second.string() +
-                         "': two registrations of '" + stem + "'; keep one");
-      if (truths.count(stem)) found.emplace_back(stem, e.path());
-      else without_truth.push_back(e.path());
-    }
-    std::sort(found.begin(), found.end());
-    std::sort(without_truth.begin(), without_truth.end());
-    if (!without_truth.empty())
-      throw InputError("'" + without_truth.front().string() + "': no truth <stem>.off|.ply|.obj for it in '" +
-                       a->truth + "'" +
-                       (without_truth.size() > 1 ? fmt::format(" ({} of {} registrations have none)",
-                                                                without_truth.size(), by_stem.size())
-                                                 : std::string()) +
-                       "; every registration in '" + a->reg + "' is evaluated: add its truth or move it out");
-    if (found.size() < 2)
-      throw InputError("'" + a->reg + "': found " + std::to_string(found.size()) +
-                       " registrations <stem>.ply|.obj|.off with a truth <stem>.off|.ply|.obj in '" +
-                       a->truth + "'; need at least two");
-
-    MakeHuman mh = MakeHuman::load();
-    const Mesh rest = mh.body(MacroSettings{}).mesh;
-    std::vector<CorrespondenceMesh> meshes(found.size());
-    std::vector<Mesh> truth_meshes(found.size());
-    Eigen::MatrixX3i reg_F;
-    cli::ProgressBar read_bar(fmt::format("read {} registrations and truths", found.size()));
-    for (size_t k = 0; k < found.size(); ++k) {
-      const auto& [stem, reg_path] = found[k];
-      Mesh r = read_mesh(reg_path);
-      if (r.V.rows() != rest.V.rows() || r.F != rest.F)
-        throw InputError("'" + reg_path.string() + "': expected a registration in the template's "
-                         "topology (" + std::to_string(rest.V.rows()) + " vertices, " +
-                         std::to_string(rest.F.rows()) + " triangles), found " +
-                         std::to_string(r.V.rows()) + " vertices and " +
-                         std::to_string(r.F.rows()) + " triangles");
-      Mesh t = read_mesh(truths[stem]);
-      if (k == 0) {
-        reg_F = r.F;
-      } else if (t.V.rows() != meshes[0].truth.rows()) {
-        // The protocol needs vertex i to be one body point on every truth; the faces are used
-        // only for each mesh's own surface distance (SCAPE's files list them differently).
-        throw InputError("'" + truths[stem].string() + "': " + std::to_string(t.V.rows()) +
-                         " vertices; '" + truths[found[0].first].string() + "' has " +
-                         std::to_string(meshes[0].truth.rows()) +
-                         ": the truths must share one vertex numbering");
-      }
-      t.V = to_project_frame(t.V, a->truth_scale, up);
-      check_body_size(t.V, "'" + truths[stem].string() + "'", "--truth-scale", a->truth_scale);
-      const double ratio = bounding_box_diagonal(t.V) / bounding_box_diagonal(r.V);
-      if (ratio > 2.0 || ratio < 0.5)
-        throw InputError("'" + truths[stem].string() + "' is " + fmt::format("{:.3g}", ratio) +
-                         " times the size of its registration after --truth-scale " +
-                         fmt::format("{}", a->truth_scale) +
-                         ": wrong --truth-scale (mm per truth unit; 1000 for metres)?");
-      std::smatch m;
-      if (!std::regex_search(stem, m, subject_re) || m.size() < 2)
-        throw InputError("--subject-regex '" + a->subject_regex + "' does not match '" + stem +
-                         "' with a capture group (the subject)");
-      meshes[k].id = stem;
-      meshes[k].subject = m[1].str();
-      meshes[k].truth = t.V;
-      meshes[k].registered = r.V;
-      truth_meshes[k] = std::move(t);
-      read_bar.update(double(k + 1) / double(found.size()), stem);
-    }
-    read_bar.finish();
-
-    CorrespondenceOptions options;
-    options.pairs = a->pairs == "inter"   ? PairSelection::inter
-                    : a->pairs == "intra" ? PairSelection::intra
-                                          : PairSelection::all;
-    cli::ProgressBar bar("correspondence");
-    const CorrespondenceReport report = evaluate_correspondence(meshes, reg_F, options, bar.callback());
-    bar.finish(fmt::format("{} pairs", report.pairs.size()));
-
-    // Per mesh: two-sided surface distance to its truth and folds.
-    cli::ProgressBar mesh_bar("surface distance and folds per mesh");
-    std::string mesh_csv =
-        "mesh,subject,registered_to_truth_mm,truth_to_registered_mm,two_sided_mm,"
-        "registered_to_truth_p95_mm,truth_to_registered_p95_mm,truth_vertex_location_mm,"
-        "locally_folded,flipped_against_truth\n";
-    std::vector<double> two_sided(meshes.size());
-    std::vector<int> folded(meshes.size()), flipped(meshes.size());
-    for (size_t k = 0; k < meshes.size(); ++k) {
-      const MeshScanDistance d = mesh_scan_distance(meshes[k].registered, reg_F, truth_meshes[k],
-                                                    nullptr, a->samples);
-      const std::vector<char> f = locally_folded_triangles(meshes[k].registered, rest.V, reg_F);
-      folded[k] = int(std::count(f.begin(), f.end(), 1));
-      flipped[k] = d.flipped_against_scan;
-      two_sided[k] = d.two_sided_mean;
-      mesh_csv += fmt::format("{},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{},{}\n",
-                              csv_field(meshes[k].id), csv_field(meshes[k].subject), d.registered_to_scan_mean,
-                              d.scan_to_registered_mean, d.two_sided_mean,
-                              d.registered_to_scan_p95, d.scan_to_registered_p95,
-                              report.location_distance_mean[k], folded[k], flipped[k]);
-      mesh_bar.update(double(k + 1) / double(meshes.size()), meshes[k].id);
-    }
-    mesh_bar.finish();
-
-    std::string pair_csv = "a,b,subject_a,subject_b,kind,mean_cm,median_cm,p95_cm,max_cm\n";
-    for (const auto& p : report.pairs)
-      pair_csv += fmt::format("{},{},{},{},{},{},{},{},{}\n", csv_field(meshes[p.a].id), csv_field(meshes[p.b].id),
-                              csv_field(meshes[p.a].subject), csv_field(meshes[p.b].subject),
-                              p.inter ? "inter" : "intra", cm(p.stats.mean), cm(p.stats.median),
-                              cm(p.stats.p95), cm(p.stats.max));
-    std::string summary = "kind,pairs,errors,mean_cm,median_cm,p95_cm,max_cm\n";
-    for (const auto& [kind, s] : {std::pair{"inter", report.inter}, {"intra", report.intra}})
-      if (s.pairs > 0)
-        summary += fmt::format("{},{},{},{},{},{},{}\n", kind, s.pairs, s.count, cm(s.mean),
-                               cm(s.median), cm(s.p95), cm(s.max));
-    double ts_mean = 0, ts_max = 0;
-    int fold_total = 0, fold_meshes = 0, flip_total = 0;
-    for (size_t k = 0; k < meshes.size(); ++k) {
-      ts_mean += two_sided[k] / double(meshes.size());
-      ts_max = std::max(ts_max, two_sided[k]);
-      fold_total += folded[k];
-      fold_meshes += folded[k] > 0;
-      flip_total += flipped[k];
-    }
-    summary += fmt::format("# meshes {}: two-sided surface distance mean {:.3f} mm (worst mesh "
-                           "{:.3f}); locally folded triangles {} in {} meshes; flipped against "
-                           "the truth surface {}\n",
-                           meshes.size(), ts_mean, ts_max, fold_total, fold_meshes, flip_total);
-    ensure_directory(out);
-    write_text_file(out / "pairs.csv", pair_csv);
-    write_text_file(out / "meshes.csv", mesh_csv);
-    write_text_file(out / "summary.csv", summary);
-    for (const auto& [kind, s] : {std::pair{"inter", report.inter}, {"intra", report.intra}})
-      if (s.pairs > 0)
-        fmt::print("{}-subject ({} ordered pairs): mean {} cm, median {} cm, p95 {} cm, max {} cm\n",
-                   kind, s.pairs, cm(s.mean), cm(s.median), cm(s.p95), cm(s.max));
-    fmt::print("{} meshes: two-sided surface distance mean {:.2f} mm (worst {:.2f}); locally "
-               "folded triangles {} in {} meshes; flipped against the truth surface {}\n",
-               meshes.size(), ts_mean, ts_max, fold_total, fold_meshes, flip_total);
-  });
+  add_eval_correspondence_options(cmd, *a);
+  cmd->callback([a] { run_eval_correspondence(*a); });
 }
 
 }  // namespace bodymodel

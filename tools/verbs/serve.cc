@@ -312,6 +312,29 @@ void stop_server(int sig) {
 }
 
 // Returns the signal that stopped the server (0: it stopped otherwise).
+// cpp-httplib compresses what the client accepts compressed; Debian's build has brotli, whose
+// compression dominated the browser's round trip: API answers (base64 floats) go plain; the page
+// and three.js at most gzip. A body sent anywhere but the POST routes is refused unread.
+httplib::Server::HandlerResponse route_request(const httplib::Request& req, httplib::Response& res) {
+  // A body sent anywhere but the POST routes is refused unread: cpp-httplib would read a
+  // chunked one into memory whatever its size before answering 404.
+  const bool api_post = req.method == "POST" &&
+                        (req.path == "/api/body" || req.path == "/api/body.obj" || req.path == "/api/body.glb");
+  if (!api_post && has_body(req) && req.method != "GET" && req.method != "HEAD") {
+    error_reply(res, 404, fmt::format("no {} {} (the API: GET /api/model, POST /api/body[.obj|.glb])", req.method,
+                                      req.path));
+    serve::t_close_connection = true;
+    return httplib::Server::HandlerResponse::Handled;
+  }
+  if (!api_post && has_body(req)) serve::t_close_connection = true;  // a GET's body is not read
+  auto& r = const_cast<httplib::Request&>(req);  // the server's own, non-const request object
+  const bool gzip = req.path.rfind("/api/", 0) != 0 &&
+                    req.get_header_value("Accept-Encoding").find("gzip") != std::string::npos;
+  r.headers.erase("Accept-Encoding");
+  if (gzip) r.headers.emplace("Accept-Encoding", "gzip");
+  return httplib::Server::HandlerResponse::Unhandled;
+}
+
 int serve_until_stopped(const ServeArgs& a) {
   auto model = std::make_shared<const BodyModel>(model_cli::load_model_for_cli(a.model));
   const fs::path three = a.three.empty() ? cli::default_three_js() : fs::path(a.three);
@@ -338,29 +361,7 @@ int serve_until_stopped(const ServeArgs& a) {
     res.status = 500;
     res.set_content(R"({"error": "internal error"})", "application/json");
   });
-  // cpp-httplib compresses what the client accepts compressed; Debian's build has brotli, at a
-  // quality that took 1.2 s for one 214 KB body answer on loopback (11 ms plain, 34 ms gzip): the
-  // browser's round trip was all compression. API answers (base64 floats, 28 % smaller gzipped)
-  // go plain; the page and three.js at most gzip.
-  svr.set_pre_routing_handler([](const httplib::Request& req, httplib::Response& res) {
-    // A body sent anywhere but the POST routes is refused unread: cpp-httplib would read a
-    // chunked one into memory whatever its size before answering 404.
-    const bool api_post = req.method == "POST" &&
-                          (req.path == "/api/body" || req.path == "/api/body.obj" || req.path == "/api/body.glb");
-    if (!api_post && has_body(req) && req.method != "GET" && req.method != "HEAD") {
-      error_reply(res, 404, fmt::format("no {} {} (the API: GET /api/model, POST /api/body[.obj|.glb])", req.method,
-                                        req.path));
-      serve::t_close_connection = true;
-      return httplib::Server::HandlerResponse::Handled;
-    }
-    if (!api_post && has_body(req)) serve::t_close_connection = true;  // a GET's body is not read
-    auto& r = const_cast<httplib::Request&>(req);  // the server's own, non-const request object
-    const bool gzip = req.path.rfind("/api/", 0) != 0 &&
-                      req.get_header_value("Accept-Encoding").find("gzip") != std::string::npos;
-    r.headers.erase("Accept-Encoding");
-    if (gzip) r.headers.emplace("Accept-Encoding", "gzip");
-    return httplib::Server::HandlerResponse::Unhandled;
-  });
+  svr.set_pre_routing_handler(route_request);
   svr.Get("/", [](const httplib::Request&, httplib::Response& res) { res.set_content(cli::serve_html(), "text/html"); });
   svr.Get("/three.min.js", [&three_js](const httplib::Request&, httplib::Response& res) {
     res.set_content(three_js, "text/javascript");
