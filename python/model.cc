@@ -132,7 +132,7 @@ class PyModel {
     return pyb::make_tuple(to_array(Eigen::MatrixXd(out)), d);
   }
 
-  // As `bodymodel fit` (tools/verbs/model_fit.cc) on a mesh whose vertices are V: the same checks
+  // As `bodymodel fit` (tools/verbs/fit.cc) on a mesh whose vertices are V: the same checks
   // and messages (with "V" for the file name), the same fitter and options, the same labels.
   pyb::tuple fit(const pyb::handle& V, int components, bool pose, int iterations, double prior, double scale,
                  const std::string& sex, const pyb::object& progress) const {

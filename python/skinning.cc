@@ -86,7 +86,7 @@ pyb::tuple fit_rig(const pyb::handle& rest_in, const pyb::handle& poses_in, cons
   if (static_cast<int>(ex.poses.size()) < minimum_examples(method))
     throw InputError(fmt::format("{} needs at least {} example poses, got {}", skinning_model_name(method),
                                  minimum_examples(method), ex.poses.size()));
-  // The settings of `bodymodel skin fit --transforms ... --cv none` (tools/verbs/skinning_fit.cc).
+  // The settings of `bodymodel skin fit --transforms ... --cv none` (tools/verbs/skin_fit.cc).
   SequenceEvaluationOptions opt;
   opt.max_influences = max_influences;
   opt.cv.scheme = CvScheme::none;

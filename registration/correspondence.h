@@ -10,7 +10,7 @@
 // *intra-subject* when they are the same person in different poses.
 //
 // Core takes arrays: the truths and registrations are given as matrices in one frame and unit
-// (mm); tools/verbs/registration_correspondence.cc reads the files.
+// (mm); tools/verbs/eval_correspondence.cc reads the files.
 #pragma once
 
 #include <Eigen/Core>

@@ -1,5 +1,8 @@
-// The `bodymodel` command line: each verb lives in tools/verbs/<stage>_*.cc and registers
-// itself with BODYMODEL_VERB, so adding a verb never edits main.cc.
+// The `bodymodel` command line: each verb lives in tools/verbs/<verb>.cc (dashes as underscores;
+// `skin` sub-verbs in skin_<verb>.cc; encode, decode and interpolate share one file) and registers
+// itself with BODYMODEL_VERB, so adding a verb never edits main.cc. A verb parses its options,
+// calls the library (or a tools/pipeline/ job) and writes its outputs; algorithms live in the
+// libraries, where Python reaches them too.
 //
 //   BODYMODEL_VERB(add_encode_verb) {           // receives CLI::App& app
 //     auto* cmd = app.add_subcommand("encode", "Encode meshes ...");

@@ -25,7 +25,7 @@
 #include "tools/pipeline/character_file.h"
 #include "tools/pipeline/output_folder.h"
 #include "tools/verb.h"
-#include "tools/verbs/skinning_motion.h"
+#include "tools/verbs/skin_motion.h"
 #include "tools/viewer/viewer_assets.h"
 
 namespace bodymodel::cli {

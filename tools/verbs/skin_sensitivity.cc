@@ -14,7 +14,7 @@
 #include "skinning/sequence_evaluation.h"
 #include "tools/console.h"
 #include "tools/verb.h"
-#include "tools/verbs/skinning_common.h"
+#include "tools/verbs/skin_common.h"
 
 namespace bodymodel::cli {
 namespace {

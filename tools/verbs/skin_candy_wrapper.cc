@@ -20,7 +20,7 @@
 #include "skinning/skinning_error.h"
 #include "tools/console.h"
 #include "tools/verb.h"
-#include "tools/verbs/skinning_common.h"
+#include "tools/verbs/skin_common.h"
 
 namespace bodymodel::cli {
 namespace {

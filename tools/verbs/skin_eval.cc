@@ -14,7 +14,7 @@
 #include "skinning/method_comparison.h"
 #include "tools/console.h"
 #include "tools/verb.h"
-#include "tools/verbs/skinning_common.h"
+#include "tools/verbs/skin_common.h"
 
 namespace bodymodel::cli {
 namespace {

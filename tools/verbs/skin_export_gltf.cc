@@ -12,8 +12,8 @@
 #include "skinning/rig_io.h"
 #include "tools/console.h"
 #include "tools/verb.h"
-#include "tools/verbs/skinning_common.h"
-#include "tools/verbs/skinning_motion.h"
+#include "tools/verbs/skin_common.h"
+#include "tools/verbs/skin_motion.h"
 
 namespace bodymodel::cli {
 namespace {

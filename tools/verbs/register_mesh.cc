@@ -26,7 +26,7 @@
 #include "tools/pipeline/batch_jobs.h"
 #include "tools/pipeline/folder_settings.h"
 #include "tools/verb.h"
-#include "tools/verbs/registration_common.h"
+#include "tools/verbs/register_common.h"
 
 namespace bodymodel {
 namespace {

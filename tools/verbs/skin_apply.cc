@@ -11,8 +11,8 @@
 #include "tools/console.h"
 #include "tools/pipeline/folder_settings.h"
 #include "tools/verb.h"
-#include "tools/verbs/skinning_common.h"
-#include "tools/verbs/skinning_motion.h"
+#include "tools/verbs/skin_common.h"
+#include "tools/verbs/skin_motion.h"
 
 namespace bodymodel::cli {
 namespace {
