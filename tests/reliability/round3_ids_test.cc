@@ -411,7 +411,7 @@ TEST(Round3Slow, IdsWithCommasKeepEveryTableWellFormed) {
   EXPECT_EQ(ids, (std::set<std::string>{"smith, j", "doe, a"}));
   ASSERT_TRUE(run({"build", db + "/truth", "--db", db, "--out", model}));
   // 15: a label header that is not UTF-8 (was type_error 316 writing the model's metadata).
-  write_text_file(dir / "labels.csv", "mesh,subject,pose,h\xffeight_cm\ns000_p0,s000,standard,178\n"
+  write_text_file(dir / "labels.csv", "mesh,subject,pose,h\xff" "eight_cm\ns000_p0,s000,standard,178\n"
                                       "s001_p0,s001,standard,165\n");
   EXPECT_TRUE(run({"build", db + "/truth", "--subjects", (dir / "labels.csv").string(), "--out",
                    (dir / "labels.npz").string()}));
