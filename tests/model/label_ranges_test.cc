@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "core/error.h"
+#include "support/input_error.h"
 #include "core/io/mesh_io.h"
 #include "fuzz/tiny_files.h"
 #include "model/database.h"
@@ -20,17 +21,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-template <class F>
-std::string message_of(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  } catch (const std::exception& e) {
-    return std::string("wrong exception type: ") + e.what();
-  }
-  return "";
-}
+inline std::string message_of(const std::function<void()>& f) { return testing::input_error_of(f); }
 
 TEST(LabelRanges, SubjectTablesRefuseNonFiniteAndHugeValues) {
   fixtures::TempDir dir;

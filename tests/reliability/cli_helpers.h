@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "support/input_error.h"
 #include "core/io/atomic_write.h"
 
 namespace bodymodel::reliability {
@@ -118,18 +119,7 @@ inline std::string folder_difference(const fs::path& a, const fs::path& b) {
   return "";
 }
 
-// The message of the InputError `f` throws; "" when it throws nothing; another exception type
-// yields "wrong exception type: ..." (so the expectation on the text fails, naming it).
-inline std::string message_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  } catch (const std::exception& e) {
-    return std::string("wrong exception type: ") + e.what();
-  }
-  return "";
-}
+inline std::string message_of(const std::function<void()>& f) { return testing::input_error_of(f); }
 
 // Lines of `text` that start with "bodymodel: error:".
 inline std::vector<std::string> error_lines(const std::string& text) {
