@@ -181,26 +181,20 @@ std::vector<MeshTableRow> read_mesh_table(const fs::path& path) {
   return out;
 }
 
-ModelBuildInput read_registered_folder(const fs::path& reg, const fs::path& csv, const RegisteredFolderOptions& o,
-                                       RegisteredFolderSummary* summary, const ProgressCallback& progress) {
-  if (!fs::is_directory(reg)) throw InputError(fmt::format("'{}' is not a folder of registered meshes", reg.string()));
-  if (!(o.mm_per_unit > 0) || !std::isfinite(o.mm_per_unit))
-    throw InputError(fmt::format("millimetres per unit must be positive, got {}", o.mm_per_unit));
-  if (o.up_axis < 0 || o.up_axis > 2) throw InputError(fmt::format("up axis must be 0, 1 or 2, got {}", o.up_axis));
-  const auto table = read_mesh_table(csv);
-  // Every listed mesh must exist: report them all at once.
-  std::vector<fs::path> paths;
-  std::vector<std::string> missing;
-  for (const auto& r : table) {
-    paths.push_back(find_registered_mesh(reg, r.mesh));
-    if (paths.back().empty()) missing.push_back(r.mesh);
-  }
-  if (!missing.empty()) {
-    std::string names;
-    for (size_t i = 0; i < std::min<size_t>(3, missing.size()); ++i) names += (i ? ", " : "") + missing[i];
-    throw InputError(fmt::format("'{}' names {} mesh(es) that '{}' does not have as .ply/.obj/.off ({}{})",
-                                 csv.string(), missing.size(), reg.string(), names, missing.size() > 3 ? ", ..." : ""));
-  }
+// The labels the subjects table gives (sex and every numeric column but mesh, subject and pose),
+// one value vector per subject; a subject listed twice must not contradict itself.
+struct GivenLabels {
+  std::vector<LabelInfo> labels;
+  std::vector<std::string> names;
+  std::vector<std::string> subject_order;
+  std::map<std::string, Eigen::VectorXd> subject_values;
+};
+
+GivenLabels given_labels(const fs::path& csv, const std::vector<MeshTableRow>& table) {
+  GivenLabels G;
+  std::vector<std::string>& given = G.names;
+  std::vector<std::string>& subject_order = G.subject_order;
+  std::map<std::string, Eigen::VectorXd>& subject_values = G.subject_values;
   // Label columns (everything but mesh, subject, pose).
   auto rows = read_csv(csv);
   const auto& h = rows[0];
@@ -218,19 +212,15 @@ ModelBuildInput read_registered_folder(const fs::path& reg, const fs::path& csv,
       if (!rows[r][c].empty() && !parse_double(rows[r][c], v)) numeric = false;
     if (numeric) label_cols.push_back(static_cast<int>(c));
   }
-  ModelBuildInput in;
-  std::vector<std::string> given;
   if (sex_col >= 0) {
-    in.subject_labels.push_back({"sex", ""});
+    G.labels.push_back({"sex", ""});
     given.push_back("sex");
   }
   for (int c : label_cols) {
-    in.subject_labels.push_back({h[c], unit_of(h[c])});
+    G.labels.push_back({h[c], unit_of(h[c])});
     given.push_back(h[c]);
   }
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  std::vector<std::string> subject_order;
-  std::map<std::string, Eigen::VectorXd> subject_values;  // given labels per subject
   std::map<std::string, size_t> subject_line;
   for (size_t r = 1; r < rows.size(); ++r) {
     const std::string& subj = table[r - 1].subject;
@@ -262,6 +252,60 @@ ModelBuildInput read_registered_folder(const fs::path& reg, const fs::path& csv,
       }
     }
   }
+  return G;
+}
+
+// Labels that do not vary between subjects (or are known for fewer than two) carry nothing a
+// regression can use: dropped (one person in many poses has none). Returns their names.
+std::vector<std::string> drop_constant_labels(ModelBuildInput& in, const std::map<std::string, int>& standard) {
+  const Eigen::Index n = in.subject_label_values.rows();
+  std::vector<std::string> dropped;
+  std::vector<int> keep;
+  for (int j = 0; j < static_cast<int>(in.subject_labels.size()); ++j) {
+    std::set<double> distinct;
+    for (const auto& [subj, i] : standard)
+      if (std::isfinite(in.subject_label_values(i, j))) distinct.insert(in.subject_label_values(i, j));
+    if (distinct.size() >= 2) keep.push_back(j);
+    else dropped.push_back(in.subject_labels[j].name);
+  }
+  std::vector<LabelInfo> labels;
+  Eigen::MatrixXd values(n, keep.size());
+  for (size_t q = 0; q < keep.size(); ++q) {
+    labels.push_back(in.subject_labels[keep[q]]);
+    values.col(q) = in.subject_label_values.col(keep[q]);
+  }
+  in.subject_labels = std::move(labels);
+  in.subject_label_values = std::move(values);
+  return dropped;
+}
+
+ModelBuildInput read_registered_folder(const fs::path& reg, const fs::path& csv, const RegisteredFolderOptions& o,
+                                       RegisteredFolderSummary* summary, const ProgressCallback& progress) {
+  if (!fs::is_directory(reg)) throw InputError(fmt::format("'{}' is not a folder of registered meshes", reg.string()));
+  if (!(o.mm_per_unit > 0) || !std::isfinite(o.mm_per_unit))
+    throw InputError(fmt::format("millimetres per unit must be positive, got {}", o.mm_per_unit));
+  if (o.up_axis < 0 || o.up_axis > 2) throw InputError(fmt::format("up axis must be 0, 1 or 2, got {}", o.up_axis));
+  const auto table = read_mesh_table(csv);
+  // Every listed mesh must exist: report them all at once.
+  std::vector<fs::path> paths;
+  std::vector<std::string> missing;
+  for (const auto& r : table) {
+    paths.push_back(find_registered_mesh(reg, r.mesh));
+    if (paths.back().empty()) missing.push_back(r.mesh);
+  }
+  if (!missing.empty()) {
+    std::string names;
+    for (size_t i = 0; i < std::min<size_t>(3, missing.size()); ++i) names += (i ? ", " : "") + missing[i];
+    throw InputError(fmt::format("'{}' names {} mesh(es) that '{}' does not have as .ply/.obj/.off ({}{})",
+                                 csv.string(), missing.size(), reg.string(), names, missing.size() > 3 ? ", ..." : ""));
+  }
+  GivenLabels G = given_labels(csv, table);
+  ModelBuildInput in;
+  in.subject_labels = G.labels;
+  const std::vector<std::string>& given = G.names;
+  const std::vector<std::string>& subject_order = G.subject_order;
+  std::map<std::string, Eigen::VectorXd>& subject_values = G.subject_values;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
   // Meshes.
   RegisteredFolderSummary sum;
   const size_t n = table.size();
@@ -337,26 +381,7 @@ ModelBuildInput read_registered_folder(const fs::path& reg, const fs::path& csv,
     row << subject_values[subj], measured_values[subj];
     in.subject_label_values.row(i) = row.transpose();
   }
-  // Labels that do not vary between subjects (or are known for fewer than two) carry nothing
-  // a regression can use: dropped (one person in many poses has none).
-  {
-    std::vector<int> keep;
-    for (int j = 0; j < static_cast<int>(in.subject_labels.size()); ++j) {
-      std::set<double> distinct;
-      for (const auto& [subj, i] : standard)
-        if (std::isfinite(in.subject_label_values(i, j))) distinct.insert(in.subject_label_values(i, j));
-      if (distinct.size() >= 2) keep.push_back(j);
-      else sum.dropped_labels.push_back(in.subject_labels[j].name);
-    }
-    std::vector<LabelInfo> labels;
-    Eigen::MatrixXd values(n, keep.size());
-    for (size_t q = 0; q < keep.size(); ++q) {
-      labels.push_back(in.subject_labels[keep[q]]);
-      values.col(q) = in.subject_label_values.col(keep[q]);
-    }
-    in.subject_labels = std::move(labels);
-    in.subject_label_values = std::move(values);
-  }
+  sum.dropped_labels = drop_constant_labels(in, standard);
   in.pose_label_values.resize(n, 0);
   sum.meshes = static_cast<int>(n);
   sum.subjects = static_cast<int>(subject_order.size());
