@@ -25,6 +25,7 @@
 #include "core/measure.h"
 #include "model/body_model.h"
 #include "model/model_file.h"
+#include "population/ansur.h"
 #include "regression/label_noise.h"
 #include "regression/line_plot.h"
 #include "regression/regression_study.h"
@@ -49,6 +50,8 @@ struct EvalRegressorsArgs {
   unsigned synthetic_seed = 1;
   std::string save_model;       // with --synthetic: also write the built model here
   std::string label_noise;      // LabelNoiseSpec text (regression/label_noise.h)
+  std::string table;            // an ANSUR II file: features are --inputs columns, labels the others
+  std::string inputs = "male,Age,stature,weightkg";
 };
 
 // What the study runs on: features, all labels, their names/units, and the subject of each row.
@@ -206,6 +209,29 @@ StudyInput synthetic_input(const EvalRegressorsArgs& a) {
   }
   return in;
 }
+// A table of measured people (ANSUR II): the --inputs columns ("male": 1 for men) are the
+// features, every numeric column a label; one row a person.
+StudyInput table_input(const EvalRegressorsArgs& a) {
+  const std::vector<std::string> inputs = cli::split_commas(a.inputs);
+  if (inputs.empty()) throw InputError("--inputs: no column given");
+  std::vector<std::string> required;
+  for (const auto& c : inputs)
+    if (c != "male") required.push_back(c);
+  const AnsurTable t = read_ansur(a.table, required);
+  StudyInput in;
+  in.source = a.table;
+  in.X.resize(t.values.rows(), Eigen::Index(inputs.size()));
+  for (size_t k = 0; k < inputs.size(); ++k)
+    if (inputs[k] == "male")
+      for (Eigen::Index r = 0; r < in.X.rows(); ++r) in.X(r, Eigen::Index(k)) = t.male[size_t(r)];
+    else
+      in.X.col(Eigen::Index(k)) = t.values.col(t.column(inputs[k]));
+  in.Y = t.values;
+  in.names = t.columns;
+  for (const auto& c : t.columns) in.units.push_back(c == "weightkg" ? "kg" : c == "Age" ? "years" : "mm");
+  return in;
+}
+
 }  // namespace
 
 namespace {
@@ -216,6 +242,10 @@ void add_eval_regressors_options(CLI::App* cmd, EvalRegressorsArgs& a) {
                   "Instead of a model file: build the shape-only model of this many synthetic subjects\n"
                   "in-process (synth-db's subject distribution, standard-pose truth meshes, every PCA\n"
                   "component kept) and evaluate on it");
+  cmd->add_option("--table", a.table,
+                  "Instead of a model: an ANSUR II file (anthropometry/ansur2/ansur2_male.csv); the features\n"
+                  "are the --inputs columns, the labels any other numeric columns (mm; weightkg in kg)");
+  cmd->add_option("--inputs", a.inputs, "With --table: the feature columns ('male' = 1 for men)")->capture_default_str();
   cmd->add_option("--synthetic-seed", a.synthetic_seed, "Seed of the synthetic subjects")->capture_default_str();
   cmd->add_option("--save-model", a.save_model, "With --synthetic: also write the built model (.npz)");
   cmd->add_option("--label-noise", a.label_noise,
@@ -327,12 +357,12 @@ void write_regression_outputs(const std::string& dir, const RegressionStudy& stu
 }
 
 void run_eval_regressors(EvalRegressorsArgs& a) {
-  if (a.synthetic > 0 && !a.model.empty())
-    throw InputError("give either a model file or --synthetic N, not both");
-  if (a.synthetic <= 0 && a.model.empty())
-    throw InputError("no model file given (expected model.npz, or --synthetic N to build one in-process)");
+  if ((a.synthetic > 0) + !a.model.empty() + !a.table.empty() > 1)
+    throw InputError("give one of a model file, --synthetic N or --table FILE");
+  if (a.synthetic <= 0 && a.model.empty() && a.table.empty())
+    throw InputError("no model file given (expected model.npz, --synthetic N to build one in-process, or --table FILE)");
   const LabelNoiseSpec noise = parse_label_noise(a.label_noise);
-  const StudyInput in = a.synthetic > 0 ? synthetic_input(a) : model_input(a);
+  const StudyInput in = a.synthetic > 0 ? synthetic_input(a) : !a.table.empty() ? table_input(a) : model_input(a);
   const Eigen::MatrixXd& X = in.X;
   const std::vector<int>& groups = in.groups;
   SelectedLabels chosen = select_labels(in, a.labels);
@@ -354,7 +384,7 @@ void run_eval_regressors(EvalRegressorsArgs& a) {
   o.cross_validation.folds = a.folds;
   o.cross_validation.seed = a.seed;
   o.jobs = a.jobs;
-  o.directions = !a.no_directions;
+  o.directions = !a.no_directions && a.table.empty();  // morph directions: of a model's coefficients only
   cli::info(fmt::format("{}: {} rows ({} subjects), {} components, {} labels, {} regressors, {}-fold",
                         in.source, X.rows(), groups.empty() ? X.rows() : static_cast<Eigen::Index>(*std::max_element(groups.begin(), groups.end()) + 1),
                         X.cols(), wanted.size(), o.regressors.size(), a.folds));
@@ -380,7 +410,7 @@ void run_eval_regressors(EvalRegressorsArgs& a) {
   }
 
   write_regression_outputs(a.out, study, o, wanted, sel_units);
-  cli::info(fmt::format("wrote {}/regressors.csv, directions.csv, filtered_components.png/.csv", a.out));
+  cli::info(fmt::format("wrote {}/regressors.csv, {}filtered_components.png/.csv", a.out, o.directions ? "directions.csv, " : ""));
 }
 
 }  // namespace
