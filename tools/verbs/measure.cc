@@ -7,6 +7,7 @@
 #include "core/io/json_text.h"
 #include "core/io/mesh_io.h"
 #include "core/measure.h"
+#include "core/survey_columns.h"
 #include "tools/verb.h"
 
 namespace bodymodel {
@@ -17,6 +18,7 @@ struct MeasureArgs {
   std::string sex = "unknown";
   std::string unit = "mm";
   bool json = false;
+  std::string standard;  // "" or "nhanes": the survey's columns
 };
 
 double unit_in_mm(const std::string& unit) {
@@ -42,6 +44,10 @@ BODYMODEL_VERB(add_measure_verb) {
   cmd->add_option("--unit", args->unit, "Unit of the mesh coordinates: mm, cm, dm or m")
       ->capture_default_str();
   cmd->add_flag("--json", args->json, "Print JSON instead of a table");
+  cmd->add_option("--standard", args->standard,
+                  "nhanes: the NHANES body-measure columns (BMXHT, BMXWT, BMXWAIST, BMXHIP, BMXARMC,\n"
+                  "BMXARML, BMXLEG) as the survey defines them, on bodies with the template's topology")
+      ->check(CLI::IsMember({"nhanes"}));
   cmd->callback([args] {
     Mesh m = read_mesh(args->mesh);
     MeasureOptions o;
@@ -58,6 +64,17 @@ BODYMODEL_VERB(add_measure_verb) {
                  "bodymodel: warning: height {:.1f} cm is implausible for a body: is --unit {} "
                  "right?\n",
                  b.height_cm, args->unit);
+    if (!args->standard.empty()) {
+      const std::vector<SurveyValue> cols = nhanes_columns(b, "'" + args->mesh + "'");
+      if (args->json) {
+        nlohmann::ordered_json j = nlohmann::ordered_json::object();
+        for (const auto& c : cols) j[c.column] = c.value;
+        fmt::print("{}\n", json_text(j, 2));
+      } else {
+        for (const auto& c : cols) fmt::print("{:<10}{:>8.1f}  {}, {}\n", c.column, c.value, c.unit, c.definition);
+      }
+      return;
+    }
     if (args->json) {
       nlohmann::json j = {{"height_cm", b.height_cm}, {"volume_l", b.volume_l},
                           {"weight_kg", b.weight_kg}, {"density_kg_per_l", o.density_kg_per_l},
