@@ -10,6 +10,7 @@
 #include "core/io/mesh_io.h"
 #include "core/makehuman.h"
 #include "core/measure.h"
+#include "core/survey_columns.h"
 #include "encoding/relative_rotation_decoder.h"
 #include "encoding/relative_rotation_encoding.h"
 #include "python/common.h"
@@ -377,7 +378,9 @@ F (26756, 3). An ethnic weight rescales the other two so they sum to 1. The data
 (default $BODYMODEL_DATA/makehuman) is loaded once per process (≈ 0.3 s).)");
 
   m.def("measure", [](const pyb::handle& V, const pyb::handle& F, const std::string& sex, int up_axis,
-                      double density_kg_per_l, double mm_per_unit) {
+                      double density_kg_per_l, double mm_per_unit, const std::string& standard) -> pyb::dict {
+          if (!standard.empty() && standard != "nhanes")
+            throw InputError("standard: expected '' or 'nhanes', got '" + standard + "'");
           Eigen::MatrixX3d X = vertices(V, "V");
           Eigen::MatrixX3i Fi = faces(F, "F", X.rows());
           MeasureOptions o;
@@ -388,16 +391,23 @@ F (26756, 3). An ethnic weight rescales the other two so they sum to 1. The data
             pyb::gil_scoped_release nogil;
             b = measure_body(X, Fi, s, o);
           }
+          if (standard == "nhanes") {
+            pyb::dict d;  // as `bodymodel measure --standard nhanes --json`
+            for (const SurveyValue& c : nhanes_columns(b, "V")) d[pyb::str(c.column)] = c.value;
+            return d;
+          }
           return measurements_dict(b);
         }, "V"_a, "F"_a, "sex"_a = "unknown", "up_axis"_a = 1, "density_kg_per_l"_a = 1.01,
-        "mm_per_unit"_a = 1.0,
-        R"(measure(V, F, sex='unknown', up_axis=1, density_kg_per_l=1.01, mm_per_unit=1.0) -> dict
+        "mm_per_unit"_a = 1.0, "standard"_a = "",
+        R"(measure(V, F, sex='unknown', up_axis=1, density_kg_per_l=1.01, mm_per_unit=1.0, standard='') -> dict
 
 Body measurements of a closed, outward-oriented mesh in the standard pose, as `bodymodel
 measure`: height_cm (extent along the up axis), volume_l, weight_kg (volume × density), the
 neck/chest/waist/hips girths in cm (convex hull of the torso section) and the heights they
 were found at (*_at_cm), body_fat_pct (U.S. Navy formula; NaN unless sex is female/male).
-V (n, 3) in units of mm_per_unit millimetres, F (m, 3).)");
+V (n, 3) in units of mm_per_unit millimetres, F (m, 3). standard='nhanes' returns the NHANES
+columns instead (BMXHT, BMXWT, BMXWAIST, BMXHIP, BMXARMC, BMXARML, BMXLEG; cm and kg), as
+`bodymodel measure --standard nhanes`; they need the template's topology.)");
 }
 
 // The reusable Decoder class and the one-off encode/decode of the relative rotation encoding.

@@ -77,6 +77,20 @@ def test_measure_matches_cli_and_the_sphere(tmp_path, sphere, cli):
         assert abs(mf[k] - j[k]) <= 1e-9 * max(1.0, abs(j[k])), k
 
 
+def test_measure_nhanes_columns_match_the_cli(tmp_path, sphere, cli):
+    V, F = bodymodel.makehuman_body()
+    path = tmp_path / "body.ply"
+    bodymodel.write_mesh(str(path), V, F)
+    Vf, Ff = bodymodel.read_mesh(str(path))
+    j = json.loads(cli(f"measure {path} --standard nhanes --json").stdout)
+    m = bodymodel.measure(Vf, Ff, standard="nhanes")
+    assert sorted(m) == sorted(j) and "BMXWAIST" in m
+    for k in j:
+        assert abs(m[k] - j[k]) <= 1e-9 * max(1.0, abs(j[k])), k
+    with pytest.raises(bodymodel.InputError, match="template's topology"):
+        bodymodel.measure(*sphere, standard="nhanes")
+
+
 def test_decode_of_encode_round_trip(sphere):
     V, F = sphere
     X = bend(V)
