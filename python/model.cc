@@ -12,6 +12,7 @@
 #include "model/generate_crowd.h"
 #include "model/model_file.h"
 #include "model/morph.h"
+#include "model/morph_request.h"
 #include "python/common.h"
 
 namespace bodymodel::py {
@@ -89,16 +90,16 @@ class PyModel {
   }
 
   pyb::tuple morph(const pyb::handle& V, const std::string& sex, int iterations, const pyb::handle& mask,
-                   bool closest, const pyb::kwargs& labels) const {
+                   bool closest, const std::string& change, const pyb::kwargs& labels) const {
     const SemanticRegression& reg = model_->shape.regression;
     if (labels.empty()) throw InputError("morph: nothing to do: give at least one LABEL=VALUE");
     std::vector<LabelCondition> cond;
     for (auto [k, v] : labels) cond.push_back(condition(reg, pyb::str(k), v));
-    MorphOptions o;
-    o.max_iterations = iterations;
-    o.sex = sex == "female" ? Sex::female : sex == "male" ? Sex::male : Sex::unknown;
     if (sex != "female" && sex != "male" && sex != "unknown")
       throw InputError("sex: expected 'female', 'male' or 'unknown', got '" + sex + "'");
+    // As `bodymodel morph` (model/morph_request.h): the likely change from the mean body.
+    MorphOptions o = morph_request_options(cond, sex == "female" ? Sex::female : sex == "male" ? Sex::male : Sex::unknown,
+                                           change, V.is_none(), iterations);
     if (!mask.is_none()) {
       o.triangle_mask = vector(mask, "mask");
       if (o.triangle_mask.size() != model_->tmpl->triangle_count())
@@ -316,8 +317,8 @@ morph() and generate() use. Encodings are 15 values per triangle relative to enc
              return to_array(Eigen::VectorXd(bm.shape.regression.predict(c)));
            }, "V"_a, "predict_labels(V) -> (L,): the eq. 10 regression's labels of body V (label_names' order).")
       .def("morph", &PyModel::morph, "V"_a = pyb::none(), pyb::kw_only(), "sex"_a = "unknown", "iterations"_a = 8,
-           "mask"_a = pyb::none(), "closest"_a = false,
-           R"(morph(V=None, *, sex='unknown', iterations=8, mask=None, closest=False, **labels) -> (V', summary)
+           "mask"_a = pyb::none(), "closest"_a = false, "change"_a = "",
+           R"(morph(V=None, *, sex='unknown', iterations=8, mask=None, closest=False, change='', **labels) -> (V', summary)
 
 Changes body V ((n, 3), mm, the model's topology; None = the model's mean body) to meet the
 label values given as keywords, as `bodymodel morph`: height_cm=185 (exact), weight_kg='keep'
@@ -326,7 +327,9 @@ labels (height, weight, girths) are met as measured on the output (a few correct
 mask: (m,) per-triangle weights in [0, 1] restricting the change. Returns the morphed vertices
 (n, 3), rigidly placed onto V, and a summary dict (iterations, converged, decodes, labels: per
 label target/start/achieved/satisfied, report: the CLI's table). A target the model cannot meet
-raises InputError, as the CLI fails, unless closest=True (the CLI's --closest).)")
+raises InputError, as the CLI fails, unless closest=True (the CLI's --closest). change: 'likely'
+(the model's conditional mean; the default from the mean body) or 'smallest' (eq. 11; the default
+from V), the CLI's --change.)")
       .def("fit", &PyModel::fit, "V"_a, pyb::kw_only(), "components"_a = -1, "pose"_a = false, "iterations"_a = 20,
            "prior"_a = 0.0, "scale"_a = 0.0, "sex"_a = "unknown", "progress"_a = pyb::none(),
            R"(fit(V, *, components=-1, pose=False, iterations=20, prior=0.0, scale=0.0, sex='unknown', progress=None) -> (V', summary)

@@ -7,6 +7,7 @@
 #include "core/io/mesh_io.h"
 #include "core/plausibility.h"
 #include "population/fit_measurements.h"
+#include "model/morph_request.h"
 #include "model/body_regions.h"
 #include "model/morph.h"
 #include "tools/verb.h"
@@ -67,12 +68,9 @@ void run_morph(MorphArgs& a) {
     reg.index(k);
     cond.push_back(LabelCondition::keep_current(k));
   }
-  MorphOptions o;
-  o.max_iterations = a.iterations;
-  o.sex = a.sex == "female" ? Sex::female : a.sex == "male" ? Sex::male : Sex::unknown;
-  for (auto& c : cond)
-    if (c.label == "sex" && o.sex == Sex::unknown) o.sex = c.lo < 0.5 ? Sex::female : Sex::male;
-  o.prior_weighted = a.change.empty() ? a.in.empty() : a.change == "likely";
+  MorphOptions o = morph_request_options(
+      cond, a.sex == "female" ? Sex::female : a.sex == "male" ? Sex::male : Sex::unknown, a.change, a.in.empty(),
+      a.iterations);
   ShapeMorpher morpher(model);
   Mesh body;
   if (a.in.empty()) {
