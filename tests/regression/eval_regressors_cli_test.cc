@@ -194,7 +194,7 @@ TEST_F(EvalRegressorsCli, SyntheticShapeModelInProcessWithLabelNoise) {
   // Bad combinations: one line, exit 2.
   r = run("eval-regressors " + model.string() + " --synthetic 12 --out " + (dir_ / "x").string());
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.output.find("not both"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("give one of a model file, --synthetic N or --table FILE"), std::string::npos) << r.output;
   r = run("eval-regressors --out " + (dir_ / "x").string());
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("no model file given"), std::string::npos) << r.output;
