@@ -614,6 +614,67 @@ bool is_same_synthetic_database(const MakeHuman& mh, const std::string& out,
   return d.empty();
 }
 
+namespace {
+
+// A subject's labels, measured on its standard-pose mesh (what `bodymodel measure` sees).
+void measure_subject(SyntheticSubject& subj, const Eigen::MatrixX3d& posed, const Eigen::MatrixX3i& F) {
+  BodyMeasurements m = measure_body(posed, F,
+                                    subj.sex == "male" ? Sex::male : Sex::female);
+  subj.height_cm = m.height_cm;
+  subj.weight_kg = m.weight_kg;
+  subj.body_fat_pct = m.body_fat_pct;
+  subj.waist_cm = m.waist_cm;
+  subj.hips_cm = m.hips_cm;
+  subj.chest_cm = m.chest_cm;
+  subj.neck_cm = m.neck_cm;
+  subj.waist_iliac_cm = m.waist_iliac_cm;
+  subj.arm_circumference_cm = m.arm_circumference_cm;
+  subj.upper_arm_length_cm = m.upper_arm_length_cm;
+  subj.upper_leg_length_cm = m.upper_leg_length_cm;
+}
+
+// One scan's files: the posed body placed on the scanner platform (a turn about +y and a
+// horizontal shift) as the truth mesh and pose, the simulated scan and its landmarks. Draws from
+// `r` in a fixed order, so a scan depends on its seed only.
+void write_scan_files(const fs::path& dir, const std::string& id, const MakeHuman::Body& body,
+                      const Eigen::MatrixX3d& posed, const Pose& pose, const SyntheticDatabaseOptions& o,
+                      std::mt19937_64& r, SyntheticScanInfo& info) {
+  std::uniform_real_distribution<double> u(-1, 1);
+  RigidMotion place;
+  place.R = Eigen::AngleAxisd(u(r) * o.max_yaw_deg * M_PI / 180, Eigen::Vector3d::UnitY())
+                .toRotationMatrix();
+  place.t = Eigen::Vector3d(u(r) * o.max_shift_mm, 0, u(r) * o.max_shift_mm);
+  Eigen::MatrixX3d truth = apply(place, posed);
+  PointCloud scan;
+  if (!o.truth_only) {
+    scan = simulate_scan(truth, body.mesh.F, o.scanner, r);
+    write_point_cloud(dir / "scans" / (id + ".ply"), scan);
+  }
+  nlohmann::ordered_json lm;
+  std::normal_distribution<double> ln(0.0, o.landmark_sigma_mm);
+  for (auto& [name, v] : body_landmarks()) {
+    Eigen::Vector3d p = truth.row(v).transpose() + Eigen::Vector3d(ln(r), ln(r), ln(r));
+    lm[name] = {p.x(), p.y(), p.z()};
+  }
+  write_text_file(dir / "scans" / (id + ".landmarks.json"), json_text(lm, 1) + "\n");
+  write_mesh(dir / "truth" / (id + ".ply"), truth, body.mesh.F);
+  std::string pose_csv = "bone,rx,ry,rz\n";
+  Eigen::Vector3d g = rotation_vector_of(place.R);
+  pose_csv += "_global_rotation," + fmt_double(g.x(), 9) + "," + fmt_double(g.y(), 9) + "," +
+              fmt_double(g.z(), 9) + "\n";
+  pose_csv += "_global_translation_mm," + fmt_double(place.t.x(), 4) + "," +
+              fmt_double(place.t.y(), 4) + "," + fmt_double(place.t.z(), 4) + "\n";
+  for (int b = 0; b < body.skeleton.bone_count(); ++b) {
+    Eigen::Vector3d w = rotation_vector_of(pose.rotations[b]);
+    pose_csv += body.skeleton.names[b] + "," + fmt_double(w.x(), 9) + "," +
+                fmt_double(w.y(), 9) + "," + fmt_double(w.z(), 9) + "\n";
+  }
+  write_text_file(dir / "truth" / (id + ".pose.csv"), pose_csv);
+  info.points = static_cast<int>(scan.P.rows());
+}
+
+}  // namespace
+
 SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const std::string& out,
                                                      const SyntheticDatabaseOptions& o,
                                                      const ProgressCallback& progress) {
@@ -722,57 +783,8 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
         }
         Eigen::MatrixX3d posed =
             linear_blend_skinning(body.mesh.V, body.weights, forward_kinematics(body.skeleton, pose));
-        if (job.index == 0) {
-          // Labels are measured on the standard-pose mesh (what `bodymodel measure` sees).
-          BodyMeasurements m = measure_body(posed, body.mesh.F,
-                                            subj.sex == "male" ? Sex::male : Sex::female);
-          subj.height_cm = m.height_cm;
-          subj.weight_kg = m.weight_kg;
-          subj.body_fat_pct = m.body_fat_pct;
-          subj.waist_cm = m.waist_cm;
-          subj.hips_cm = m.hips_cm;
-          subj.chest_cm = m.chest_cm;
-          subj.neck_cm = m.neck_cm;
-          subj.waist_iliac_cm = m.waist_iliac_cm;
-          subj.arm_circumference_cm = m.arm_circumference_cm;
-          subj.upper_arm_length_cm = m.upper_arm_length_cm;
-          subj.upper_leg_length_cm = m.upper_leg_length_cm;
-        }
-        if (!keep) {
-          // Placement on the scanner platform: a turn about +y and a horizontal shift.
-          std::uniform_real_distribution<double> u(-1, 1);
-          RigidMotion place;
-          place.R = Eigen::AngleAxisd(u(r) * o.max_yaw_deg * M_PI / 180, Eigen::Vector3d::UnitY())
-                        .toRotationMatrix();
-          place.t = Eigen::Vector3d(u(r) * o.max_shift_mm, 0, u(r) * o.max_shift_mm);
-          Eigen::MatrixX3d truth = apply(place, posed);
-          PointCloud scan;
-          if (!o.truth_only) {
-            scan = simulate_scan(truth, body.mesh.F, o.scanner, r);
-            write_point_cloud(dir / "scans" / (id + ".ply"), scan);
-          }
-          nlohmann::ordered_json lm;
-          std::normal_distribution<double> ln(0.0, o.landmark_sigma_mm);
-          for (auto& [name, v] : body_landmarks()) {
-            Eigen::Vector3d p = truth.row(v).transpose() + Eigen::Vector3d(ln(r), ln(r), ln(r));
-            lm[name] = {p.x(), p.y(), p.z()};
-          }
-          write_text_file(dir / "scans" / (id + ".landmarks.json"), json_text(lm, 1) + "\n");
-          write_mesh(dir / "truth" / (id + ".ply"), truth, body.mesh.F);
-          std::string pose_csv = "bone,rx,ry,rz\n";
-          Eigen::Vector3d g = rotation_vector_of(place.R);
-          pose_csv += "_global_rotation," + fmt_double(g.x(), 9) + "," + fmt_double(g.y(), 9) + "," +
-                      fmt_double(g.z(), 9) + "\n";
-          pose_csv += "_global_translation_mm," + fmt_double(place.t.x(), 4) + "," +
-                      fmt_double(place.t.y(), 4) + "," + fmt_double(place.t.z(), 4) + "\n";
-          for (int b = 0; b < body.skeleton.bone_count(); ++b) {
-            Eigen::Vector3d w = rotation_vector_of(pose.rotations[b]);
-            pose_csv += body.skeleton.names[b] + "," + fmt_double(w.x(), 9) + "," +
-                        fmt_double(w.y(), 9) + "," + fmt_double(w.z(), 9) + "\n";
-          }
-          write_text_file(dir / "truth" / (id + ".pose.csv"), pose_csv);
-          info.points = static_cast<int>(scan.P.rows());
-        }
+        if (job.index == 0) measure_subject(subj, posed, body.mesh.F);
+        if (!keep) write_scan_files(dir, id, body, posed, pose, o, r, info);
       }
       if (keep) {
         info.points = kept_points;
