@@ -21,18 +21,27 @@ def code_of(line):
 
 
 def bodies(path):
+    """(lines, first line, text) of every function body, counted from the first line of its
+    signature (the line after the previous statement, block or blank line)."""
     stack, out = [], []
+    statement_start = 0
     for i, raw in enumerate(open(path, errors="replace").read().split("\n")):
         line = code_of(raw)
         stripped = line.rstrip()
+        if not stripped.strip():
+            statement_start = i + 1
+            continue
         opener = stripped.endswith("{") and SIG.search(stripped) and not CONTROL.search(stripped)
         for j, ch in enumerate(line):
             if ch == "{":
-                stack.append((i, bool(opener) and j == len(stripped) - 1, raw.strip()[:70]))
+                start = statement_start if opener and j == len(stripped) - 1 else i
+                stack.append((start, bool(opener) and j == len(stripped) - 1, raw.strip()[:70]))
             elif ch == "}" and stack:
                 start, is_function, name = stack.pop()
                 if is_function:
                     out.append((i - start + 1, start + 1, name))
+        if stripped.endswith((";", "{", "}")) or stripped.lstrip().startswith("#"):
+            statement_start = i + 1
     return out
 
 

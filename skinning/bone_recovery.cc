@@ -82,13 +82,14 @@ BoneTransforms fit_section_transforms(const Eigen::MatrixX3d& rest, const Eigen:
   return T;
 }
 
-RecoveredBones recover_bones(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3i& F,
-                             const std::vector<Eigen::MatrixX3d>& frames,
-                             const BoneRecoveryOptions& options, BoneRecoverySummary* summary,
-                             const ProgressCallback& progress) {
-  const auto t0 = std::chrono::steady_clock::now();
+namespace {
+
+// The inputs bone recovery needs: a positive bone count no larger than the triangle count, frames
+// of the rest mesh's size, finite coordinates and face indices in range.
+void check_recovery_input(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3i& F,
+                          const std::vector<Eigen::MatrixX3d>& frames, int Bn) {
   const Eigen::Index n = rest.rows(), nf = F.rows();
-  const int P = static_cast<int>(frames.size()), Bn = options.bones;
+  const int P = static_cast<int>(frames.size());
   if (Bn < 1) throw InputError("bone recovery: the bone count must be at least 1, found " + std::to_string(Bn));
   if (Bn > nf)
     throw InputError("bone recovery: " + std::to_string(Bn) + " bones requested but the mesh has only " +
@@ -106,23 +107,12 @@ RecoveredBones recover_bones(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3
     if (!frames[static_cast<size_t>(p)].allFinite())
       throw InputError("bone recovery: frame " + std::to_string(p) + " contains NaN");
   }
-  // Rotation sequences: 9·P features per triangle.
-  report_progress(progress, 0.0, "triangle rotations");
-  Eigen::MatrixXd X(nf, 9 * P);
-  tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, nf, 256), [&](const auto& r) {
-    for (Eigen::Index f = r.begin(); f < r.end(); ++f) {
-      const Eigen::Matrix3d D0 = triangle_frame(rest, F, f);
-      const double det = D0.determinant();
-      const Eigen::Matrix3d D0inv = std::abs(det) > 1e-300 ? Eigen::Matrix3d(D0.inverse()) : Eigen::Matrix3d::Identity();
-      for (int p = 0; p < P; ++p) {
-        const Eigen::Matrix3d R = nearest_rotation(triangle_frame(frames[static_cast<size_t>(p)], F, f) * D0inv);
-        X.row(f).segment<9>(9 * p) = Eigen::Map<const Eigen::Matrix<double, 1, 9>>(R.data());
-      }
-    }
-  });
-  // k-means++ seeding.
-  std::mt19937 rng(options.seed);
-  Eigen::MatrixXd centers(Bn, 9 * P);
+}
+
+// k-means++ seeding of Bn centres among the rows of X (draws from rng in a fixed order).
+Eigen::MatrixXd kmeans_plus_plus(const Eigen::MatrixXd& X, int Bn, std::mt19937& rng) {
+  const Eigen::Index nf = X.rows();
+  Eigen::MatrixXd centers(Bn, X.cols());
   Eigen::VectorXd d2 = Eigen::VectorXd::Constant(nf, std::numeric_limits<double>::infinity());
   centers.row(0) = X.row(std::uniform_int_distribution<Eigen::Index>(0, nf - 1)(rng));
   for (int c = 1; c < Bn; ++c) {
@@ -140,6 +130,36 @@ RecoveredBones recover_bones(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3
     }
     centers.row(c) = X.row(pick);
   }
+  return centers;
+}
+
+}  // namespace
+
+RecoveredBones recover_bones(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3i& F,
+                             const std::vector<Eigen::MatrixX3d>& frames,
+                             const BoneRecoveryOptions& options, BoneRecoverySummary* summary,
+                             const ProgressCallback& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Eigen::Index n = rest.rows(), nf = F.rows();
+  const int P = static_cast<int>(frames.size()), Bn = options.bones;
+  check_recovery_input(rest, F, frames, Bn);
+  // Rotation sequences: 9·P features per triangle.
+  report_progress(progress, 0.0, "triangle rotations");
+  Eigen::MatrixXd X(nf, 9 * P);
+  tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, nf, 256), [&](const auto& r) {
+    for (Eigen::Index f = r.begin(); f < r.end(); ++f) {
+      const Eigen::Matrix3d D0 = triangle_frame(rest, F, f);
+      const double det = D0.determinant();
+      const Eigen::Matrix3d D0inv = std::abs(det) > 1e-300 ? Eigen::Matrix3d(D0.inverse()) : Eigen::Matrix3d::Identity();
+      for (int p = 0; p < P; ++p) {
+        const Eigen::Matrix3d R = nearest_rotation(triangle_frame(frames[static_cast<size_t>(p)], F, f) * D0inv);
+        X.row(f).segment<9>(9 * p) = Eigen::Map<const Eigen::Matrix<double, 1, 9>>(R.data());
+      }
+    }
+  });
+  // k-means++ seeding.
+  std::mt19937 rng(options.seed);
+  Eigen::MatrixXd centers = kmeans_plus_plus(X, Bn, rng);
   Eigen::VectorXi label = Eigen::VectorXi::Constant(nf, -1);
   int it = 0;
   for (; it < options.kmeans_iterations; ++it) {
