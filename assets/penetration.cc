@@ -1,0 +1,119 @@
+#include "assets/penetration.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+#include "core/geometry.h"
+#include "registration/correspondence.h"
+
+namespace bodymodel {
+
+Eigen::VectorXd signed_distance_to_body(const Eigen::MatrixX3d& points, const Eigen::MatrixX3d& body_V,
+                                        const Eigen::MatrixX3i& body_F, Eigen::MatrixX3d* normals_out) {
+  if (points.rows() == 0) {
+    if (normals_out) normals_out->resize(0, 3);
+    return Eigen::VectorXd();
+  }
+  const std::vector<SurfaceLocation> loc = locate_on_surface(points, body_V, body_F);
+  const Eigen::MatrixX3d vn = vertex_normals(body_V, body_F);
+  Eigen::VectorXd sd(points.rows());
+  if (normals_out) normals_out->resize(points.rows(), 3);
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    const SurfaceLocation& l = loc[i];
+    Eigen::RowVector3d p = Eigen::RowVector3d::Zero(), n = Eigen::RowVector3d::Zero();
+    for (int k = 0; k < 3; ++k) {
+      p += l.bary[k] * body_V.row(body_F(l.face, k));
+      n += l.bary[k] * vn.row(body_F(l.face, k));
+    }
+    if (n.norm() > 0) n.normalize();
+    const double side = (points.row(i) - p).dot(n);
+    sd[i] = side < 0 ? -l.distance : l.distance;
+    if (normals_out) normals_out->row(i) = n;
+  }
+  return sd;
+}
+
+Penetration penetration_of(const Eigen::VectorXd& sd, double depth_mm) {
+  Penetration p;
+  p.vertices = static_cast<int>(sd.size());
+  for (Eigen::Index i = 0; i < sd.size(); ++i) {
+    if (sd[i] < -depth_mm) ++p.penetrating;
+    p.max_depth = std::max(p.max_depth, -sd[i]);
+  }
+  p.fraction = p.vertices ? double(p.penetrating) / p.vertices : 0.0;
+  return p;
+}
+
+namespace {
+
+std::vector<std::vector<int>> neighbours(const Eigen::MatrixX3i& F, Eigen::Index n) {
+  std::vector<std::vector<int>> nb(n);
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int a = F(f, k), b = F(f, (k + 1) % 3);
+      if (a < 0 || b < 0 || a >= n || b >= n)
+        throw InputError("push_garment_out: garment face " + std::to_string(f) + " refers to a vertex outside 0.." +
+                         std::to_string(n - 1));
+      nb[a].push_back(b);
+      nb[b].push_back(a);
+    }
+  for (auto& v : nb) {
+    std::sort(v.begin(), v.end());
+    v.erase(std::unique(v.begin(), v.end()), v.end());
+  }
+  return nb;
+}
+
+// Spreads each displacement to its neighbours at half strength per ring, keeping at every
+// vertex the largest displacement offered, so the pushed patch tapers into the cloth around it.
+void spread(Eigen::MatrixX3d& D, const std::vector<std::vector<int>>& nb, int rings) {
+  for (int r = 0; r < rings; ++r) {
+    Eigen::MatrixX3d next = D;
+    for (size_t i = 0; i < nb.size(); ++i)
+      for (int j : nb[i])
+        if (0.5 * D.row(j).norm() > next.row(i).norm()) next.row(i) = 0.5 * D.row(j);
+    D.swap(next);
+  }
+}
+
+}  // namespace
+
+PushOutResult push_garment_out(const Eigen::MatrixX3d& G, const Eigen::MatrixX3i& GF,
+                               const Eigen::MatrixX3d& body_V, const Eigen::MatrixX3i& body_F,
+                               const PushOutOptions& options, double depth_mm) {
+  if (!(options.clearance >= 0) || options.iterations < 1 || options.spread_rings < 0)
+    throw InputError("push_garment_out: clearance must be >= 0, iterations >= 1, spread_rings >= 0");
+  const auto nb = neighbours(GF, G.rows());
+  PushOutResult out;
+  out.V = G;
+  Eigen::MatrixX3d N;
+  Eigen::VectorXd sd = signed_distance_to_body(out.V, body_V, body_F, &N);
+  out.before = penetration_of(sd, depth_mm);
+  Eigen::MatrixX3d total = Eigen::MatrixX3d::Zero(G.rows(), 3);
+  for (int it = 0; it < options.iterations; ++it) {
+    Eigen::MatrixX3d D = Eigen::MatrixX3d::Zero(G.rows(), 3);
+    int pushed = 0;
+    for (Eigen::Index i = 0; i < G.rows(); ++i)
+      if (sd[i] < options.clearance) {
+        D.row(i) = (options.clearance - sd[i]) * N.row(i);
+        ++pushed;
+      }
+    if (pushed == 0) break;
+    spread(D, nb, options.spread_rings);
+    out.V += D;
+    total += D;
+    sd = signed_distance_to_body(out.V, body_V, body_F, &N);
+  }
+  out.after = penetration_of(sd, depth_mm);
+  for (Eigen::Index i = 0; i < G.rows(); ++i) {
+    const double m = total.row(i).norm();
+    if (m > 0) ++out.moved;
+    out.max_move = std::max(out.max_move, m);
+  }
+  return out;
+}
+
+}  // namespace bodymodel
