@@ -11,37 +11,41 @@
 
 namespace bodymodel {
 
-Eigen::VectorXd signed_distance_to_body(const Eigen::MatrixX3d& points, const Eigen::MatrixX3d& body_V,
-                                        const Eigen::MatrixX3i& body_F, Eigen::MatrixX3d* normals_out) {
-  if (points.rows() == 0) {
-    if (normals_out) normals_out->resize(0, 3);
-    return Eigen::VectorXd();
-  }
+BodyDistance body_distance(const Eigen::MatrixX3d& points, const Eigen::MatrixX3d& body_V,
+                           const Eigen::MatrixX3i& body_F, const std::vector<char>& hidden) {
+  if (!hidden.empty() && static_cast<Eigen::Index>(hidden.size()) != body_V.rows())
+    throw InputError("body_distance: " + std::to_string(hidden.size()) + " hidden flags for " +
+                     std::to_string(body_V.rows()) + " body vertices");
+  BodyDistance out;
+  out.signed_distance.resize(points.rows());
+  out.normal.resize(points.rows(), 3);
+  out.visible.assign(points.rows(), 1);
+  if (points.rows() == 0) return out;
   const std::vector<SurfaceLocation> loc = locate_on_surface(points, body_V, body_F);
   const Eigen::MatrixX3d vn = vertex_normals(body_V, body_F);
-  Eigen::VectorXd sd(points.rows());
-  if (normals_out) normals_out->resize(points.rows(), 3);
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
     const SurfaceLocation& l = loc[i];
     Eigen::RowVector3d p = Eigen::RowVector3d::Zero(), n = Eigen::RowVector3d::Zero();
     for (int k = 0; k < 3; ++k) {
-      p += l.bary[k] * body_V.row(body_F(l.face, k));
-      n += l.bary[k] * vn.row(body_F(l.face, k));
+      const int v = body_F(l.face, k);
+      p += l.bary[k] * body_V.row(v);
+      n += l.bary[k] * vn.row(v);
+      if (!hidden.empty() && hidden[v]) out.visible[i] = 0;
     }
     if (n.norm() > 0) n.normalize();
-    const double side = (points.row(i) - p).dot(n);
-    sd[i] = side < 0 ? -l.distance : l.distance;
-    if (normals_out) normals_out->row(i) = n;
+    out.signed_distance[i] = (points.row(i) - p).dot(n) < 0 ? -l.distance : l.distance;
+    out.normal.row(i) = n;
   }
-  return sd;
+  return out;
 }
 
-Penetration penetration_of(const Eigen::VectorXd& sd, double depth_mm) {
+Penetration penetration_of(const BodyDistance& d, double depth_mm) {
   Penetration p;
-  p.vertices = static_cast<int>(sd.size());
-  for (Eigen::Index i = 0; i < sd.size(); ++i) {
-    if (sd[i] < -depth_mm) ++p.penetrating;
-    p.max_depth = std::max(p.max_depth, -sd[i]);
+  p.vertices = static_cast<int>(d.signed_distance.size());
+  for (Eigen::Index i = 0; i < d.signed_distance.size(); ++i) {
+    if (!d.visible[i]) continue;
+    if (d.signed_distance[i] < -depth_mm) ++p.penetrating;
+    p.max_depth = std::max(p.max_depth, -d.signed_distance[i]);
   }
   p.fraction = p.vertices ? double(p.penetrating) / p.vertices : 0.0;
   return p;
@@ -83,31 +87,31 @@ void spread(Eigen::MatrixX3d& D, const std::vector<std::vector<int>>& nb, int ri
 
 PushOutResult push_garment_out(const Eigen::MatrixX3d& G, const Eigen::MatrixX3i& GF,
                                const Eigen::MatrixX3d& body_V, const Eigen::MatrixX3i& body_F,
-                               const PushOutOptions& options, double depth_mm) {
+                               const std::vector<char>& hidden, const PushOutOptions& options,
+                               double depth_mm) {
   if (!(options.clearance >= 0) || options.iterations < 1 || options.spread_rings < 0)
     throw InputError("push_garment_out: clearance must be >= 0, iterations >= 1, spread_rings >= 0");
   const auto nb = neighbours(GF, G.rows());
   PushOutResult out;
   out.V = G;
-  Eigen::MatrixX3d N;
-  Eigen::VectorXd sd = signed_distance_to_body(out.V, body_V, body_F, &N);
-  out.before = penetration_of(sd, depth_mm);
+  BodyDistance d = body_distance(out.V, body_V, body_F, hidden);
+  out.before = penetration_of(d, depth_mm);
   Eigen::MatrixX3d total = Eigen::MatrixX3d::Zero(G.rows(), 3);
   for (int it = 0; it < options.iterations; ++it) {
     Eigen::MatrixX3d D = Eigen::MatrixX3d::Zero(G.rows(), 3);
     int pushed = 0;
     for (Eigen::Index i = 0; i < G.rows(); ++i)
-      if (sd[i] < options.clearance) {
-        D.row(i) = (options.clearance - sd[i]) * N.row(i);
+      if (d.visible[i] && d.signed_distance[i] < options.clearance) {
+        D.row(i) = (options.clearance - d.signed_distance[i]) * d.normal.row(i);
         ++pushed;
       }
     if (pushed == 0) break;
     spread(D, nb, options.spread_rings);
     out.V += D;
     total += D;
-    sd = signed_distance_to_body(out.V, body_V, body_F, &N);
+    d = body_distance(out.V, body_V, body_F, hidden);
   }
-  out.after = penetration_of(sd, depth_mm);
+  out.after = penetration_of(d, depth_mm);
   for (Eigen::Index i = 0; i < G.rows(); ++i) {
     const double m = total.row(i).norm();
     if (m > 0) ++out.moved;

@@ -1,27 +1,35 @@
 // Body-through-cloth penetration of a fitted (and posed) garment, and a fix that pushes the
 // garment out along the body's normal.
 //
-// Definition (docs/assets.md): a garment vertex is penetrated when it lies INSIDE the visible
-// body surface deeper than a threshold (2 mm): there the skin shows through the cloth. The
-// signed distance of a garment vertex is its distance to the closest point of the body's
-// visible faces (exact, AABB tree), negative when it lies behind the surface: the sign is that
-// of (x − closest) · n, with n the body's area-weighted vertex normals interpolated at the closest
-// point (an approximation of the angle-weighted pseudo-normal; it can mis-sign a point whose
-// closest feature is a sharp concave crease, which the smooth hm08 skin does not have). Only
-// vertices are tested: a body vertex poking through the middle of a large garment triangle
-// between garment vertices that are all outside is not counted.
+// Definition (docs/assets.md): a garment vertex is penetrated when it lies INSIDE the body deeper
+// than a threshold (2 mm) and the closest skin is visible (not hidden by an asset's
+// delete_verts): there the skin shows through the cloth. The signed distance is to the WHOLE
+// closed body surface (hidden faces included, so inside and outside stay well defined under a
+// garment that hides most of the skin): the distance to the closest point (exact, AABB tree),
+// negative when (x − closest) · n < 0, with n the body's area-weighted vertex normals
+// interpolated at the closest point (an approximation of the angle-weighted pseudo-normal; it
+// can mis-sign a point whose closest feature is a sharp concave crease, which the smooth hm08
+// skin does not have). Only vertices are tested: a body vertex poking through the middle of a
+// large garment triangle whose corners are all outside is not counted.
 #pragma once
 
 #include <Eigen/Core>
+#include <vector>
 
 namespace bodymodel {
 
-// Signed distance (mm, negative inside) of each row of `points` to the body surface (V, F):
-// F the VISIBLE body faces (assets/fit.h visible_faces), V any rows F indexes (e.g. all 19158).
-// normals_out (optional): the interpolated unit body normal at each closest point.
-Eigen::VectorXd signed_distance_to_body(const Eigen::MatrixX3d& points, const Eigen::MatrixX3d& body_V,
-                                        const Eigen::MatrixX3i& body_F,
-                                        Eigen::MatrixX3d* normals_out = nullptr);
+// Each point's signed distance to the body, the body normal there and whether that skin shows.
+struct BodyDistance {
+  Eigen::VectorXd signed_distance;  // mm, negative inside
+  Eigen::MatrixX3d normal;          // unit body normal at the closest point
+  std::vector<char> visible;        // 1 when the closest face has no hidden vertex
+};
+
+// Of each row of `points` to the closed body surface (V, F): F all body faces
+// (MakeHuman::body_faces), V any rows F indexes (e.g. all 19158); `hidden` one flag per row of V
+// (assets/fit.h hidden_body_vertices), or empty when nothing is hidden.
+BodyDistance body_distance(const Eigen::MatrixX3d& points, const Eigen::MatrixX3d& body_V,
+                           const Eigen::MatrixX3i& body_F, const std::vector<char>& hidden = {});
 
 struct Penetration {
   int vertices = 0;        // garment vertices tested
@@ -30,8 +38,8 @@ struct Penetration {
   double max_depth = 0;    // deepest, mm (0 when none is inside)
 };
 
-// Counts the garment vertices whose signed distance is below −depth_mm.
-Penetration penetration_of(const Eigen::VectorXd& signed_distance, double depth_mm = 2.0);
+// Counts the garment vertices inside deeper than depth_mm where the skin is visible.
+Penetration penetration_of(const BodyDistance& d, double depth_mm = 2.0);
 
 struct PushOutOptions {
   double clearance = 1.0;  // mm: a pushed vertex ends this far outside the body
@@ -47,11 +55,13 @@ struct PushOutResult {
   double max_move = 0;     // mm
 };
 
-// Pushes the garment (G, its faces GF) out of the body (V, F as in signed_distance_to_body):
-// every vertex closer than `clearance` outside (or inside) moves along the body normal to
-// `clearance` outside, the displacement spread to its garment neighbours.
+// Pushes the garment (G, its faces GF) out of the body (V, F, hidden as in body_distance): every
+// vertex over visible skin that is inside or closer than `clearance` moves along the body normal
+// to `clearance` outside, the displacement spread to its garment neighbours. Vertices over
+// hidden skin stay: no skin can show there.
 PushOutResult push_garment_out(const Eigen::MatrixX3d& G, const Eigen::MatrixX3i& GF,
                                const Eigen::MatrixX3d& body_V, const Eigen::MatrixX3i& body_F,
-                               const PushOutOptions& options = {}, double depth_mm = 2.0);
+                               const std::vector<char>& hidden, const PushOutOptions& options = {},
+                               double depth_mm = 2.0);
 
 }  // namespace bodymodel

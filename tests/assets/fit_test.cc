@@ -146,13 +146,20 @@ TEST(AssetPenetration, SignedDistanceOnASphere) {
   P << 0, 0, 110,  // 10 outside
       0, 95, 0,    // 5 inside
       -80, 0, 0;   // 20 inside
-  const Eigen::VectorXd sd = signed_distance_to_body(P, body.V, body.F);
-  EXPECT_NEAR(sd[0], 10, 0.2);
-  EXPECT_NEAR(sd[1], -5, 0.2);
-  EXPECT_NEAR(sd[2], -20, 0.2);
-  const Penetration p = penetration_of(sd, 2.0);
+  const BodyDistance d = body_distance(P, body.V, body.F);
+  EXPECT_NEAR(d.signed_distance[0], 10, 0.2);
+  EXPECT_NEAR(d.signed_distance[1], -5, 0.2);
+  EXPECT_NEAR(d.signed_distance[2], -20, 0.2);
+  EXPECT_NEAR(d.normal(1, 1), 1.0, 1e-3);
+  const Penetration p = penetration_of(d, 2.0);
   EXPECT_EQ(p.penetrating, 2);
   EXPECT_NEAR(p.max_depth, 20, 0.2);
+  // Skin hidden under the third point: it no longer counts.
+  std::vector<char> hidden(body.V.rows(), 0);
+  for (Eigen::Index v = 0; v < body.V.rows(); ++v) hidden[v] = body.V(v, 0) < -50;
+  const BodyDistance h = body_distance(P, body.V, body.F, hidden);
+  EXPECT_EQ(h.visible, (std::vector<char>{1, 1, 0}));
+  EXPECT_EQ(penetration_of(h, 2.0).penetrating, 1);
 }
 
 TEST(AssetPenetration, PushOutClearsADentedShell) {
@@ -162,10 +169,10 @@ TEST(AssetPenetration, PushOutClearsADentedShell) {
   Mesh cloth = sphere(104, 30, 60);
   for (Eigen::Index i = 0; i < cloth.V.rows(); ++i)
     if (cloth.V(i, 0) > 80) cloth.V.row(i) *= 90.0 / 104.0;
-  const PushOutResult r = push_garment_out(cloth.V, cloth.F, body.V, body.F);
+  const PushOutResult r = push_garment_out(cloth.V, cloth.F, body.V, body.F, {});
   EXPECT_GT(r.before.fraction, 0.03);
   EXPECT_EQ(r.after.penetrating, 0);
-  const Eigen::VectorXd sd = signed_distance_to_body(r.V, body.V, body.F);
+  const Eigen::VectorXd sd = body_distance(r.V, body.V, body.F).signed_distance;
   EXPECT_GT(sd.minCoeff(), 0.0);
   for (Eigen::Index i = 0; i < cloth.V.rows(); ++i) {
     if (cloth.V(i, 0) < 0) EXPECT_EQ((r.V.row(i) - cloth.V.row(i)).norm(), 0.0);
