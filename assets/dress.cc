@@ -1,0 +1,101 @@
+#include "assets/dress.h"
+
+#include <map>
+
+#include "core/error.h"
+
+namespace bodymodel {
+
+std::string asset_kind(const Asset& a) {
+  static const std::vector<std::string> kinds = {"clothes", "hair", "eyebrows", "eyelashes",
+                                                 "eyes", "teeth", "proxymeshes"};
+  for (std::filesystem::path p = a.file.parent_path(); !p.empty() && p != p.parent_path(); p = p.parent_path())
+    for (const std::string& k : kinds)
+      if (p.filename() == k) return k;
+  return "";
+}
+
+Eigen::Vector3d asset_colour(const Asset& a) {
+  if (a.material && a.material->diffuse_color.minCoeff() < 0.99) return a.material->diffuse_color;
+  // Our palette: a muted blue for garments, dark brown shoes and hair, near-black brows and lashes.
+  static const std::map<std::string, Eigen::Vector3d> by_kind = {
+      {"clothes", {0.25, 0.33, 0.45}}, {"hair", {0.23, 0.15, 0.09}},   {"eyebrows", {0.12, 0.09, 0.07}},
+      {"eyelashes", {0.05, 0.05, 0.05}}, {"eyes", {0.92, 0.92, 0.90}}, {"teeth", {0.93, 0.91, 0.84}}};
+  if (a.file.stem().string().rfind("shoes", 0) == 0) return {0.16, 0.12, 0.10};
+  const auto it = by_kind.find(asset_kind(a));
+  return it == by_kind.end() ? Eigen::Vector3d(0.6, 0.6, 0.6) : it->second;
+}
+
+std::filesystem::path find_asset(const std::filesystem::path& root, const std::string& name) {
+  std::string known;
+  for (const auto& f : find_asset_files(root)) {
+    if (f.stem() == name) return f;
+    known += " " + f.stem().string();
+  }
+  throw InputError("unknown asset '" + name + "' under '" + root.string() + "' (known:" + known + ")");
+}
+
+namespace {
+
+// The body's visible faces over the vertices they use (renumbered).
+DressedPart body_part(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const std::vector<char>& hidden,
+                      const Eigen::Vector3d& colour) {
+  DressedPart p;
+  p.name = p.kind = "body";
+  p.colour = colour;
+  const Eigen::MatrixX3i vis = visible_faces(F, hidden);
+  std::vector<int> map(V.rows(), -1);
+  int n = 0;
+  for (Eigen::Index i = 0; i < vis.size(); ++i)
+    if (map[vis.data()[i]] < 0) map[vis.data()[i]] = n++;
+  p.V.resize(n, 3);
+  for (Eigen::Index v = 0; v < V.rows(); ++v)
+    if (map[v] >= 0) p.V.row(map[v]) = V.row(v);
+  p.F.resize(vis.rows(), 3);
+  for (Eigen::Index f = 0; f < vis.rows(); ++f)
+    for (int k = 0; k < 3; ++k) p.F(f, k) = map[vis(f, k)];
+  return p;
+}
+
+}  // namespace
+
+std::vector<DressedPart> dress_body(const Eigen::MatrixX3d& rest_full, const Eigen::MatrixX3i& body_F,
+                                    const SkinWeights& W, const BoneTransforms* pose,
+                                    const std::vector<Asset>& outfit, const DressOptions& options) {
+  if (W.rows() != rest_full.rows())
+    throw InputError("dress_body: " + std::to_string(W.rows()) + " weight rows for " +
+                     std::to_string(rest_full.rows()) + " body vertices");
+  std::vector<const AssetBinding*> bindings;
+  for (const Asset& a : outfit) {
+    if (a.binding.proxy)
+      throw InputError("'" + a.file.string() + "' is a proxy (a replacement body), not something to wear");
+    bindings.push_back(&a.binding);
+  }
+  const std::vector<char> hidden = hidden_body_vertices(bindings, static_cast<int>(rest_full.rows()));
+  const Eigen::MatrixX3d posed = pose ? linear_blend_skinning(rest_full, W, *pose) : rest_full;
+  std::vector<DressedPart> parts = {body_part(posed, body_F, hidden, options.skin_colour)};
+  for (const Asset& a : outfit) {
+    DressedPart p;
+    p.name = a.file.stem().string();
+    p.kind = asset_kind(a);
+    p.colour = asset_colour(a);
+    p.F = a.faces;
+    p.V = fit_asset(a.binding, rest_full);
+    if (pose) p.V = linear_blend_skinning(p.V, asset_skin_weights(a.binding, W), *pose);
+    p.garment = p.kind == "clothes";
+    if (p.garment) {
+      if (options.fix_penetration) {
+        PushOutResult r = push_garment_out(p.V, p.F, posed, body_F, hidden, options.push, options.depth_mm);
+        p.V = std::move(r.V);
+        p.before = r.before;
+        p.after = r.after;
+      } else {
+        p.before = p.after = penetration_of(body_distance(p.V, posed, body_F, hidden), options.depth_mm);
+      }
+    }
+    parts.push_back(std::move(p));
+  }
+  return parts;
+}
+
+}  // namespace bodymodel

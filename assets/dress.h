@@ -1,0 +1,54 @@
+// A dressed body: the body with the skin its assets hide removed, and each asset fitted by its
+// binding, skinned with the weights carried through it, garments pushed out of the skin, each
+// part with one colour. The library half of `bodymodel dress` (docs/assets.md).
+#pragma once
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "assets/fit.h"
+#include "assets/penetration.h"
+#include "core/skeleton.h"
+
+namespace bodymodel {
+
+// The asset folder kind: "clothes", "hair", "eyebrows", "eyelashes", "eyes", "teeth",
+// "proxymeshes", or "" when the binding does not sit in <kind>/<asset>/ (or <kind>/<asset>.mhclo).
+std::string asset_kind(const Asset& asset);
+
+// One colour per asset: the material's diffuse colour when it is not plain white (upstream
+// textures are Git LFS pointers, so a white diffuse only means "use the texture"), else a fixed
+// colour per kind (our choice, docs/assets.md).
+Eigen::Vector3d asset_colour(const Asset& asset);
+
+// The binding file of an asset by name (the stem: "male_casualsuit01", "shoes01", "short02",
+// "eyebrow001", "low-poly") under `assets_root`; InputError listing the known names otherwise.
+std::filesystem::path find_asset(const std::filesystem::path& assets_root, const std::string& name);
+
+struct DressOptions {
+  bool fix_penetration = true;  // push garments ("clothes") out of the visible skin
+  PushOutOptions push;
+  double depth_mm = 2.0;        // the penetration threshold reported
+  Eigen::Vector3d skin_colour{0.82, 0.64, 0.54};
+};
+
+struct DressedPart {
+  std::string name, kind;       // "body" / "body" for the body
+  Eigen::MatrixX3d V;           // mm, posed
+  Eigen::MatrixX3i F;
+  Eigen::Vector3d colour;
+  bool garment = false;         // measured (and pushed) for penetration
+  Penetration before, after;    // garments only
+};
+
+// Dresses a body: rest_full = all 19158 hm08 vertices (mm), body_F the skin triangles
+// (MakeHuman::body_faces), W the weights of all vertices (MakeHuman::weights), pose = the bone
+// maps or nullptr for the rest pose. The body part keeps only its visible faces and the vertices
+// they use. Proxies (.proxy) are refused: they replace the body rather than dress it.
+std::vector<DressedPart> dress_body(const Eigen::MatrixX3d& rest_full, const Eigen::MatrixX3i& body_F,
+                                    const SkinWeights& W, const BoneTransforms* pose,
+                                    const std::vector<Asset>& outfit, const DressOptions& options = {});
+
+}  // namespace bodymodel

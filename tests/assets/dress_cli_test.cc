@@ -1,0 +1,71 @@
+// `bodymodel dress`: a dressed, posed body written as OBJ + MTL and as coloured PLY; bad input
+// exits 2 with one line and leaves no file.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "core/data_path.h"
+#include "core/io/mesh_io.h"
+#include "support/run_cli.h"
+
+namespace bodymodel {
+namespace {
+
+namespace fs = std::filesystem;
+using fixtures::run_cli;
+
+class DressCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!fs::exists(BODYMODEL_EXE)) GTEST_SKIP() << "bodymodel not built: " << BODYMODEL_EXE;
+    try {
+      if (!fs::is_directory(data_root() / "makehuman" / "assets")) GTEST_SKIP() << "makehuman/assets not found";
+    } catch (const std::exception& e) {
+      GTEST_SKIP() << e.what();
+    }
+    dir = fs::temp_directory_path() / ("bodymodel_dress_" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+  }
+  void TearDown() override {
+    if (!dir.empty()) fs::remove_all(dir);
+  }
+  fs::path dir;
+};
+
+TEST_F(DressCli, WritesObjWithMaterialsAndColouredPly) {
+  const auto r = run_cli("dress --gender 1 --outfit male_casualsuit02,shoes01,short02 --pose sit01 --out " +
+                         (dir / "man.obj").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("male_casualsuit02"), std::string::npos) << r.output;
+  std::ifstream mtl(dir / "man.mtl");
+  std::stringstream ss;
+  ss << mtl.rdbuf();
+  for (const char* part : {"newmtl body", "newmtl male_casualsuit02", "newmtl shoes01", "newmtl short02"})
+    EXPECT_NE(ss.str().find(part), std::string::npos) << part;
+  const ObjContents obj = read_obj_contents(dir / "man.obj");
+  EXPECT_GT(obj.V.rows(), 2000);
+  // A sitting person's height in mm (not decimetres).
+  EXPECT_GT(obj.V.col(1).maxCoeff() - obj.V.col(1).minCoeff(), 700.0);
+  EXPECT_LT(obj.V.col(1).maxCoeff() - obj.V.col(1).minCoeff(), 2000.0);
+
+  ASSERT_EQ(run_cli("dress --outfit female_casualsuit01 --out " + (dir / "w.ply").string()).exit_code, 0);
+  EXPECT_TRUE(fs::exists(dir / "w.ply"));
+}
+
+TEST_F(DressCli, BadInputExitsTwoAndWritesNothing) {
+  auto r = run_cli("dress --outfit no_such_thing --out " + (dir / "x.obj").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("unknown asset 'no_such_thing'"), std::string::npos) << r.output;
+  r = run_cli("dress --outfit proxy741 --out " + (dir / "x.obj").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("proxy"), std::string::npos) << r.output;
+  r = run_cli("dress --outfit shoes01 --out " + (dir / "x.stl").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_FALSE(fs::exists(dir / "x.obj"));
+  EXPECT_FALSE(fs::exists(dir / "x.mtl"));
+}
+
+}  // namespace
+}  // namespace bodymodel
