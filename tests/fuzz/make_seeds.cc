@@ -68,6 +68,15 @@ int main(int argc, char** argv) {
   put("fuzz_mhw", "small.mhw",
       R"({"name": "t", "weights": {"root": [[0, 1.0], [1, 0.5]], "spine": [[1, 0.5], [2, 0.25]],)"
       R"( "head": [[2, 0.75], [3, 1e-5]]}})");
+  // MakeHuman assets: a binding (header, scale lines, exact, 6- and 9-number rows, deleted
+  // ranges) and a material.
+  put("fuzz_mhclo", "small.mhclo",
+      "# clothes\nname t\nobj_file t.obj\nx_scale 1 2 1.5\ny_scale 3 4 0.5\nz_scale 5 6 2\nz_depth 50\n"
+      "verts 0\nmaterial t.mhmat\n10 11 12 0.2 0.3 0.5 0.01 -0.02 0.03\n7\n20 21 22 0.25 0.25 0.5\n"
+      "delete_verts\n1 2 - 5 9\n");
+  put("fuzz_mhmat", "small.mhmat",
+      "name t\ndiffuseColor 0.8 0.1 0.05\nshininess 0.3\nopacity 1\ntransparent False\n"
+      "diffuseTexture t_diffuse.png\nshaderConfig spec True\n");
   // Landmarks and label tables.
   put("fuzz_landmarks", "small.json",
       R"({"head_top": [0, 1700.5, 10], "chin": [1, 1500, 80], "l_knee": [-100, 500, 40]})");

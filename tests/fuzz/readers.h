@@ -15,6 +15,7 @@
 
 #include <unistd.h>
 
+#include "assets/binding.h"
 #include "core/error.h"
 #include "core/io/bvh.h"
 #include "core/io/csv.h"
@@ -208,6 +209,27 @@ inline void read_encoding_npz(const std::string& in) {
     allowing_rejection([&] { EncodingTemplate t(e.template_vertices, e.template_faces); });
 }
 
+// MakeHuman asset bindings (.mhclo / .proxy) against a 100-vertex body: every index read must be
+// in range, every number finite, the deleted vertices sorted and unique.
+inline void read_mhclo(const std::string& in) {
+  const AssetBinding b = parse_asset_binding(in, "fuzz.mhclo", 100);
+  check(b.vertex_count() > 0 && b.max_vertex_index() < 100 && b.vertices.minCoeff() >= 0);
+  check(b.weights.allFinite() && b.offsets.allFinite());
+  if (b.scales)
+    for (const AssetScale& sc : *b.scales) check(sc.denominator > 0 && std::isfinite(sc.denominator));
+  for (size_t k = 0; k < b.deleted_vertices.size(); ++k)
+    check(b.deleted_vertices[k] >= 0 && b.deleted_vertices[k] < 100 &&
+          (k == 0 || b.deleted_vertices[k - 1] < b.deleted_vertices[k]));
+}
+
+// MakeHuman materials (.mhmat): colours finite and non-negative, the [0, 1] numbers in range.
+inline void read_mhmat(const std::string& in) {
+  const AssetMaterial m = parse_asset_material(in, "fuzz.mhmat");
+  for (const auto& c : {m.diffuse_color, m.ambient_color, m.specular_color, m.emissive_color})
+    check(c.allFinite() && c.minCoeff() >= 0);
+  for (double v : {m.shininess, m.opacity, m.translucency}) check(v >= 0 && v <= 1);
+}
+
 // fuzz target name (without "fuzz_") → reader.
 inline const std::map<std::string, std::function<void(const std::string&)>>& readers() {
   static const std::map<std::string, std::function<void(const std::string&)>> table = {
@@ -218,7 +240,8 @@ inline const std::map<std::string, std::function<void(const std::string&)>>& rea
       {"labels_csv", read_labels_csv}, {"pose_csv", read_pose_labels},
       {"tgf", read_tgf_file},      {"dmat", read_dmat_file},
       {"model_npz", read_model_npz}, {"rig_npz", read_rig_npz},
-      {"encoding_npz", read_encoding_npz}};
+      {"encoding_npz", read_encoding_npz},
+      {"mhclo", read_mhclo},       {"mhmat", read_mhmat}};
   return table;
 }
 

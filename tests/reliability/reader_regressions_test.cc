@@ -124,6 +124,10 @@ TEST(ReaderRegressions, HostileInputsGiveSpecificMessages) {
       {"tgf", "1 0 inf 0\n#\n", "not finite"},
       {"dmat", "2 3\n1 2 3\n", ""},
       {"dmat", nan_bin, ""},
+      {"mhclo", "verts 0\n1 2 300 0.2 0.3 0.5\n", "line 2: vertex index 300 is outside [0, 100)"},
+      {"mhclo", "x_scale 1 2 0\nverts 0\n1\n", "line 1: scale denominator must be positive"},
+      {"mhclo", "verts 0\n1\ndelete_verts\n9 - 2\n", "line 4: delete_verts range 9 - 2 is reversed"},
+      {"mhmat", "name x\nshininess 2\n", "line 2: 'shininess' must be in [0, 1]"},
       {"model_npz", "", ""},
       {"rig_npz", "PK", ""},
   };
