@@ -273,6 +273,45 @@ TEST(AssetData, HelpersFromTheSkinAlone) {
   }
 }
 
+// A posed, dressed body: the skin under the outfit is gone, every part is where its binding puts
+// it, the garments end under 1 % penetration, and eyes and teeth (inside the head) are not pushed.
+TEST(AssetData, DressedBodyHasItsPartsAndHiddenSkin) {
+  REQUIRE_ASSETS();
+  std::vector<Asset> outfit;
+  for (const char* name : {"female_sportsuit01", "shoes02", "ponytail01", "eyebrow003", "high-poly", "teeth_base"})
+    outfit.push_back(load_asset(find_asset(dir, name)));
+  const Dressed body = make_body(heavy_short_woman());
+  const BoneTransforms M = forward_kinematics(body.skeleton, static_pose("sit01", body.skeleton));
+  const std::vector<DressedPart> parts = dress_body(body.full, mh().body_faces(), mh().weights(), &M, outfit);
+  ASSERT_EQ(parts.size(), outfit.size() + 1);
+  EXPECT_EQ(parts[0].name, "body");
+  std::vector<const AssetBinding*> worn;
+  for (const Asset& a : outfit) worn.push_back(&a.binding);
+  const Eigen::Index visible =
+      visible_faces(mh().body_faces(), hidden_body_vertices(worn, MakeHuman::kVertexCount)).rows();
+  EXPECT_EQ(parts[0].F.rows(), visible);
+  EXPECT_LT(visible, mh().body_faces().rows() - 5000);  // the suit and shoes hide a third of the skin
+  const SkinWeights W = mh().weights();
+  for (size_t k = 0; k < outfit.size(); ++k) {
+    const DressedPart& p = parts[k + 1];
+    EXPECT_EQ(p.V.rows(), outfit[k].binding.vertex_count());
+    EXPECT_EQ(p.garment, p.kind == "clothes") << p.name;
+    const Eigen::MatrixX3d plain =
+        linear_blend_skinning(fit_asset(outfit[k].binding, body.full), asset_skin_weights(outfit[k].binding, W), M);
+    if (p.garment) {
+      EXPECT_LT(p.after.fraction, 0.01) << p.name;
+      EXPECT_LE(p.after.fraction, p.before.fraction) << p.name;
+    } else {
+      EXPECT_EQ(max_row_distance(p.V, plain), 0.0) << p.name;
+    }
+  }
+  EXPECT_EQ(asset_kind(outfit[4]), "eyes");
+  EXPECT_TRUE(asset_colour(outfit[1]).isApprox(Eigen::Vector3d(0.16, 0.12, 0.10)));  // shoes: our palette
+  EXPECT_THROW(dress_body(body.full, mh().body_faces(), mh().weights(), &M,
+                          {load_asset(find_asset(dir, "proxy741"))}),
+               InputError);
+}
+
 // A skin-only LBS rig (as the characters have) extended to the helpers and carried to a suit:
 // the helpers pose close to MakeHuman's own helper weights, the suit close to its carried
 // MakeHuman weights, and the MWE form of the same rig poses the suit exactly as the mixed weights.
