@@ -202,6 +202,37 @@ Eigen::Vector3d rest_offset(const Skeleton& skeleton, int b) {
   return t;
 }
 
+// The triangles of each part as its own primitive (sharing `prim`'s attributes) with a
+// metallic-roughness material; the parts must tile the triangles in order.
+void add_material_parts(tinygltf::Model& model, BufferBuilder& buf, const tinygltf::Primitive& prim,
+                        const Eigen::MatrixX3i& F, const std::vector<GltfMaterialPart>& parts, tinygltf::Mesh& mesh) {
+  int next = 0;
+  for (const GltfMaterialPart& part : parts) {
+    auto in01 = [](double v) { return v >= 0 && v <= 1; };
+    if (part.first_triangle != next || part.triangle_count <= 0 || next + part.triangle_count > F.rows())
+      throw InputError("glTF export: part '" + part.name + "' covers triangles " + std::to_string(part.first_triangle) +
+                       ".." + std::to_string(part.first_triangle + part.triangle_count - 1) + ", expected to start at " +
+                       std::to_string(next) + " within the " + std::to_string(F.rows()) + " triangles");
+    if (!in01(part.base_colour.minCoeff()) || !in01(part.base_colour.maxCoeff()) || !in01(part.roughness) ||
+        !in01(part.metallic))
+      throw InputError("glTF export: part '" + part.name + "': colour, roughness and metallic must be in [0, 1]");
+    tinygltf::Material m;
+    m.name = part.name;
+    m.pbrMetallicRoughness.baseColorFactor = {part.base_colour[0], part.base_colour[1], part.base_colour[2], 1.0};
+    m.pbrMetallicRoughness.roughnessFactor = part.roughness;
+    m.pbrMetallicRoughness.metallicFactor = part.metallic;
+    model.materials.push_back(m);
+    tinygltf::Primitive p = prim;
+    add_indices(buf, p, F.middleRows(part.first_triangle, part.triangle_count));
+    p.material = static_cast<int>(model.materials.size()) - 1;
+    mesh.primitives.push_back(p);
+    next += part.triangle_count;
+  }
+  if (next != F.rows())
+    throw InputError("glTF export: the parts cover " + std::to_string(next) + " of the " + std::to_string(F.rows()) +
+                     " triangles");
+}
+
 // The JOINTS_0 and WEIGHTS_0 attributes: each vertex's top 4 weights, renormalised, counting in
 // the summary the vertices that lost weight; refuses negative, non-finite or all-zero weights.
 void add_joints_and_weights(BufferBuilder& buf, tinygltf::Primitive& prim, const SkinWeights& W, int n, int B,
@@ -425,10 +456,14 @@ std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i
   tinygltf::Primitive prim;
   add_positions_and_normals(buf, prim, V, N, s);
   add_joints_and_weights(buf, prim, W, n, B, sum);
-  add_indices(buf, prim, F);
   tinygltf::Mesh mesh;
   mesh.name = options.mesh_name;
-  mesh.primitives.push_back(prim);
+  if (options.parts.empty()) {
+    add_indices(buf, prim, F);
+    mesh.primitives.push_back(prim);
+  } else {
+    add_material_parts(model, buf, prim, F, options.parts, mesh);
+  }
   model.meshes.push_back(mesh);
 
   // ---- joints: nodes 0..B-1, the mesh node B ----

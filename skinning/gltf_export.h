@@ -39,11 +39,23 @@ struct GltfAnimation {
                                         // (input units), e.g. forward_kinematics of a pose
 };
 
+// A run of consecutive triangles with its own material: one primitive each, all sharing the
+// mesh's vertex attributes (e.g. a dressed body: skin, garments, hair).
+struct GltfMaterialPart {
+  std::string name;
+  int first_triangle = 0, triangle_count = 0;
+  Eigen::Vector3d base_colour{0.8, 0.8, 0.8};   // linear RGB in [0, 1]
+  double roughness = 0.8, metallic = 0.0;       // pbrMetallicRoughness factors in [0, 1]
+};
+
 struct GltfExportOptions {
   double unit_scale = 0.001;            // input unit → metre (mm → m)
   std::string mesh_name = "body";
   std::string generator = "bodymodel";
   double rigid_tolerance = 1e-4;        // max |QᵀQ − I| accepted for an animation bone map
+  // Skinned export: empty = one primitive without a material; else the parts, in order, must
+  // cover every triangle exactly once (InputError otherwise).
+  std::vector<GltfMaterialPart> parts;
 };
 
 struct GltfExportSummary {

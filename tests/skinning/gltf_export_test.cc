@@ -281,6 +281,36 @@ TEST(GltfExport, StaticMeshReadsBackInMetresWithoutASkin) {
   EXPECT_THROW(static_gltf_bytes(c.V, bad), InputError);
 }
 
+TEST(GltfExport, MaterialPartsBecomePrimitivesSharingTheVertices) {
+  const Character c = make_character();
+  const int nf = static_cast<int>(c.F.rows());
+  GltfExportOptions o;
+  o.parts = {{"skin", 0, 100, {0.8, 0.6, 0.5}, 0.7}, {"cloth", 100, nf - 100, {0.2, 0.3, 0.5}, 0.9}};
+  const tinygltf::Model m = load(skinned_gltf_bytes(c.V, c.F, {}, c.skeleton, c.W, nullptr, o));
+  ASSERT_EQ(m.meshes.size(), 1u);
+  ASSERT_EQ(m.meshes[0].primitives.size(), 2u);
+  ASSERT_EQ(m.materials.size(), 2u);
+  for (int k = 0; k < 2; ++k) {
+    const auto& p = m.meshes[0].primitives[static_cast<size_t>(k)];
+    EXPECT_EQ(p.material, k);
+    EXPECT_EQ(p.attributes.at("POSITION"), m.meshes[0].primitives[0].attributes.at("POSITION"));
+    EXPECT_EQ(m.accessors[static_cast<size_t>(p.indices)].count, static_cast<size_t>(3 * (k == 0 ? 100 : nf - 100)));
+  }
+  EXPECT_EQ(m.materials[1].name, "cloth");
+  EXPECT_NEAR(m.materials[1].pbrMetallicRoughness.baseColorFactor[2], 0.5, 1e-12);
+  EXPECT_NEAR(m.materials[0].pbrMetallicRoughness.roughnessFactor, 0.7, 1e-12);
+  // Parts must tile the triangles in order, with colours in [0, 1].
+  GltfExportOptions gap = o;
+  gap.parts[1].first_triangle = 101;
+  EXPECT_THROW(skinned_gltf_bytes(c.V, c.F, {}, c.skeleton, c.W, nullptr, gap), InputError);
+  GltfExportOptions shortfall = o;
+  shortfall.parts[1].triangle_count -= 1;
+  EXPECT_THROW(skinned_gltf_bytes(c.V, c.F, {}, c.skeleton, c.W, nullptr, shortfall), InputError);
+  GltfExportOptions bright = o;
+  bright.parts[0].base_colour[0] = 1.5;
+  EXPECT_THROW(skinned_gltf_bytes(c.V, c.F, {}, c.skeleton, c.W, nullptr, bright), InputError);
+}
+
 TEST(GltfExport, KhronosValidatorReportsNoErrors) {
   const char* modules = std::getenv("BODYMODEL_GLTF_VALIDATOR");
   const char* node_path = std::getenv("NODE_PATH");
@@ -298,9 +328,13 @@ TEST(GltfExport, KhronosValidatorReportsNoErrors) {
   const auto file = dir / "tube.glb", flat = dir / "flat.glb";
   write_skinned_gltf(file, c.V, c.F, {}, c.skeleton, c.W, &anim);
   write_skinned_gltf(flat, c.V, c.F, {}, flat_skeleton(5), c.W, &anim);   // several root joints
+  GltfExportOptions two;
+  two.parts = {{"skin", 0, 100, {0.8, 0.6, 0.5}}, {"cloth", 100, static_cast<int>(c.F.rows()) - 100, {0.2, 0.3, 0.5}}};
+  const auto parts = dir / "parts.glb";
+  write_skinned_gltf(parts, c.V, c.F, {}, c.skeleton, c.W, &anim, two);  // two materials
   const auto script = std::filesystem::path(__FILE__).parent_path() / "gltf_validate.js";
   const auto log = dir / "validator.txt";
-  const int rc = std::system((env + "node " + script.string() + " " + file.string() + " " + flat.string() + " > " +
+  const int rc = std::system((env + "node " + script.string() + " " + file.string() + " " + flat.string() + " " + parts.string() + " > " +
                               log.string() + " 2>&1").c_str());
   const std::string text = read_text_file(log);
   std::filesystem::remove_all(dir);
@@ -308,6 +342,7 @@ TEST(GltfExport, KhronosValidatorReportsNoErrors) {
   EXPECT_EQ(rc, 0) << text;
   EXPECT_NE(text.find("tube.glb: errors 0 "), std::string::npos) << text;
   EXPECT_NE(text.find("flat.glb: errors 0 "), std::string::npos) << text;
+  EXPECT_NE(text.find("parts.glb: errors 0 "), std::string::npos) << text;
   std::printf("%s", text.c_str());   // the validator's counts and first messages, for the log
 }
 
