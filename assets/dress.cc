@@ -37,9 +37,9 @@ std::filesystem::path find_asset(const std::filesystem::path& root, const std::s
 
 namespace {
 
-// The body's visible faces over the vertices they use (renumbered).
-DressedPart body_part(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const std::vector<char>& hidden,
-                      const Eigen::Vector3d& colour) {
+// The body's visible faces over the vertices they use (renumbered), with those vertices' weights.
+DressedPart body_part(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const SkinWeights& W,
+                      const std::vector<char>& hidden, const Eigen::Vector3d& colour) {
   DressedPart p;
   p.name = p.kind = "body";
   p.colour = colour;
@@ -54,6 +54,13 @@ DressedPart body_part(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, cons
   p.F.resize(vis.rows(), 3);
   for (Eigen::Index f = 0; f < vis.rows(); ++f)
     for (int k = 0; k < 3; ++k) p.F(f, k) = map[vis(f, k)];
+  std::vector<Eigen::Triplet<double>> t;
+  for (Eigen::Index v = 0; v < V.rows(); ++v)
+    if (map[v] >= 0)
+      for (SkinWeights::InnerIterator it(W, v); it; ++it) t.emplace_back(map[v], it.col(), it.value());
+  p.weights.resize(n, W.cols());
+  p.weights.setFromTriplets(t.begin(), t.end());
+  p.roughness = 0.6;
   return p;
 }
 
@@ -73,15 +80,17 @@ std::vector<DressedPart> dress_body(const Eigen::MatrixX3d& rest_full, const Eig
   }
   const std::vector<char> hidden = hidden_body_vertices(bindings, static_cast<int>(rest_full.rows()));
   const Eigen::MatrixX3d posed = pose ? linear_blend_skinning(rest_full, W, *pose) : rest_full;
-  std::vector<DressedPart> parts = {body_part(posed, body_F, hidden, options.skin_colour)};
+  std::vector<DressedPart> parts = {body_part(posed, body_F, W, hidden, options.skin_colour)};
   for (const Asset& a : outfit) {
     DressedPart p;
     p.name = a.file.stem().string();
     p.kind = asset_kind(a);
     p.colour = asset_colour(a);
+    if (a.material) p.roughness = a.material->roughness();
     p.F = a.faces;
     p.V = fit_asset(a.binding, rest_full);
-    if (pose) p.V = linear_blend_skinning(p.V, asset_skin_weights(a.binding, W), *pose);
+    p.weights = asset_skin_weights(a.binding, W);
+    if (pose) p.V = linear_blend_skinning(p.V, p.weights, *pose);
     p.garment = p.kind == "clothes";
     if (p.garment) {
       if (options.fix_penetration) {

@@ -39,6 +39,8 @@ struct DressedPart {
   Eigen::MatrixX3d V;           // mm, posed
   Eigen::MatrixX3i F;
   Eigen::Vector3d colour;
+  double roughness = 0.8;       // 1 − the material's shininess (our stand-in), else 0.8
+  SkinWeights weights;          // #V by #bones: the rows of the body's weights, or carried to the asset
   bool garment = false;         // measured (and pushed) for penetration
   Penetration before, after;    // garments only
 };

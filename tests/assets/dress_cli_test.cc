@@ -6,7 +6,13 @@
 #include <fstream>
 #include <sstream>
 
+#define TINYGLTF_NO_STB_IMAGE
+#define TINYGLTF_NO_STB_IMAGE_WRITE
+#define TINYGLTF_NO_EXTERNAL_IMAGE
+#include <tiny_gltf.h>  // declarations only: the implementation is in skinning/gltf_export.cc
+
 #include "core/data_path.h"
+#include "core/io/atomic_write.h"
 #include "core/io/mesh_io.h"
 #include "support/run_cli.h"
 
@@ -52,6 +58,24 @@ TEST_F(DressCli, WritesObjWithMaterialsAndColouredPly) {
 
   ASSERT_EQ(run_cli("dress --outfit female_casualsuit01 --out " + (dir / "w.ply").string()).exit_code, 0);
   EXPECT_TRUE(fs::exists(dir / "w.ply"));
+}
+
+TEST_F(DressCli, WritesASkinnedGlbWithAMaterialPerPart) {
+  const auto r = run_cli("dress --outfit female_casualsuit02,shoes02,bob02 --pose run01 --out " + (dir / "w.glb").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string bytes = read_text_file(dir / "w.glb");
+  tinygltf::Model m;
+  tinygltf::TinyGLTF loader;
+  std::string err, warn;
+  ASSERT_TRUE(loader.LoadBinaryFromMemory(&m, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
+                                          static_cast<unsigned>(bytes.size())))
+      << err;
+  ASSERT_EQ(m.meshes.size(), 1u);
+  EXPECT_EQ(m.meshes[0].primitives.size(), 4u);  // body, suit, shoes, hair
+  ASSERT_EQ(m.materials.size(), 4u);
+  EXPECT_EQ(m.materials[2].name, "shoes02");
+  EXPECT_EQ(m.skins.size(), 1u);
+  EXPECT_EQ(m.animations.size(), 1u);  // the pose as a one-frame clip
 }
 
 TEST_F(DressCli, BadInputExitsTwoAndWritesNothing) {

@@ -1,8 +1,9 @@
-// bodymodel dress --outfit NAME[,NAME...] [--gender ..] [--pose NAME|file.bvh [--frame k]] --out dressed.obj|ply
+// bodymodel dress --outfit NAME[,NAME...] [--gender ..] [--pose NAME|file.bvh [--frame k]] --out dressed.obj|ply|glb
 //
 // A MakeHuman body wearing MakeHuman assets (docs/assets.md): each asset fitted by its binding,
 // skinned with the weights carried through it, garments pushed out of the skin; written as one
-// mesh with a colour per part (OBJ + MTL, or a PLY with vertex colours).
+// mesh with a colour per part (OBJ + MTL, a PLY with vertex colours, or a skinned glb with a
+// material per part).
 #include <fmt/format.h>
 
 #include <filesystem>
@@ -15,6 +16,7 @@
 #include "core/io/bvh.h"
 #include "core/io/mesh_io.h"
 #include "core/makehuman.h"
+#include "skinning/gltf_export.h"
 #include "tools/verb.h"
 
 namespace bodymodel {
@@ -65,9 +67,37 @@ void write_ply_with_colours(const std::filesystem::path& out, const std::vector<
   write_mesh(out, V, F, C);
 }
 
+// One skinned glTF mesh, a primitive and material per part, the pose (if any) as a one-frame clip.
+void write_glb(const std::filesystem::path& out, const std::vector<DressedPart>& parts, const Skeleton& skeleton,
+               const BoneTransforms* pose) {
+  Eigen::Index nv = 0, nf = 0;
+  for (const DressedPart& p : parts) nv += p.V.rows(), nf += p.F.rows();
+  Eigen::MatrixX3d V(nv, 3);
+  Eigen::MatrixX3i F(nf, 3);
+  std::vector<Eigen::Triplet<double>> t;
+  GltfExportOptions o;
+  o.mesh_name = "dressed";
+  Eigen::Index v0 = 0, f0 = 0;
+  for (const DressedPart& p : parts) {
+    V.middleRows(v0, p.V.rows()) = p.V;
+    F.middleRows(f0, p.F.rows()) = p.F.array() + static_cast<int>(v0);
+    for (int r = 0; r < p.weights.outerSize(); ++r)
+      for (SkinWeights::InnerIterator it(p.weights, r); it; ++it) t.emplace_back(v0 + r, it.col(), it.value());
+    o.parts.push_back({p.name, static_cast<int>(f0), static_cast<int>(p.F.rows()), p.colour.cwiseMin(1.0), p.roughness});
+    v0 += p.V.rows(), f0 += p.F.rows();
+  }
+  SkinWeights W(nv, skeleton.bone_count());
+  W.setFromTriplets(t.begin(), t.end());
+  GltfAnimation clip;
+  clip.name = "pose";
+  if (pose) clip.frames.push_back(*pose);
+  write_skinned_gltf(out, V, F, {}, skeleton, W, pose ? &clip : nullptr, o);
+}
+
 void run(const DressArgs& a) {
   const std::string ext = std::filesystem::path(a.out).extension().string();
-  if (ext != ".obj" && ext != ".ply") throw InputError("--out '" + a.out + "': expected an .obj or .ply file name");
+  if (ext != ".obj" && ext != ".ply" && ext != ".glb")
+    throw InputError("--out '" + a.out + "': expected an .obj, .ply or .glb file name");
   a.settings.validate();
   const std::filesystem::path mh_dir = data_file("makehuman");
   std::vector<Asset> outfit;
@@ -86,7 +116,9 @@ void run(const DressArgs& a) {
   }
   DressOptions options;
   options.fix_penetration = !a.no_fix;
-  const std::vector<DressedPart> parts = dress_body(rest, mh.body_faces(), mh.weights(), a.pose.empty() ? nullptr : &M,
+  // A glb holds the rest pose (skinned; the pose is its one-frame clip), so it is dressed at rest.
+  const bool posed = !a.pose.empty() && ext != ".glb";
+  const std::vector<DressedPart> parts = dress_body(rest, mh.body_faces(), mh.weights(), posed ? &M : nullptr,
                                                     outfit, options);
   fmt::print("{:<22} {:<10} {:>8} {:>8} {:>12} {:>12}\n", "part", "kind", "vertices", "faces", "inside>2mm%",
              "after fix%");
@@ -96,8 +128,11 @@ void run(const DressArgs& a) {
     fmt::print("\n");
   }
   if (ext == ".obj") write_obj_with_materials(a.out, parts);
-  else write_ply_with_colours(a.out, parts);
-  fmt::print("wrote:    {} (mm{})\n", a.out, ext == ".obj" ? ", materials in the .mtl beside it" : ", vertex colours");
+  else if (ext == ".ply") write_ply_with_colours(a.out, parts);
+  else write_glb(a.out, parts, skeleton, a.pose.empty() ? nullptr : &M);
+  fmt::print("wrote:    {} ({})\n", a.out,
+             ext == ".obj" ? "mm, materials in the .mtl beside it"
+                           : ext == ".ply" ? "mm, vertex colours" : "metres, skinned, a material per part");
 }
 
 }  // namespace
@@ -125,7 +160,8 @@ BODYMODEL_VERB(add_dress_verb) {
                   "default skeleton");
   cmd->add_option("--frame", a->frame, "frame of the BVH to use")->capture_default_str();
   cmd->add_flag("--no-fix", a->no_fix, "do not push garments out of the skin (only measure)");
-  cmd->add_option("--out", a->out, "output mesh: .obj (+ .mtl, a material per part) or .ply (vertex colours)")
+  cmd->add_option("--out", a->out, "output: .obj (+ .mtl, a material per part), .ply (vertex colours) or .glb "
+                  "(skinned, rest pose, the --pose as a one-frame clip)")
       ->required();
   cmd->callback([a] { run(*a); });
 }
