@@ -358,7 +358,8 @@ TEST(AssetData, RigsCarriedToAnAsset) {
 
 // Garments through a whole CMU clip (retargeted to the default skeleton), every 12th frame: the
 // frames where the body pokes through more than 1 % of a garment's vertices by more than 2 mm,
-// before and after the fix.
+// (1) skinned as fitted, (2) pushed out frame by frame, (3) pushed out once at rest and then
+// skinned, as a runtime (a glb on the GPU) does.
 TEST(AssetData, ClipFramesUnderOnePercentAfterTheFix) {
   REQUIRE_ASSETS();
   const Dressed body = make_body(heavy_tall_man());
@@ -367,23 +368,33 @@ TEST(AssetData, ClipFramesUnderOnePercentAfterTheFix) {
   for (const char* name : {"male_casualsuit01", "female_elegantsuit01", "male_worksuit01"}) {
     const Asset g = load_asset(find_asset(dir, name));
     const std::vector<char> hidden = hidden_body_vertices({&g.binding}, MakeHuman::kVertexCount);
-    const SkinWeights W = asset_skin_weights(g.binding, mh().weights());
     const Eigen::MatrixX3d rest = fit_asset(g.binding, body.full);
-    int frames = 0, bad_before = 0, bad_after = 0;
-    double worst_before = 0, worst_after = 0;
+    const SkinWeights W = asset_skin_weights(g.binding, mh().weights());
+    // The runtime route: the garment pushed out once, at rest, then skinned.
+    const Eigen::MatrixX3d rest_fixed = push_garment_out(rest, g.faces, body.full, mh().body_faces(), hidden).V;
+    int frames = 0, bad[3] = {0, 0, 0};
+    double worst[3] = {0, 0, 0};
     for (int f = 0; f < rt.frame_count(); f += 12, ++frames) {
       const BoneTransforms M = forward_kinematics(body.skeleton, rt.pose(f));
-      const PushOutResult r = push_garment_out(linear_blend_skinning(rest, W, M), g.faces,
-                                               linear_blend_skinning(body.full, mh().weights(), M),
+      const Eigen::MatrixX3d body_posed = linear_blend_skinning(body.full, mh().weights(), M);
+      const PushOutResult r = push_garment_out(linear_blend_skinning(rest, W, M), g.faces, body_posed,
                                                mh().body_faces(), hidden);
-      bad_before += r.before.fraction > 0.01;
-      bad_after += r.after.fraction > 0.01;
-      worst_before = std::max(worst_before, r.before.fraction);
-      worst_after = std::max(worst_after, r.after.fraction);
+      const Penetration once =
+          penetration_of(body_distance(linear_blend_skinning(rest_fixed, W, M), body_posed, mh().body_faces(), hidden));
+      const double fr[3] = {r.before.fraction, r.after.fraction, once.fraction};
+      for (int k = 0; k < 3; ++k) {
+        bad[k] += fr[k] > 0.01;
+        worst[k] = std::max(worst[k], fr[k]);
+      }
     }
-    std::printf("%-22s 02_02, %d frames: over 1 %% before %d (worst %.2f %%), after %d (worst %.2f %%)\n", name,
-                frames, bad_before, 100 * worst_before, bad_after, 100 * worst_after);
-    EXPECT_EQ(bad_after, 0) << name;
+    std::printf("%-22s 02_02, %d frames over 1 %%: as fitted %d (worst %.2f %%), fixed per frame %d (%.2f %%), "
+                "fixed at rest %d (%.2f %%)\n", name, frames, bad[0], 100 * worst[0], bad[1], 100 * worst[1], bad[2],
+                100 * worst[2]);
+    EXPECT_EQ(bad[1], 0) << name;
+    // Fixing the rest shape does not carry through the clip: what pokes through in motion comes
+    // from the pose, where garment and skin skin differently (the worksuit: the upper arms).
+    // Recorded, not required (docs/assets.md).
+    EXPECT_LE(worst[2], worst[0] + 0.001) << name;
   }
 }
 
