@@ -53,12 +53,16 @@ SkinWeights asset_skin_weights(const AssetBinding& binding, const SkinWeights& b
   constexpr double kDrop = 1e-4;  // MakeHuman's WEIGHT_THRESHOLD (proxy.py)
   std::vector<Eigen::Triplet<double>> trip;
   Eigen::VectorXd acc = Eigen::VectorXd::Zero(body_weights.cols());
+  std::vector<char> seen(body_weights.cols(), 0);  // not acc == 0: a negative mix can return to 0
   std::vector<int> touched;
   for (int i = 0; i < binding.vertex_count(); ++i) {
     touched.clear();
     for_each_reference(binding, i, [&](int v, double w) {
       for (SkinWeights::InnerIterator it(body_weights, v); it; ++it) {
-        if (acc[it.col()] == 0) touched.push_back(static_cast<int>(it.col()));
+        if (!seen[it.col()]) {
+          seen[it.col()] = 1;
+          touched.push_back(static_cast<int>(it.col()));
+        }
         acc[it.col()] += w * it.value();
       }
     });
@@ -74,7 +78,7 @@ SkinWeights asset_skin_weights(const AssetBinding& binding, const SkinWeights& b
       for (int c : touched)
         if (acc[c] > kDrop) trip.emplace_back(i, c, acc[c] / sum);
     }
-    for (int c : touched) acc[c] = 0;
+    for (int c : touched) acc[c] = 0, seen[c] = 0;
   }
   SkinWeights W(binding.vertex_count(), body_weights.cols());
   W.setFromTriplets(trip.begin(), trip.end());

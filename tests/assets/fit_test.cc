@@ -102,6 +102,18 @@ TEST(AssetFit, NegativeBarycentricWeightsAreDropped) {
   EXPECT_EQ(A.coeff(0, 1), 0.0);
 }
 
+TEST(AssetFit, AMixThatCancelsToZeroIsCountedOnce) {
+  // Bone 0 gets +0.5 and −0.5 from the first two vertices (back to exactly 0), then 0.7 from
+  // the third: it must appear once, in the ratio 0.7 : 0.3 with bone 1.
+  const AssetBinding b = parse_asset_binding("verts 0\n0 1 2 0.5 -0.5 1.0\n", "cancel.mhclo", 3);
+  SkinWeights W(3, 2);
+  std::vector<Eigen::Triplet<double>> t = {{0, 0, 1.0}, {1, 0, 1.0}, {2, 0, 0.7}, {2, 1, 0.3}};
+  W.setFromTriplets(t.begin(), t.end());
+  const SkinWeights A = asset_skin_weights(b, W);
+  EXPECT_NEAR(A.coeff(0, 0), 0.7, 1e-12);
+  EXPECT_NEAR(A.coeff(0, 1), 0.3, 1e-12);
+}
+
 TEST(AssetFit, HiddenVerticesHideEveryFaceTheyTouch) {
   const AssetBinding b = small_binding();
   const auto hidden = hidden_body_vertices({&b}, 6);
