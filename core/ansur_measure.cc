@@ -325,7 +325,7 @@ const std::vector<std::string>& AnsurMeasurer::definitions() {
       "right calf girth square to the shank at the calf's maximum (template level)",
       "right upper-arm girth mid acromion-olecranon, square to the arm (relaxed arm: approximation)",
       "right forearm girth a quarter of the way elbow to wrist, square to the forearm (relaxed)",
-      "length of the template's edge loop round the neck base through the cervicale",
+      "length of the template's edge loop round the neck base by the cervicale and the jugular notch",
       "horizontal girth round shoulders and arms halfway between acromia and armpits",
       "acromion to acromion, straight",
       "breadth of the torso section at the buttocks' level",
@@ -338,7 +338,7 @@ const std::vector<std::string>& AnsurMeasurer::definitions() {
       "floor to the middle of the right kneecap",
       "middle fingertip to middle fingertip, arms posed straight and horizontal",
       "right acromion over the deltoid and the lateral elbow to the wrist (stylion), arm posed straight",
-      "acromion to the underside of the elbow flexed 90 degrees, along the upper arm"};
+      "acromion to the underside of the elbow flexed 90 degrees, upper arm hanging (modelled)"};
   return d;
 }
 
@@ -442,9 +442,11 @@ Eigen::VectorXd AnsurMeasurer::measure(const Eigen::MatrixX3d& V, const Skeleton
   m(kCrotchHeight) = height(point(V, L.crotch));
   m(kIliocristaleHeight) = height(mean_point(V, L.iliac_crest));
   m(kKneeHeight) = height(0.5 * (point(V, L.knee_front) + point(V, L.patella_top)));
-  // Elbow flexed 90°: the olecranon turns about the elbow joint to lie below it, at its distance.
-  const Eigen::Vector3d arm = (j.elbow_r - j.shoulder_r).normalized();
-  m(kShoulderElbow) = (j.elbow_r - acromion).dot(arm) + (point(V, L.olecranon) - j.elbow_r).norm();
+  // The survey's arm hangs straight down with the elbow flexed 90°: the acromion's height above
+  // the shoulder joint (on the shoulder blade, it does not move with the arm), the upper arm's
+  // length, and the olecranon, which turns about the elbow joint to lie below it at its distance.
+  m(kShoulderElbow) = (acromion - j.shoulder_r).dot(fr.up) + (j.elbow_r - j.shoulder_r).norm() +
+                      (point(V, L.olecranon) - j.elbow_r).norm();
 
   // Span and sleeve outseam on the arms posed straight out: skin only the landmark vertices.
   const BoneTransforms M = forward_kinematics(skeleton, outstretched_arms_pose(V, skeleton));

@@ -77,7 +77,11 @@ inline const SurveyLandmarks& survey_landmarks() {
 //                  thigh (29 mm below the crotch on the default body).
 //   calf           the most posterior vertex of the right calf (fixed, as the buttock).
 //   axilla         the highest vertex of the right armpit with a downward normal.
-//   acromion       survey_landmarks()'s acromion and its mirror.
+//   acromion       the lateral tip of the acromion, which lies over the humeral head: the
+//                  top-of-shoulder vertex (upward normal) about a humeral-head radius (25 mm)
+//                  lateral of the shoulder joint (upperarm01.R head). survey_landmarks()'s
+//                  acromion, straight above the joint, falls well short of ANSUR's biacromial
+//                  breadth (docs/measurements.md).
 //   lateral_deltoid  the most lateral vertex of the right arm halfway between acromion and
 //                  axilla heights: the tape's path over the shoulder for the sleeve outseam.
 //   radiale, stylion  the lateral elbow vertex at the elbow joint (lowerarm01.R head) and the
@@ -87,8 +91,8 @@ inline const SurveyLandmarks& survey_landmarks() {
 //   neck_base_ring the template's quad edge loop round the neck nearest to both the cervicale and
 //                  the jugular notch (the deepest front-midline vertex at the neck's base): 42
 //                  vertices in order, 10 mm above the cervicale at the back and 11 mm below the
-//                  notch in front (the loop through the cervicale flares onto the trapezius and
-//                  measured 1.2-1.3 x ANSUR's mean on the default bodies).
+//                  notch in front (the loop through the cervicale flares onto the trapezius:
+//                  docs/measurements.md).
 //   crotch, iliac_crest  survey_landmarks()'s.
 //   knee_front, patella_top  the front of the knee at the joint's height (body_landmarks()'s
 //                  r_knee) and survey_landmarks()'s patella_top: mid-patella is their midpoint.
@@ -96,7 +100,7 @@ inline const SurveyLandmarks& survey_landmarks() {
 struct AnsurLandmarks {
   int nipple_r = 1779, nipple_l = 8451, omphalion = 4367, buttock_r = 4218, buttock_l = 10854;
   int gluteal_furrow = 4262, calf = 4740, axilla_r = 1445, axilla_l = 8133;
-  int acromion_r = 1557, acromion_l = 8235, lateral_deltoid = 1676, radiale = 3387, stylion = 3922;
+  int acromion_r = 1604, acromion_l = 8276, lateral_deltoid = 1676, radiale = 3387, stylion = 3922;
   int olecranon = 3357, cervicale = 1491, crotch = 4372, knee_front = 4624, patella_top = 4594;
   int fingertip_r = 2145, fingertip_l = 8813;
   std::vector<int> iliac_crest{4272, 4395};
