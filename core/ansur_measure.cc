@@ -27,6 +27,12 @@ enum Column {
 enum PlaneKind { kChestPlane, kWaistPlane, kButtockPlane, kThighPlane, kCalfPlane, kBicepsPlane, kForearmPlane,
                  kShoulderPlane, kPlaneCount };
 
+// Which loops of a section a girth takes: the one whose centroid is nearest the plane's anchor
+// (limbs); every loop (the shoulder girth goes round torso and arms); every chain of the torso's
+// triangles (arms left out, so a plane above the armpits still measures the torso: the tape runs
+// under the arms, the hull bridges the gap).
+enum SectionMode { kNearestLoop, kAllLoops, kTorsoChains };
+
 constexpr double kDensityKgPerMm3 = 1.01e-6;  // 1.01 kg/L, as measure_body (core/measure.h)
 constexpr int kTubeRings = 8;                 // vertex rings round the reference loop kept per girth
 
@@ -103,8 +109,17 @@ Plane plane_of(int kind, const Eigen::MatrixX3d& V, const Joints& j, const Frame
   }
 }
 
+// The mesh's triangles and edges, as AnsurMeasurer keeps them.
+struct Topology {
+  const Eigen::MatrixX3i& F;
+  const std::vector<std::array<int, 3>>& face_edges;  // edge ids of each triangle's edges k→k+1
+  const std::vector<std::array<int, 2>>& edge_faces;  // the (up to two) triangles of each edge
+  const std::vector<std::array<int, 2>>& edge_vertices;
+};
+
 struct Loop {
-  bool closed = true;  // false: a chain that left the triangle set
+  bool closed = true;      // false: a chain cut short
+  bool left_tube = false;  // cut short where the tube ends inside the allowed region
   std::vector<Eigen::Vector2d> points;
   std::vector<int> faces;  // the triangles it crosses (filled only when asked)
 };
@@ -132,11 +147,6 @@ double hull_perimeter(std::vector<Eigen::Vector2d> p) {
   return per;
 }
 
-// What a section yields: the girth and the loop's extents along u and w.
-struct SectionResult {
-  double girth = 0, extent_u = 0, extent_w = 0;
-};
-
 const std::vector<std::string> kNames = {
     "stature", "weightkg", "chestcircumference", "waistcircumference", "buttockcircumference",
     "thighcircumference", "calfcircumference", "bicepscircumferenceflexed", "forearmcircumferenceflexed",
@@ -148,23 +158,27 @@ const std::vector<std::string> kNames = {
 
 // The loops of the plane's section through the triangles `faces` (membership `in`), tracing
 // triangle to triangle across their crossed edges. d: signed distances of the triangles'
-// vertices. A chain that leaves the triangle set is returned open (traced one way only).
-static void trace_loops(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
-                        const std::vector<std::array<int, 3>>& face_edges,
-                        const std::vector<std::array<int, 2>>& edge_faces,
-                        const std::vector<std::array<int, 2>>& edge_vertices, const std::vector<int>& faces,
-                        const std::vector<char>& in, const std::vector<double>& d, const Plane& plane,
-                        bool keep_faces, std::vector<Loop>& loops) {
-  std::vector<char> visited(F.rows(), 0);
+// vertices. A chain that leaves the triangle set is returned open, in pieces traced one way;
+// `left_tube` unless it ends where `region` (when given: the triangles allowed at all) ends.
+static void trace_loops(const Eigen::MatrixX3d& V, const Topology& t, const std::vector<int>& faces,
+                        const std::vector<char>& in, const std::vector<char>* region, const std::vector<double>& d,
+                        const Plane& plane, bool keep_faces, std::vector<Loop>& loops) {
+  const auto& face_edges = t.face_edges;
+  const auto& edge_faces = t.edge_faces;
+  const auto& edge_vertices = t.edge_vertices;
+  std::vector<char> visited(t.F.rows(), 0);
   auto crossed = [&](int e) {
     return (d[edge_vertices[e][0]] >= 0) != (d[edge_vertices[e][1]] >= 0);
   };
   auto edge_point = [&](int e) {
     const int a = edge_vertices[e][0], b = edge_vertices[e][1];
-    const double t = d[a] / (d[a] - d[b]);
-    const Eigen::Vector3d p = point(V, a) + t * (point(V, b) - point(V, a)) - plane.origin;
+    const double s = d[a] / (d[a] - d[b]);
+    const Eigen::Vector3d p = point(V, a) + s * (point(V, b) - point(V, a)) - plane.origin;
     return Eigen::Vector2d(p.dot(plane.u), p.dot(plane.w));
   };
+  auto across = [&](int e, int f) { return edge_faces[e][0] == f ? edge_faces[e][1] : edge_faces[e][0]; };
+  // A chain stopping before `next`: did it run out of the tube rather than the region?
+  auto tube_end = [&](int next) { return next < 0 || (!in[next] && !(region && !(*region)[next])); };
   for (int start : faces) {
     if (visited[start]) continue;
     int first = -1;
@@ -173,6 +187,8 @@ static void trace_loops(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
     if (first < 0) continue;
     Loop loop;
     loop.points.push_back(edge_point(first));
+    const int behind = across(first, start);
+    if (behind < 0 || (!visited[behind] && tube_end(behind))) loop.left_tube = true;
     int cur = start, enter = first;
     while (true) {
       visited[cur] = 1;
@@ -180,13 +196,14 @@ static void trace_loops(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
       int exit = -1;
       for (int e : face_edges[cur])
         if (e != enter && crossed(e)) { exit = e; break; }
-      const int next = exit < 0 ? -1 : edge_faces[exit][0] == cur ? edge_faces[exit][1] : edge_faces[exit][0];
+      const int next = exit < 0 ? -1 : across(exit, cur);
       if (next == start) break;
+      if (exit >= 0) loop.points.push_back(edge_point(exit));
       if (next < 0 || !in[next] || visited[next]) {
         loop.closed = false;
+        if (!(next >= 0 && visited[next]) && tube_end(next)) loop.left_tube = true;
         break;
       }
-      loop.points.push_back(edge_point(exit));
       enter = exit;
       cur = next;
     }
@@ -194,13 +211,14 @@ static void trace_loops(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
   }
 }
 
-// The loops a girth takes: every loop, or the one whose centroid is nearest the anchor. Empty
-// when one of them is an open chain (cut short by the triangle set).
-static std::vector<const Loop*> chosen_loops(const std::vector<Loop>& loops, const Plane& plane, bool all) {
+// The loops a girth takes (SectionMode). Empty when the tube was too narrow for them.
+static std::vector<const Loop*> chosen_loops(const std::vector<Loop>& loops, const Plane& plane, int mode) {
   std::vector<const Loop*> out;
-  if (all) {
-    for (const Loop& l : loops)
-      if (l.closed) out.push_back(&l); else return {};
+  if (mode != kNearestLoop) {
+    for (const Loop& l : loops) {
+      if (l.left_tube || (mode == kAllLoops && !l.closed)) return {};
+      out.push_back(&l);
+    }
     return out;
   }
   const Eigen::Vector3d a3 = plane.anchor - plane.origin;
@@ -247,6 +265,23 @@ AnsurMeasurer::AnsurMeasurer(const Eigen::MatrixX3i& F, const SkinWeights& W, co
       (ef[0] < 0 ? ef[0] : ef[1]) = static_cast<int>(f);
       face_edges_[f][k] = it->second;
     }
+  // The torso region: triangles with no vertex mostly skinned to an arm or hand bone.
+  std::vector<char> arm_bone(bone_names_.size(), 0);
+  for (size_t b = 0; b < bone_names_.size(); ++b)
+    for (const char* prefix : {"upperarm", "lowerarm", "wrist", "finger", "metacarpal"})
+      if (bone_names_[b].rfind(prefix, 0) == 0) arm_bone[b] = 1;
+  std::vector<double> arm_weight(n, 0.0);
+  for (int v = 0; v < n; ++v)
+    for (SkinWeights::InnerIterator it(W, v); it; ++it)
+      if (arm_bone[it.col()]) arm_weight[v] += it.value();
+  torso_.assign(F.rows(), 1);
+  everywhere_.assign(F.rows(), 1);
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    all_faces_.push_back(static_cast<int>(f));
+    for (int k = 0; k < 3; ++k)
+      if (arm_weight[F(f, k)] > 0.5) torso_[f] = 0;
+    if (torso_[f]) torso_faces_.push_back(static_cast<int>(f));
+  }
   build_tubes(reference_V, reference_skeleton);
   // Skinning rows of the vertices the posed measurements use.
   const AnsurLandmarks& L = ansur_landmarks();
@@ -261,25 +296,27 @@ AnsurMeasurer::AnsurMeasurer(const Eigen::MatrixX3i& F, const SkinWeights& W, co
 void AnsurMeasurer::build_tubes(const Eigen::MatrixX3d& V, const Skeleton& skeleton) {
   const Joints j = joints_of(skeleton);
   const Frame fr = frame_of(j);
+  const Topology topo{F_, face_edges_, edge_faces_, edge_vertices_};
   std::vector<std::vector<int>> faces_of_vertex(V.rows());
   for (Eigen::Index f = 0; f < F_.rows(); ++f)
     for (int k = 0; k < 3; ++k) faces_of_vertex[F_(f, k)].push_back(static_cast<int>(f));
-  std::vector<int> all(F_.rows());
-  for (int f = 0; f < static_cast<int>(all.size()); ++f) all[f] = f;
-  const std::vector<char> everywhere(F_.rows(), 1);
   for (int kind = 0; kind < kPlaneCount; ++kind) {
     Section s;
     s.plane = kind;
-    s.all_loops = kind == kShoulderPlane;
+    s.mode = kind == kShoulderPlane ? kAllLoops
+             : (kind == kChestPlane || kind == kWaistPlane || kind == kButtockPlane) ? kTorsoChains
+                                                                                     : kNearestLoop;
+    const std::vector<char>* region = s.mode == kTorsoChains ? &torso_ : nullptr;
     const Plane p = plane_of(kind, V, j, fr);
     std::vector<double> d(V.rows());
     for (Eigen::Index v = 0; v < V.rows(); ++v) d[v] = (point(V, static_cast<int>(v)) - p.origin).dot(p.normal);
     std::vector<Loop> loops;
-    trace_loops(V, F_, face_edges_, edge_faces_, edge_vertices_, all, everywhere, d, p, true, loops);
-    const auto chosen = chosen_loops(loops, p, s.all_loops);
+    trace_loops(V, topo, region ? torso_faces_ : all_faces_, region ? torso_ : everywhere_, region, d, p, true, loops);
+    const auto chosen = chosen_loops(loops, p, s.mode);
     if (chosen.empty())
       throw InputError("AnsurMeasurer: the reference body has no section for girth " + std::to_string(kind));
-    // The tube: the loops' triangles grown by kTubeRings rings of vertex neighbours.
+    // The tube: the loops' triangles grown by kTubeRings rings of vertex neighbours (torso girths:
+    // within the torso).
     s.in_tube.assign(F_.rows(), 0);
     for (const Loop* l : chosen)
       for (int f : l->faces) s.in_tube[f] = 1;
@@ -292,11 +329,13 @@ void AnsurMeasurer::build_tubes(const Eigen::MatrixX3d& V, const Skeleton& skele
       s.in_tube.swap(grown);
     }
     std::vector<char> used(V.rows(), 0);
-    for (Eigen::Index f = 0; f < F_.rows(); ++f)
+    for (Eigen::Index f = 0; f < F_.rows(); ++f) {
+      if (region && !(*region)[f]) s.in_tube[f] = 0;
       if (s.in_tube[f]) {
         s.faces.push_back(static_cast<int>(f));
         for (int k = 0; k < 3; ++k) used[F_(f, k)] = 1;
       }
+    }
     for (Eigen::Index v = 0; v < V.rows(); ++v)
       if (used[v]) s.vertices.push_back(static_cast<int>(v));
     sections_.push_back(std::move(s));
@@ -343,36 +382,35 @@ const std::vector<std::string>& AnsurMeasurer::definitions() {
 }
 
 // Girth and extents of one section on V (d: scratch of V.rows(), overwritten on the tube).
-static SectionResult cut(const std::vector<int>& faces, const std::vector<int>& vertices, const std::vector<char>& in_tube,
-                         bool all_loops, const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F_,
-                         const std::vector<std::array<int, 3>>& face_edges_,
-                         const std::vector<std::array<int, 2>>& edge_faces_,
-                         const std::vector<std::array<int, 2>>& edge_vertices_, const Plane& p, std::vector<double>& d,
-                         std::atomic<long>& fallbacks) {
-  for (int v : vertices) d[v] = (point(V, v) - p.origin).dot(p.normal);
+AnsurMeasurer::SectionValues AnsurMeasurer::cut(const Section& s, const Eigen::MatrixX3d& V, const Eigen::Vector3d& origin,
+                                                const Eigen::Vector3d& normal, const Eigen::Vector3d& u,
+                                                const Eigen::Vector3d& w, const Eigen::Vector3d& anchor,
+                                                std::vector<double>& d) const {
+  const Plane p{origin, normal, u, w, anchor};
+  const Topology topo{F_, face_edges_, edge_faces_, edge_vertices_};
+  const std::vector<char>* region = s.mode == kTorsoChains ? &torso_ : nullptr;
+  for (int v : s.vertices) d[v] = (point(V, v) - p.origin).dot(p.normal);
   std::vector<Loop> loops;
-  trace_loops(V, F_, face_edges_, edge_faces_, edge_vertices_, faces, in_tube, d, p, false, loops);
-  std::vector<const Loop*> chosen = chosen_loops(loops, p, all_loops);
+  trace_loops(V, topo, s.faces, s.in_tube, region, d, p, false, loops);
+  std::vector<const Loop*> chosen = chosen_loops(loops, p, s.mode);
   if (chosen.empty()) {
     // The loop left its tube (a body far from the reference): cut the whole mesh.
-    ++fallbacks;
+    ++*fallbacks_;
     for (Eigen::Index v = 0; v < V.rows(); ++v) d[v] = (point(V, static_cast<int>(v)) - p.origin).dot(p.normal);
-    std::vector<int> all(F_.rows());
-    for (int f = 0; f < static_cast<int>(all.size()); ++f) all[f] = f;
     loops.clear();
-    trace_loops(V, F_, face_edges_, edge_faces_, edge_vertices_, all, std::vector<char>(F_.rows(), 1), d, p, false,
-                loops);
-    chosen = chosen_loops(loops, p, all_loops);
+    trace_loops(V, topo, region ? torso_faces_ : all_faces_, region ? torso_ : everywhere_, region, d, p, false, loops);
+    chosen = chosen_loops(loops, p, s.mode);
   }
-  SectionResult r;
   std::vector<Eigen::Vector2d> pts;
   for (const Loop* l : chosen) pts.insert(pts.end(), l->points.begin(), l->points.end());
-  if (pts.empty()) return {std::nan(""), std::nan(""), std::nan("")};
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  if (pts.empty()) return {nan, nan, nan};
   Eigen::Vector2d lo = pts[0], hi = pts[0];
   for (const auto& q : pts) lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
-  r.girth = hull_perimeter(std::move(pts));
+  SectionValues r;
   r.extent_u = hi.x() - lo.x();
   r.extent_w = hi.y() - lo.y();
+  r.girth = hull_perimeter(std::move(pts));
   return r;
 }
 
@@ -415,10 +453,11 @@ Eigen::VectorXd AnsurMeasurer::measure(const Eigen::MatrixX3d& V, const Skeleton
   m(kWeight) = signed_volume(V, F_) * kDensityKgPerMm3;
 
   std::vector<double> d(V.rows(), 0.0);
-  SectionResult r[kPlaneCount];
-  for (const Section& s : sections_)
-    r[s.plane] = cut(s.faces, s.vertices, s.in_tube, s.all_loops, V, F_, face_edges_, edge_faces_, edge_vertices_,
-                     plane_of(s.plane, V, j, fr), d, *fallbacks_);
+  SectionValues r[kPlaneCount];
+  for (const Section& s : sections_) {
+    const Plane p = plane_of(s.plane, V, j, fr);
+    r[s.plane] = cut(s, V, p.origin, p.normal, p.u, p.w, p.anchor, d);
+  }
   m(kChest) = r[kChestPlane].girth;
   m(kWaist) = r[kWaistPlane].girth;
   m(kButtock) = r[kButtockPlane].girth;

@@ -9,7 +9,8 @@
 // (or means of them) and skeleton joints (fixed vertex combinations when the skeleton comes from
 // MakeHuman::skeleton_from_body); girths are convex-hull perimeters (a tape bridges hollows) of
 // plane sections through landmark-defined planes, never searches for the largest or smallest
-// level. Where ANSUR searches (maximum protrusion of the buttocks, of the calf) the level is the
+// level. Torso girths cut only the torso's triangles (no arm), so a plane level with the armpits
+// measures the torso as a tape under the arms does. Where ANSUR searches (maximum protrusion of the buttocks, of the calf) the level is the
 // template vertex where it lies on the default body: an APPROXIMATION.
 //
 // Speed: the constructor sections a reference body once per girth and keeps a tube of triangles
@@ -61,7 +62,7 @@ class AnsurMeasurer {
   // One girth: which plane (ansur_measure.cc), and the triangles near its loop on the reference.
   struct Section {
     int plane = 0;
-    bool all_loops = false;        // hull of every loop (shoulder) instead of the one at the anchor
+    int mode = 0;                  // which loops the girth takes (ansur_measure.cc SectionMode)
     std::vector<int> faces;        // the tube
     std::vector<int> vertices;     // their vertices
     std::vector<char> in_tube;     // per triangle
@@ -76,6 +77,16 @@ class AnsurMeasurer {
   std::vector<int> posed_vertices_;
   std::vector<std::vector<std::pair<int, double>>> posed_weights_;
   std::vector<std::string> bone_names_;
+  std::vector<char> torso_, everywhere_;        // per triangle: in the torso (no arm), all
+  std::vector<int> torso_faces_, all_faces_;
+
+  struct SectionValues {
+    double girth = 0, extent_u = 0, extent_w = 0;  // hull perimeter, extents along u and w
+  };
+  // One section through `origin` square to `normal`, in-plane axes u, w; `anchor` picks the loop.
+  SectionValues cut(const Section& s, const Eigen::MatrixX3d& V, const Eigen::Vector3d& origin,
+                    const Eigen::Vector3d& normal, const Eigen::Vector3d& u, const Eigen::Vector3d& w,
+                    const Eigen::Vector3d& anchor, std::vector<double>& d) const;
   std::shared_ptr<std::atomic<long>> fallbacks_ = std::make_shared<std::atomic<long>>(0);
 
   void build_tubes(const Eigen::MatrixX3d& V, const Skeleton& skeleton);
