@@ -74,7 +74,7 @@ inline const SurveyLandmarks& survey_landmarks() {
 //                  level of the maximum protrusion of the buttocks, FIXED to the template vertex
 //                  where it lies on the default body (an approximation of ANSUR's search).
 //   gluteal_furrow the back-of-thigh vertex where the posterior profile bends from buttock to
-//                  thigh (29 mm below the crotch on the default body).
+//                  thigh, a little below the crotch.
 //   calf           the most posterior vertex of the right calf (fixed, as the buttock).
 //   axilla         the highest vertex of the right armpit with a downward normal.
 //   acromion       the lateral tip of the acromion, which lies over the humeral head: the
@@ -90,9 +90,9 @@ inline const SurveyLandmarks& survey_landmarks() {
 //   cervicale      the back-midline vertex at the base of the neck (body_landmarks()'s neck_back).
 //   neck_base_ring the template's quad edge loop round the neck nearest to both the cervicale and
 //                  the jugular notch (the deepest front-midline vertex at the neck's base): 42
-//                  vertices in order, 10 mm above the cervicale at the back and 11 mm below the
-//                  notch in front (the loop through the cervicale flares onto the trapezius:
-//                  docs/measurements.md).
+//                  vertices in order, just above the cervicale at the back and just below the
+//                  notch in front (the loop through the cervicale itself flares onto the
+//                  trapezius: docs/measurements.md).
 //   crotch, iliac_crest  survey_landmarks()'s.
 //   knee_front, patella_top  the front of the knee at the joint's height (body_landmarks()'s
 //                  r_knee) and survey_landmarks()'s patella_top: mid-patella is their midpoint.
