@@ -184,3 +184,8 @@ def test_measure_ansur2_columns_match_the_cli(tmp_path, sphere, cli):
     assert 1600 < m["stature"] < 1900 and 40 < m["weightkg"] < 120  # mm and kg
     with pytest.raises(bodymodel.InputError, match="template's topology"):
         bodymodel.measure(*sphere, standard="ansur2")
+    ball = tmp_path / "ball.ply"
+    bodymodel.write_mesh(str(ball), *sphere)
+    r = cli(f"measure {ball} --standard ansur2", check=False)
+    assert r.returncode == 2 and r.stdout == ""
+    assert "ball.ply" in cli_error_line(r) and "template's topology" in cli_error_line(r)
