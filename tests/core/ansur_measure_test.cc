@@ -138,6 +138,10 @@ TEST(AnsurMeasure, SpanIsTheOutstretchedFingertipsDistance) {
   const Eigen::Vector3d tip_r = posed.row(L.fingertip_r).transpose(), tip_l = posed.row(L.fingertip_l).transpose();
   const double span = measure(b.mesh.V)(column("span"));
   EXPECT_NEAR(span, (tip_l - tip_r).norm(), 1e-6);
+  // The default body is symmetric, and so is its pose: mirror-image fingertips.
+  EXPECT_NEAR(tip_l.x(), -tip_r.x(), 1.0);
+  EXPECT_NEAR(tip_l.y(), tip_r.y(), 1.0);
+  EXPECT_NEAR(tip_l.z(), tip_r.z(), 1.0);
   double chain = 0;
   for (const char* side : {".R", ".L"}) {
     const std::string sfx = side;
