@@ -63,4 +63,59 @@ inline const SurveyLandmarks& survey_landmarks() {
   return table;
 }
 
+// Landmarks behind the ANSUR II measurements (core/ansur_measure.h; definitions in
+// docs/measurements.md). Right side (-x) as ANSUR measures, with the left mirror where a breadth
+// or span needs both (the mirror is the vertex nearest (-x, y, z), exact on the symmetric base
+// mesh). Chosen once on MakeHuman's default human (all macros 0.5, 165.9 cm, A-pose) with tools
+// that are not part of the build:
+//   nipple         the tail vertex of the breast.R / breast.L bones (MakeHuman's nipple/bust point).
+//   omphalion      body_landmarks()'s navel.
+//   buttock        the most posterior vertex of each buttock between crotch and iliac crest: the
+//                  level of the maximum protrusion of the buttocks, FIXED to the template vertex
+//                  where it lies on the default body (an approximation of ANSUR's search).
+//   gluteal_furrow the back-of-thigh vertex where the posterior profile bends from buttock to
+//                  thigh, a little below the crotch.
+//   calf           the most posterior vertex of the right calf (fixed, as the buttock).
+//   axilla         the highest vertex of the right armpit with a downward normal.
+//   acromion       the lateral tip of the acromion, which lies over the humeral head: the
+//                  top-of-shoulder vertex (upward normal) about a humeral-head radius (25 mm)
+//                  lateral of the shoulder joint (upperarm01.R head). survey_landmarks()'s
+//                  acromion, straight above the joint, falls well short of ANSUR's biacromial
+//                  breadth (docs/measurements.md).
+//   lateral_deltoid  the most lateral vertex of the right arm halfway between acromion and
+//                  axilla heights: the tape's path over the shoulder for the sleeve outseam.
+//   radiale, stylion  the lateral elbow vertex at the elbow joint (lowerarm01.R head) and the
+//                  thumb-side wrist vertex at the wrist joint (towards finger1-1.R).
+//   olecranon      survey_landmarks()'s olecranon (back of the elbow).
+//   cervicale      the back-midline vertex at the base of the neck (body_landmarks()'s neck_back).
+//   neck_base_ring the template's quad edge loop round the neck nearest to both the cervicale and
+//                  the jugular notch (the deepest front-midline vertex at the neck's base): 42
+//                  vertices in order, just above the cervicale at the back and just below the
+//                  notch in front (the loop through the cervicale itself flares onto the
+//                  trapezius: docs/measurements.md).
+//   crotch, iliac_crest  survey_landmarks()'s.
+//   knee_front, patella_top  the front of the knee at the joint's height (body_landmarks()'s
+//                  r_knee) and survey_landmarks()'s patella_top: mid-patella is their midpoint.
+//   fingertip      body_landmarks()'s l_/r_fingertip (tips of the middle fingers).
+struct AnsurLandmarks {
+  int nipple_r = 1779, nipple_l = 8451, omphalion = 4367, buttock_r = 4218, buttock_l = 10854;
+  int gluteal_furrow = 4262, calf = 4740, axilla_r = 1445, axilla_l = 8133;
+  int acromion_r = 1604, acromion_l = 8276, lateral_deltoid = 1676, radiale = 3387, stylion = 3922;
+  int olecranon = 3357, cervicale = 1491, crotch = 4372, knee_front = 4624, patella_top = 4594;
+  int fingertip_r = 2145, fingertip_l = 8813;
+  std::vector<int> iliac_crest{4272, 4395};
+  std::vector<int> neck_base_ring;
+};
+
+inline const AnsurLandmarks& ansur_landmarks() {
+  static const AnsurLandmarks table = [] {
+    AnsurLandmarks a;
+    a.neck_base_ring = {1496, 8180, 8179, 8181, 8182, 8183, 8184, 8185, 8187, 8188, 8189, 8196, 8152, 8151,
+                        8150, 10355, 8195, 8148, 8149, 8194, 8205, 1522, 1521, 1510, 1461, 1460, 1511, 3687,
+                        1462, 1463, 1464, 1512, 1505, 1504, 1503, 1501, 1500, 1499, 1498, 1497, 1494, 1495};
+    return a;
+  }();
+  return table;
+}
+
 }  // namespace bodymodel

@@ -421,6 +421,13 @@ struct MakeHuman::Impl {
     Eigen::SparseMatrix<double, Eigen::RowMajor> joints;  // #joints by 13380
   };
   std::shared_ptr<LazyBodyRegressor> body_regressor = std::make_shared<LazyBodyRegressor>();
+  // Body-shape modifiers, read on first use (most verbs never need them).
+  struct LazyShapeModifiers {
+    std::once_flag once;
+    std::vector<MakeHuman::ShapeModifier> modifiers;
+    std::vector<std::array<TargetData, 2>> data;  // [min side, max side]; one-sided: [1] only
+  };
+  std::shared_ptr<LazyShapeModifiers> shape = std::make_shared<LazyShapeModifiers>();
 };
 
 namespace {
@@ -555,6 +562,65 @@ void load_measure_targets(MakeHuman::Impl& m) {
     if (!e.empty()) throw InputError(e);
   m.measure_names = std::move(names);
   m.measure_data = std::move(data);
+}
+
+// The body-shape modifiers (header comment) with their target files: groups of
+// modeling_modifiers.json that shape the body (not the head, face or genitals) and
+// bodyshapes_modifiers.json. A modifier whose files are missing is left out.
+void load_shape_modifiers(const MakeHuman::Impl& m, std::vector<MakeHuman::ShapeModifier>& mods,
+                          std::vector<std::array<TargetData, 2>>& data) {
+  static const std::set<std::string> body_groups = {"armslegs", "torso", "hip", "stomach", "buttocks", "neck",
+                                                    "pelvis", "bodyshapes"};
+  std::error_code ec;
+  std::vector<std::array<fs::path, 2>> files;
+  for (const char* json_name : {"modeling_modifiers.json", "bodyshapes_modifiers.json"}) {
+    const fs::path json = m.dir / "modifiers" / json_name;
+    if (!fs::is_regular_file(json, ec)) continue;
+    for (const auto& group : read_json(json)) {
+      if (!group.contains("group") || !group["group"].is_string() || !group.contains("modifiers")) continue;
+      const std::string g = group["group"].get<std::string>();
+      if (!body_groups.count(g)) continue;
+      for (const auto& mod : group["modifiers"]) {
+        if (!mod.contains("target") || !mod["target"].is_string()) continue;
+        const std::string t = mod["target"].get<std::string>();
+        MakeHuman::ShapeModifier sm;
+        sm.group = g;
+        std::array<fs::path, 2> f;
+        if (mod.contains("min") && mod.contains("max") && mod["min"].is_string() && mod["max"].is_string()) {
+          const std::string lo = mod["min"].get<std::string>(), hi = mod["max"].get<std::string>();
+          sm.name = g + "/" + t + "-" + lo + "|" + hi;
+          f = {m.dir / "targets" / g / (t + "-" + lo + ".target"), m.dir / "targets" / g / (t + "-" + hi + ".target")};
+        } else {
+          sm.two_sided = false;
+          sm.name = g + "/" + t;
+          f = {fs::path(), m.dir / "targets" / g / (t + ".target")};
+        }
+        if ((sm.two_sided && !fs::is_regular_file(f[0], ec)) || !fs::is_regular_file(f[1], ec)) continue;
+        if (t.rfind("l-", 0) == 0 || t.rfind("r-", 0) == 0) sm.side = t.substr(0, 1);
+        mods.push_back(std::move(sm));
+        files.push_back(std::move(f));
+      }
+    }
+  }
+  for (size_t a = 0; a < mods.size(); ++a) {
+    if (mods[a].side.empty()) continue;
+    const std::string other = mods[a].group + "/" + (mods[a].side == "l" ? "r" : "l") +
+                              mods[a].name.substr(mods[a].group.size() + 2);
+    for (size_t b = 0; b < mods.size(); ++b)
+      if (mods[b].name == other) mods[a].mirror = static_cast<int>(b);
+  }
+  data.resize(mods.size());
+  std::vector<std::string> errors(2 * mods.size());
+  tbb::parallel_for(size_t(0), 2 * mods.size(), [&](size_t k) {
+    if (files[k / 2][k % 2].empty()) return;
+    try {
+      data[k / 2][k % 2] = parse_target(files[k / 2][k % 2], MakeHuman::kVertexCount);
+    } catch (const InputError& e) {
+      errors[k] = e.what();
+    }
+  });
+  for (const auto& e : errors)
+    if (!e.empty()) throw InputError(e);
 }
 
 void load_skeleton_json(MakeHuman::Impl& m, const nlohmann::ordered_json& j,
@@ -842,6 +908,57 @@ Eigen::MatrixX3d MakeHuman::measure_modifier_offsets(int modifier, bool increase
   return D * kDmToMm;
 }
 
+const std::vector<MakeHuman::ShapeModifier>& MakeHuman::shape_modifiers() const {
+  auto& lazy = *impl_->shape;
+  std::call_once(lazy.once, [&] { load_shape_modifiers(*impl_, lazy.modifiers, lazy.data); });
+  return lazy.modifiers;
+}
+
+int MakeHuman::shape_modifier_index(const std::string& name) const {
+  const auto& mods = shape_modifiers();
+  for (size_t k = 0; k < mods.size(); ++k)
+    if (mods[k].name == name) return static_cast<int>(k);
+  return -1;
+}
+
+void MakeHuman::add_shape_modifier(Eigen::MatrixX3d& V, int k, double value) const {
+  const auto& mods = shape_modifiers();
+  if (k < 0 || k >= static_cast<int>(mods.size()))
+    throw InputError("shape modifier index " + std::to_string(k) + " out of range");
+  if (value == 0) return;
+  if (!mods[k].two_sided && value < 0)
+    throw InputError("shape modifier '" + mods[k].name + "' is one-sided: its value must be >= 0");
+  const TargetData& d = impl_->shape->data[k][value > 0 ? 1 : 0];
+  const double w = std::abs(value) * kDmToMm;
+  const Eigen::Index rows = V.rows();
+  for (size_t i = 0; i < d.index.size(); ++i) {
+    const int v = d.index[i];
+    if (v >= rows) continue;
+    V(v, 0) += w * d.offset[3 * i];
+    V(v, 1) += w * d.offset[3 * i + 1];
+    V(v, 2) += w * d.offset[3 * i + 2];
+  }
+}
+
+Eigen::MatrixX3d MakeHuman::build_vertices(const MacroSettings& settings, const Eigen::VectorXd& modifiers,
+                                           const Eigen::VectorXd& shape, const BuildOptions& options) const {
+  Eigen::MatrixX3d V = build_vertices(settings, modifiers, options);
+  if (shape.size() == 0) return V;
+  const auto& mods = shape_modifiers();
+  if (shape.size() != static_cast<Eigen::Index>(mods.size()))
+    throw InputError("expected " + std::to_string(mods.size()) + " shape modifier values, found " +
+                     std::to_string(shape.size()));
+  for (Eigen::Index k = 0; k < shape.size(); ++k) {
+    const double lo = mods[k].two_sided ? -1.0 : 0.0;
+    if (!std::isfinite(shape(k)) || (!options.allow_extrapolation && (shape(k) < lo || shape(k) > 1)) ||
+        (!mods[k].two_sided && shape(k) < 0))
+      throw InputError("shape modifier '" + mods[k].name + "' must be in [" + (mods[k].two_sided ? "-1" : "0") +
+                       ", 1], found " + std::to_string(shape(k)));
+  }
+  for (Eigen::Index k = 0; k < shape.size(); ++k) add_shape_modifier(V, static_cast<int>(k), shape(k));
+  return V;
+}
+
 const Eigen::MatrixX3d& MakeHuman::base_vertices() const { return impl_->base_mm; }
 int MakeHuman::target_count() const { return static_cast<int>(impl_->targets.size()); }
 std::vector<std::string> MakeHuman::substituted_targets() const { return impl_->substituted; }
@@ -1001,7 +1118,12 @@ MakeHuman::Body MakeHuman::body(const MacroSettings& settings) const {
 
 MakeHuman::Body MakeHuman::body(const MacroSettings& settings, const Eigen::VectorXd& modifiers,
                                 const BuildOptions& options) const {
-  const Eigen::MatrixX3d V = build_vertices(settings, modifiers, options);
+  return body(settings, modifiers, Eigen::VectorXd(), options);
+}
+
+MakeHuman::Body MakeHuman::body(const MacroSettings& settings, const Eigen::VectorXd& modifiers,
+                                const Eigen::VectorXd& shape_modifiers, const BuildOptions& options) const {
+  const Eigen::MatrixX3d V = build_vertices(settings, modifiers, shape_modifiers, options);
   Body b;
   b.mesh.V = V.topRows(kBodyVertexCount);
   b.mesh.F = impl_->body_faces;

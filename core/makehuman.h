@@ -100,6 +100,32 @@ class MakeHuman {
   // The offsets (19158 by 3, mm) of one modifier at v = +1 (incr) or v = −1 (decr): the mesh is
   // linear in each modifier on either side of 0.
   Eigen::MatrixX3d measure_modifier_offsets(int modifier, bool increase) const;
+  // MakeHuman's body-shape modifiers (data README §12), loaded on first use: the groups armslegs,
+  // torso, hip, stomach, buttocks, neck and pelvis of modifiers/modeling_modifiers.json, two-sided
+  // (a value v in [−1, 1] weighs the `min` target by max(0, −v) and the `max` one by max(0, v)),
+  // and bodyshapes_modifiers.json, one-sided (v in [0, 1] weighs its one target). Named as
+  // MakeHuman names them: "torso/torso-scale-depth-decr|incr", "bodyshapes/bodyshapes-elvs-man-apple".
+  // Modifiers whose target files are missing are left out; empty when targets/ has none.
+  struct ShapeModifier {
+    std::string name, group;
+    bool two_sided = true;
+    // "l", "r" for one side's limb modifiers ("armslegs/l-upperarm-fat-decr|incr"), else empty;
+    // `mirror` is the index of the other side's modifier (−1 when none).
+    std::string side;
+    int mirror = -1;
+  };
+  const std::vector<ShapeModifier>& shape_modifiers() const;
+  // Index of a shape-modifier name, −1 when unknown.
+  int shape_modifier_index(const std::string& name) const;
+  // Adds modifier k's offsets at value `value` (mm) to V (#V by 3, mm; rows beyond V's are
+  // skipped, so the 13380 body vertices alone work): the mesh is linear in each shape modifier
+  // on either side of 0.
+  void add_shape_modifier(Eigen::MatrixX3d& V, int k, double value) const;
+  // The body with macro sliders, measurement modifiers (empty = all 0) and shape modifiers (one
+  // per shape_modifiers(), or empty = all 0); beyond [−1, 1] ([0, 1] one-sided) only with
+  // allow_extrapolation, as for the measurement modifiers. All 19158 vertices, mm.
+  Eigen::MatrixX3d build_vertices(const MacroSettings& settings, const Eigen::VectorXd& modifiers,
+                                  const Eigen::VectorXd& shape_modifiers, const BuildOptions& options) const;
   // The raw base.obj vertices (19158 by 3, mm); not the default human (README §5.2).
   const Eigen::MatrixX3d& base_vertices() const;
   // Target files (relative to targets/) with non-zero weight for `settings`, and the weights.
@@ -142,6 +168,9 @@ class MakeHuman {
   Body body(const MacroSettings& settings) const;
   // The same with measurement modifiers (see build_vertices above).
   Body body(const MacroSettings& settings, const Eigen::VectorXd& modifiers, const BuildOptions& options) const;
+  // ... and body-shape modifiers (shape_modifiers(); empty = all 0).
+  Body body(const MacroSettings& settings, const Eigen::VectorXd& modifiers, const Eigen::VectorXd& shape_modifiers,
+            const BuildOptions& options) const;
 
   // Stems of motion/poses/*.bvh, sorted ("benchmark", "fight01", ..., "tpose").
   std::vector<std::string> pose_names() const;

@@ -20,4 +20,23 @@ std::vector<SurveyValue> nhanes_columns(const BodyMeasurements& m, const std::st
   };
 }
 
+std::vector<SurveyValue> ansur2_columns(const AnsurMeasurer& measurer, const Eigen::MatrixX3d& V,
+                                        const Skeleton& skeleton, const std::string& what) {
+  if (V.rows() != kSurveyTemplateVertexCount)
+    throw InputError(what + ": the ANSUR II measurements need a body with the hm08 template's topology (" +
+                     std::to_string(kSurveyTemplateVertexCount) + " vertices, got " + std::to_string(V.rows()) +
+                     "): a MakeHuman body, a registration or a model's output");
+  Eigen::VectorXd values;
+  try {
+    values = measurer.measure(V, skeleton);
+  } catch (const InputError& e) {
+    throw InputError(what + ": " + e.what());
+  }
+  std::vector<SurveyValue> out;
+  for (size_t k = 0; k < AnsurMeasurer::names().size(); ++k)
+    out.push_back({AnsurMeasurer::names()[k], values(static_cast<Eigen::Index>(k)), AnsurMeasurer::units()[k],
+                   AnsurMeasurer::definitions()[k]});
+  return out;
+}
+
 }  // namespace bodymodel

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "core/ansur_measure.h"
 #include "core/measure.h"
 
 namespace bodymodel {
@@ -20,5 +21,11 @@ struct SurveyValue {
 // survey definitions need the hm08 template's topology: InputError naming `what` when the
 // measurements were taken without them (BodyMeasurements::survey false).
 std::vector<SurveyValue> nhanes_columns(const BodyMeasurements& m, const std::string& what);
+
+// ANSUR II: AnsurMeasurer::names() (stature, weightkg, chestcircumference, ...), in mm, weightkg in
+// kg (the survey's CSV stores tenths of a kg). InputError naming `what` when V does not have the
+// template's 13 380 vertices.
+std::vector<SurveyValue> ansur2_columns(const AnsurMeasurer& measurer, const Eigen::MatrixX3d& V,
+                                        const Skeleton& skeleton, const std::string& what);
 
 }  // namespace bodymodel

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <fstream>
 
 #include "core/error.h"
 #include "core/io/csv.h"
@@ -114,6 +115,15 @@ AnsurTable read_ansur(const std::filesystem::path& path, const std::vector<std::
                                      hi, t.columns[size_t(c)] == "weightkg" ? " kg" : ""));
   }
   return t;
+}
+
+bool is_ansur_file(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  if (!in || !std::getline(in, line)) return false;
+  if (line.rfind("\xEF\xBB\xBF", 0) == 0) line = line.substr(3);
+  const std::string first = line.substr(0, line.find(','));
+  return first == "subjectid" || first == "SubjectId" || first == "\"subjectid\"" || first == "\"SubjectId\"";
 }
 
 }  // namespace bodymodel

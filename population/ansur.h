@@ -27,4 +27,8 @@ struct AnsurTable {
 // a length or girth 1–3 000 mm, age 15–90 years) are refused.
 AnsurTable read_ansur(const std::filesystem::path& path, const std::vector<std::string>& required = {});
 
+// Whether the file's first field is ANSUR II's subject column (`subjectid` in the men's file,
+// `SubjectId` in the women's); false for an unreadable or empty file.
+bool is_ansur_file(const std::filesystem::path& path);
+
 }  // namespace bodymodel

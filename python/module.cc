@@ -183,6 +183,16 @@ const MakeHuman& makehuman(const std::string& dir) {
   return it->second;
 }
 
+// The ANSUR II measurer of the default MakeHuman data, built once per process.
+const AnsurMeasurer& ansur_measurer() {
+  static const AnsurMeasurer measurer = [] {
+    const MakeHuman& mh = makehuman("");
+    const MakeHuman::Body ref = mh.body(MacroSettings{});
+    return AnsurMeasurer(mh.body_faces(), mh.body_weights(), ref.mesh.V, ref.skeleton);
+  }();
+  return measurer;
+}
+
 struct PyTemplate {
   std::shared_ptr<const EncodingTemplate> tmpl;
 };
@@ -379,9 +389,24 @@ F (26756, 3). An ethnic weight rescales the other two so they sum to 1. The data
 
   m.def("measure", [](const pyb::handle& V, const pyb::handle& F, const std::string& sex, int up_axis,
                       double density_kg_per_l, double mm_per_unit, const std::string& standard) -> pyb::dict {
-          if (!standard.empty() && standard != "nhanes")
-            throw InputError("standard: expected '' or 'nhanes', got '" + standard + "'");
+          if (!standard.empty() && standard != "nhanes" && standard != "ansur2")
+            throw InputError("standard: expected '', 'nhanes' or 'ansur2', got '" + standard + "'");
           Eigen::MatrixX3d X = vertices(V, "V");
+          if (standard == "ansur2") {
+            if (X.rows() != kSurveyTemplateVertexCount)
+              throw InputError("V: standard='ansur2' needs a body with the hm08 template's topology (" +
+                               std::to_string(kSurveyTemplateVertexCount) + " vertices, got " +
+                               std::to_string(X.rows()) + ")");
+            X *= mm_per_unit;
+            std::vector<SurveyValue> cols;
+            {
+              pyb::gil_scoped_release nogil;
+              cols = ansur2_columns(ansur_measurer(), X, makehuman("").skeleton_from_body(X), "V");
+            }
+            pyb::dict d;  // as `bodymodel measure --standard ansur2 --json`
+            for (const SurveyValue& c : cols) d[pyb::str(c.column)] = c.value;
+            return d;
+          }
           Eigen::MatrixX3i Fi = faces(F, "F", X.rows());
           MeasureOptions o;
           o.up_axis = up_axis, o.density_kg_per_l = density_kg_per_l, o.mm_per_unit = mm_per_unit;
@@ -407,7 +432,9 @@ neck/chest/waist/hips girths in cm (convex hull of the torso section) and the he
 were found at (*_at_cm), body_fat_pct (U.S. Navy formula; NaN unless sex is female/male).
 V (n, 3) in units of mm_per_unit millimetres, F (m, 3). standard='nhanes' returns the NHANES
 columns instead (BMXHT, BMXWT, BMXWAIST, BMXHIP, BMXARMC, BMXARML, BMXLEG; cm and kg), as
-`bodymodel measure --standard nhanes`; they need the template's topology.)");
+`bodymodel measure --standard nhanes`; they need the template's topology. standard='ansur2'
+returns 23 ANSUR II columns (stature, weightkg, chestcircumference, ...; mm, weightkg in kg) as
+`bodymodel measure --standard ansur2` (docs/measurements.md); F is then the template's.)");
 }
 
 // The reusable Decoder class and the one-off encode/decode of the relative rotation encoding.

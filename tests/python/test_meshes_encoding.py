@@ -169,3 +169,23 @@ def test_makehuman_body_and_measure_match_the_cli(tmp_path, cli):
     assert 150 < m["height_cm"] < 210
     with pytest.raises(bodymodel.InputError, match="gender"):
         bodymodel.makehuman_body(gender=1.5)
+
+
+def test_measure_ansur2_columns_match_the_cli(tmp_path, sphere, cli):
+    V, F = bodymodel.makehuman_body(gender=1.0)
+    path = tmp_path / "body.ply"
+    bodymodel.write_mesh(str(path), V, F)
+    Vf, Ff = bodymodel.read_mesh(str(path))
+    j = json.loads(cli(f"measure {path} --standard ansur2 --json").stdout)
+    m = bodymodel.measure(Vf, Ff, standard="ansur2")
+    assert list(m) == list(j) and len(m) == 23 and "chestcircumference" in m and "span" in m
+    for k in j:
+        assert abs(m[k] - j[k]) <= 1e-9 * max(1.0, abs(j[k])), k
+    assert 1600 < m["stature"] < 1900 and 40 < m["weightkg"] < 120  # mm and kg
+    with pytest.raises(bodymodel.InputError, match="template's topology"):
+        bodymodel.measure(*sphere, standard="ansur2")
+    ball = tmp_path / "ball.ply"
+    bodymodel.write_mesh(str(ball), *sphere)
+    r = cli(f"measure {ball} --standard ansur2", check=False)
+    assert r.returncode == 2 and r.stdout == ""
+    assert "ball.ply" in cli_error_line(r) and "template's topology" in cli_error_line(r)

@@ -39,6 +39,7 @@
 #include "core/measure.h"
 #include "core/point_index.h"
 #include "core/retarget.h"
+#include "population/ansur_fit.h"
 #include "population/people.h"
 #include "core/rotation.h"
 
@@ -556,6 +557,80 @@ std::vector<SyntheticSubject> population_subjects(const MakeHuman& mh, const Syn
   return subjects;
 }
 
+std::vector<std::string> split_list(const std::string& list) {
+  std::vector<std::string> out;
+  std::stringstream ss(list);
+  for (std::string item; std::getline(ss, item, ',');)
+    if (!item.empty()) out.push_back(item);
+  return out;
+}
+
+// Whether SyntheticDatabaseOptions::population names ANSUR II files (every one of them).
+bool ansur_population(const std::string& population) {
+  const auto files = split_list(population);
+  return !files.empty() && std::all_of(files.begin(), files.end(), [](const std::string& f) { return is_ansur_file(f); });
+}
+
+// ANSUR soldiers (SyntheticDatabaseOptions::population lists ANSUR files): drawn uniformly with
+// the database's seed, alternating sexes when there are two files, each fitted to the chosen
+// columns with the rest completed by its file's own prior.
+std::vector<SyntheticSubject> ansur_subjects(const MakeHuman& mh, const SyntheticDatabaseOptions& o,
+                                             SyntheticDatabaseSummary& summary, const ProgressCallback& progress) {
+  std::vector<AnsurTable> tables;
+  for (const auto& f : split_list(o.population)) tables.push_back(read_ansur(f, o.population_measurements));
+  std::mt19937_64 rng(o.seed ^ 0x616e737572ULL);
+  std::vector<std::vector<int>> order(tables.size());
+  for (size_t t = 0; t < tables.size(); ++t) {
+    order[t].resize(tables[t].ids.size());
+    std::iota(order[t].begin(), order[t].end(), 0);
+    std::shuffle(order[t].begin(), order[t].end(), rng);
+    summary.eligible_people += static_cast<int>(tables[t].ids.size());
+  }
+  const MeasurementSet set = ansur_measurement_set(mh);
+  const ProportionFitter fitter(mh, set);
+  std::vector<AnsurFitRow> rows;
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<SyntheticSubject> subjects(o.subjects);
+  std::vector<std::vector<int>> picked(tables.size());
+  for (int s = 0; s < o.subjects; ++s) {
+    const size_t t = s % tables.size(), k = s / tables.size();
+    if (k >= order[t].size()) throw InputError(fmt::format("'{}' has only {} soldiers", tables[t].source.string(), order[t].size()));
+    picked[t].push_back(order[t][k]);
+  }
+  int done_before = 0;
+  for (size_t t = 0; t < tables.size(); ++t) {
+    AnsurFitOptions fo;
+    fo.given = o.population_measurements;
+    fo.rows = picked[t];
+    fo.prior_rows.resize(tables[t].ids.size());
+    std::iota(fo.prior_rows.begin(), fo.prior_rows.end(), 0);
+    fo.jobs = o.threads;
+    fo.progress = [&](int d, int) { report_progress(progress, 0.5 * (done_before + d) / o.subjects, "fitting soldiers"); };
+    AnsurFitRun run = fit_ansur_rows(fitter, set, tables[t], tables[t], fo, false);
+    for (size_t i = 0; i < run.people.size(); ++i) {
+      SyntheticSubject& subj = subjects[i * tables.size() + t];
+      const ProportionFit& f = run.people[i].fit;
+      const bool male = tables[t].male[run.people[i].row] == 1;
+      subj.sex = male ? "male" : "female";
+      subj.age_years = tables[t].values(run.people[i].row, tables[t].column("Age"));
+      subj.person_id = run.people[i].id;
+      subj.sliders = f.sliders;
+      subj.modifiers = f.measure_modifiers;
+      subj.shape_modifiers = f.shape_modifiers;
+      subj.extrapolated = (f.measure_modifiers.cwiseAbs().array() > 1.0).any() || f.sliders.weight > 1.0;
+      std::vector<std::string> misses;
+      for (size_t k = 0; k < f.names.size(); ++k)
+        if (f.given[k] && !(std::abs(f.measured(k) - f.target(k)) <= ansur_tolerance(f.names[k])))
+          misses.push_back(fmt::format("{} by {:+.1f}", f.names[k], f.measured(k) - f.target(k)));
+      subj.fit_reached = misses.empty();
+      subj.fit_reason = fmt::format("{}", fmt::join(misses, ", "));
+    }
+    done_before += static_cast<int>(run.people.size());
+  }
+  summary.fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return subjects;
+}
+
 std::string csv_value(double v, int decimals) { return std::isfinite(v) ? fmt_double(v, decimals) : std::string(); }
 
 // subjects.csv: the labels measured on the standard-pose truth mesh and the sliders; for a
@@ -567,7 +642,12 @@ std::string subjects_csv(const std::vector<SyntheticSubject>& subjects, const Ma
       "chest_cm,neck_cm,waist_iliac_cm,arm_circumference_cm,upper_arm_length_cm,upper_leg_length_cm,"
       "slider_gender,slider_age,slider_muscle,slider_weight,slider_height,"
       "slider_proportions,slider_african,slider_asian,slider_caucasian";
-  if (population) {
+  const bool ansur = population && !subjects.empty() && !subjects[0].ansur_measured.empty();
+  if (ansur) {
+    csv += ",subjectid";
+    for (const auto& [name, value] : subjects[0].ansur_measured) csv += "," + name;
+    csv += ",fit_reached,fit_extrapolated,fit_reason";
+  } else if (population) {
     csv += ",seqn";
     for (const auto& m : recorded_measurement_names()) csv += ",nhanes_" + m;
     for (const auto& m : mh.measure_modifier_names()) csv += ",modifier_" + m;
@@ -585,7 +665,12 @@ std::string subjects_csv(const std::vector<SyntheticSubject>& subjects, const Ma
            fmt_double(k.muscle, 4) + "," + fmt_double(k.weight, 4) + "," + fmt_double(k.height, 4) + "," +
            fmt_double(k.proportions, 4) + "," + fmt_double(k.african, 4) + "," + fmt_double(k.asian, 4) + "," +
            fmt_double(k.caucasian, 4);
-    if (population) {
+    if (ansur) {
+      csv += "," + csv_field(s.person_id);
+      for (const auto& [name, value] : s.ansur_measured) csv += "," + csv_value(value, name == "weightkg" ? 2 : 1);
+      csv += std::string(",") + (s.fit_reached ? "yes" : "no") + "," + (s.extrapolated ? "yes" : "no") + "," +
+             csv_field(s.fit_reason);
+    } else if (population) {
       csv += "," + csv_field(s.person_id);
       for (size_t m = 0; m < recorded_measurement_names().size(); ++m)
         csv += "," + (m < s.recorded.size() ? csv_value(s.recorded[m], 1) : std::string());
@@ -704,7 +789,10 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
   std::vector<Job> jobs;
   // A real population: the people are drawn and their bodies fitted before any scan is made.
   std::vector<SyntheticSubject> people;
-  if (!o.population.empty()) people = population_subjects(mh, o, summary, progress);
+  const bool ansur = !o.population.empty() && ansur_population(o.population);
+  if (!o.population.empty()) people = ansur ? ansur_subjects(mh, o, summary, progress) : population_subjects(mh, o, summary, progress);
+  std::shared_ptr<const MeasurementSet> ansur_set;
+  if (ansur) ansur_set = std::make_shared<const MeasurementSet>(ansur_measurement_set(mh));
   for (int s = 0; s < o.subjects; ++s) {
     SyntheticSubject subj;
     if (!people.empty()) {
@@ -768,7 +856,7 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
         std::mt19937_64 r(job.seed);
         MakeHuman::BuildOptions extrapolate;
         extrapolate.allow_extrapolation = true;  // a fitted body may use the extended space
-        MakeHuman::Body body = mh.body(subj.sliders, subj.modifiers, extrapolate);
+        MakeHuman::Body body = mh.body(subj.sliders, subj.modifiers, subj.shape_modifiers, extrapolate);
         Pose pose = Pose::rest(body.skeleton.bone_count());
         if (job.pose >= 0) {
           const PoolPose& pp = pool[job.pose];
@@ -784,6 +872,11 @@ SyntheticDatabaseSummary generate_synthetic_database(const MakeHuman& mh, const 
         Eigen::MatrixX3d posed =
             linear_blend_skinning(body.mesh.V, body.weights, forward_kinematics(body.skeleton, pose));
         if (job.index == 0) measure_subject(subj, posed, body.mesh.F);
+        if (job.index == 0 && ansur_set) {
+          const Eigen::VectorXd m = ansur_set->measure(posed);
+          subj.ansur_measured.clear();
+          for (size_t k = 0; k < ansur_set->names.size(); ++k) subj.ansur_measured.emplace_back(ansur_set->names[k], m(k));
+        }
         if (!keep) write_scan_files(dir, id, body, posed, pose, o, r, info);
       }
       if (keep) {

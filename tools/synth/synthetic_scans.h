@@ -57,6 +57,10 @@ struct SyntheticDatabaseOptions {
   // by survey weight (seeded, sample_population) and each subject's truth body is the MakeHuman
   // body fitted to the person's recorded measurements (fit_measurements, `fit`). Empty = the
   // uniform slider draw (random_makehuman_subject, core/makehuman.h).
+  // ANSUR II files (population/ansur.h; one per sex, e.g. ansur2_female.csv,ansur2_male.csv) instead:
+  // `subjects` soldiers drawn uniformly (alternating sexes when both files are given), each fitted
+  // to `population_measurements` as ANSUR names them (population/ansur_fit.h) with the file's own
+  // prior completing the others, every body modifier free.
   std::string population;
   std::vector<std::string> population_measurements = {"height_cm", "weight_kg", "waist_iliac_cm", "hips_cm",
                                                       "arm_circumference_cm"};
@@ -81,6 +85,10 @@ struct SyntheticSubject {
   std::string id;
   MacroSettings sliders;
   Eigen::VectorXd modifiers;  // MakeHuman's measurement modifiers (population subjects; empty = 0)
+  Eigen::VectorXd shape_modifiers;  // MakeHuman's body-shape modifiers (ANSUR subjects; empty = 0)
+  // ANSUR subjects: the survey's columns measured on the standard-pose truth mesh (labels named
+  // as the survey names them, population/ansur_fit.h ansur_measurement_set()).
+  std::vector<std::pair<std::string, double>> ansur_measured;
   bool extrapolated = false;  // sliders or modifiers beyond MakeHuman's range (extended space)
   std::string sex;  // "female" | "male" (gender slider < 0.5 | ≥ 0.5)
   double age_years = 0;

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <map>
 #include <mutex>
+#include <random>
 
 #include "core/data_path.h"
 #include "core/error.h"
@@ -15,6 +16,8 @@
 #include "core/io/csv.h"
 #include "core/io/file_names.h"
 #include "core/io/mesh_io.h"
+#include "population/ansur.h"
+#include "population/ansur_fit.h"
 #include "population/fit_measurements.h"
 #include "population/people.h"
 #include "tools/console.h"
@@ -31,7 +34,7 @@ struct FitArgs {
   std::string sex, people, out, space = "extended", ethnicity;
   double age = -1;
   std::vector<std::string> set;
-  std::string measurements;
+  std::string measurements, columns, prior;
   int sample = 0, jobs = 0;
   uint64_t seed = 1;
   bool allow_children = false, skip_incomplete = false, force = false;
@@ -228,6 +231,84 @@ void run_batch(const FitArgs& a) {
              ok, 100.0 * ok / rows.size(), rows.size() - ok, a.out);
 }
 
+std::string ansur_csv(const AnsurFitRun& run, const AnsurTable& table, const std::vector<std::string>& stems) {
+  const auto& names = run.people.front().fit.names;
+  std::string csv = "subject,mesh,iterations,evaluations,retries,seconds,flipped_triangles,self_intersections";
+  for (const auto& n : names) csv += fmt::format(",{0}_given,{0}_target,{0}_measured,{0}_survey", n);
+  csv += "\n";
+  for (size_t i = 0; i < run.people.size(); ++i) {
+    const AnsurFitRow& p = run.people[i];
+    csv += fmt::format("{},{}.obj,{},{},{},{:.2f},{},{}", csv_field(p.id), csv_field(stems[i]), p.fit.iterations,
+                       p.fit.evaluations, p.fit.retries, p.fit.seconds, p.fit.flipped_triangles,
+                       p.fit.self_intersections);
+    for (size_t k = 0; k < names.size(); ++k) {
+      const auto it = std::find(table.columns.begin(), table.columns.end(), names[k]);
+      const double survey = it == table.columns.end() ? NAN : table.values(p.row, it - table.columns.begin());
+      csv += fmt::format(",{},{},{},{}", int(p.fit.given[k]), csv_number(p.fit.target(k)),
+                         csv_number(p.fit.measured(k)), csv_number(survey));
+    }
+    csv += "\n";
+  }
+  return csv;
+}
+
+void print_ansur_summary(const AnsurFitRun& run) {
+  fmt::print("{:<28} {:>6} {:>9} {:>10} {:>10} {:>9} {:>6}\n", "measurement", "given", "within", "rmse body",
+             "rmse regr", "bias", "ratio");
+  for (const auto& s : run.summary)
+    fmt::print("{:<28} {:>6} {:>8.1f}% {:>10.2f} {:>10} {:>+9.2f} {:>6}\n", s.name, s.given ? "yes" : "no",
+               100 * s.within, s.rmse_body, s.given ? "" : fmt::format("{:.2f}", s.rmse_regression), s.mean_error,
+               s.given ? "" : fmt::format("{:.2f}", s.rmse_body / s.rmse_regression));
+  fmt::print("people      {} in {:.1f} s ({:.2f} people/s); {} with a flipped triangle, {} with more "
+             "self-intersecting triangle pairs than MakeHuman's own body (the default body has {})\n",
+             run.people.size(), run.seconds, run.people.size() / run.seconds, run.flipped_people,
+             run.self_intersecting_people, run.template_self_intersections);
+}
+
+// fit-measurements --people ANSUR.csv: one body per soldier from the chosen columns, the prior and
+// the regression baseline learned from the other soldiers of that sex (population/ansur_fit.h).
+void run_ansur_batch(const FitArgs& a) {
+  if (!a.measurements.empty()) throw InputError("an ANSUR file takes --columns (its own column names), not --measurements");
+  const std::vector<std::string> given = a.columns.empty() ? default_ansur_columns() : cli::split_commas(a.columns);
+  const AnsurTable table = read_ansur(a.people, given);
+  const int male = table.male.empty() ? 1 : table.male[0];
+  const fs::path prior_path =
+      a.prior.empty() ? data_file(fs::path("anthropometry") / "ansur2" / (male ? "ansur2_male.csv" : "ansur2_female.csv"))
+                      : fs::path(a.prior);
+  const AnsurTable prior = fs::equivalent(prior_path, a.people) ? table : read_ansur(prior_path);
+  AnsurFitOptions o;
+  o.given = given;
+  o.jobs = a.jobs;
+  if (a.sample > 0) {
+    std::vector<int> all(table.male.size());
+    for (size_t r = 0; r < all.size(); ++r) all[r] = static_cast<int>(r);
+    std::mt19937_64 rng(a.seed);
+    std::shuffle(all.begin(), all.end(), rng);
+    all.resize(std::min<size_t>(all.size(), a.sample));
+    std::sort(all.begin(), all.end());
+    o.rows = all;
+  }
+  StagedFolder out(a.out, a.force);
+  cli::info("loading MakeHuman data from " + data_root().string());
+  const MakeHuman mh = MakeHuman::load();
+  const MeasurementSet set = ansur_measurement_set(mh);
+  const ProportionFitter fitter(mh, set);
+  cli::ProgressBar bar("fit-measurements");
+  const ProgressCallback progress = bar.callback();
+  o.progress = [&](int d, int n) { report_progress(progress, double(d) / n, ""); };
+  cli::info(fmt::format("fitting {} soldiers of {} to {} columns; prior: {}", o.rows.empty() ? table.ids.size() : o.rows.size(),
+                        a.people, given.size(), prior_path.string()));
+  const AnsurFitRun run = fit_ansur_rows(fitter, set, table, prior, o, true);
+  std::vector<std::string> ids;
+  for (const auto& p : run.people) ids.push_back(p.id);
+  const std::vector<std::string> stems = unique_file_names(ids, "subject");
+  for (size_t i = 0; i < run.people.size(); ++i) write_mesh(out / (stems[i] + ".obj"), run.people[i].fit.V, mh.body_faces());
+  write_text_file(out / "fit.csv", ansur_csv(run, table, stems));
+  bar.finish(fmt::format("{} soldiers", run.people.size()));
+  out.commit();
+  print_ansur_summary(run);
+}
+
 }  // namespace
 
 BODYMODEL_VERB(add_fit_measurements_verb) {
@@ -255,6 +336,14 @@ BODYMODEL_VERB(add_fit_measurements_verb) {
                   "Batch: comma-separated measurements to fit (default: those of height_cm, weight_kg,\n"
                   "waist_iliac_cm, hips_cm, arm_circumference_cm the file has; the two lengths are not\n"
                   "fitted by default: NHANES takes them seated and bent, see docs/population.md)");
+  cmd->add_option("--columns", a->columns,
+                  "ANSUR II file: comma-separated columns the body is fitted to (default: the 18 of\n"
+                  "docs/population.md: stature, weightkg, chest, waist, buttock, thigh, calf, biceps, neck base and\n"
+                  "shoulder circumference, biacromial and hip breadth, chest depth, acromial, crotch, iliocristale\n"
+                  "and knee height, sleeve outseam); the others take the values real soldiers with these have");
+  cmd->add_option("--prior", a->prior,
+                  "ANSUR II file the population prior is learned from (default: the data folder's file of the\n"
+                  "same sex; the soldiers being fitted are left out of it)");
   cmd->add_option("--sample", a->sample, "Batch: draw this many adults by survey weight (WTMECPRP) instead of every row")
       ->check(CLI::Range(1, 1000000));
   cmd->add_option("--seed", a->seed, "Seed of --sample")->capture_default_str();
@@ -272,7 +361,10 @@ BODYMODEL_VERB(add_fit_measurements_verb) {
       if (a->sample > 0 || !a->measurements.empty() || a->skip_incomplete)
         throw InputError("--sample, --measurements and --skip-incomplete need --people FILE");
       run_single(*a);
+    } else if (is_ansur_file(a->people)) {
+      run_ansur_batch(*a);
     } else {
+      if (!a->columns.empty() || !a->prior.empty()) throw InputError("--columns and --prior need an ANSUR II file (--people)");
       run_batch(*a);
     }
   });

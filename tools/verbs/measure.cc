@@ -1,11 +1,14 @@
 // bodymodel measure mesh.obj [--sex female|male] [--json] [--unit mm|cm|dm|m]
 #include <fmt/format.h>
 
+#include <algorithm>
+
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
 #include "core/io/json_text.h"
 #include "core/io/mesh_io.h"
+#include "core/makehuman.h"
 #include "core/measure.h"
 #include "core/survey_columns.h"
 #include "tools/verb.h"
@@ -18,8 +21,33 @@ struct MeasureArgs {
   std::string sex = "unknown";
   std::string unit = "mm";
   bool json = false;
-  std::string standard;  // "" or "nhanes": the survey's columns
+  std::string standard;  // "", "nhanes" or "ansur2": the survey's columns
 };
+
+// The ANSUR II columns of a template-topology body: its skeleton from the body's own vertices
+// (MakeHuman::skeleton_from_body), the measurer's tubes from MakeHuman's default body.
+std::vector<SurveyValue> ansur2_of(const Mesh& m, const std::string& what) {
+  if (m.V.rows() != kSurveyTemplateVertexCount)
+    throw InputError(what + ": --standard ansur2 needs a body with the hm08 template's topology (" +
+                     std::to_string(kSurveyTemplateVertexCount) + " vertices, got " + std::to_string(m.V.rows()) +
+                     "): a MakeHuman body, a registration or a model's output");
+  const MakeHuman mh = MakeHuman::load();
+  const MakeHuman::Body ref = mh.body(MacroSettings{});
+  const AnsurMeasurer measurer(mh.body_faces(), mh.body_weights(), ref.mesh.V, ref.skeleton);
+  return ansur2_columns(measurer, m.V, mh.skeleton_from_body(m.V), what);
+}
+
+void print_columns(const std::vector<SurveyValue>& cols, bool json) {
+  if (json) {
+    nlohmann::ordered_json j = nlohmann::ordered_json::object();
+    for (const auto& c : cols) j[c.column] = c.value;
+    fmt::print("{}\n", json_text(j, 2));
+    return;
+  }
+  size_t width = 10;  // NHANES's names fit; ANSUR's are longer
+  for (const auto& c : cols) width = std::max(width, c.column.size() + 2);
+  for (const auto& c : cols) fmt::print("{:<{}}{:>8.1f}  {}, {}\n", c.column, width, c.value, c.unit, c.definition);
+}
 
 double unit_in_mm(const std::string& unit) {
   if (unit == "mm") return 1;
@@ -46,10 +74,17 @@ BODYMODEL_VERB(add_measure_verb) {
   cmd->add_flag("--json", args->json, "Print JSON instead of a table");
   cmd->add_option("--standard", args->standard,
                   "nhanes: the NHANES body-measure columns (BMXHT, BMXWT, BMXWAIST, BMXHIP, BMXARMC,\n"
-                  "BMXARML, BMXLEG) as the survey defines them, on bodies with the template's topology")
-      ->check(CLI::IsMember({"nhanes"}));
+                  "BMXARML, BMXLEG) as the survey defines them; ansur2: 23 ANSUR II columns (stature,\n"
+                  "weightkg, chestcircumference, ... in mm, weightkg in kg; docs/measurements.md);\n"
+                  "both on bodies with the template's topology")
+      ->check(CLI::IsMember({"nhanes", "ansur2"}));
   cmd->callback([args] {
     Mesh m = read_mesh(args->mesh);
+    if (args->standard == "ansur2") {
+      m.V *= unit_in_mm(args->unit);
+      print_columns(ansur2_of(m, "'" + args->mesh + "'"), args->json);
+      return;
+    }
     MeasureOptions o;
     o.mm_per_unit = unit_in_mm(args->unit);
     Sex sex = args->sex == "male" ? Sex::male : args->sex == "female" ? Sex::female : Sex::unknown;
@@ -65,14 +100,7 @@ BODYMODEL_VERB(add_measure_verb) {
                  "right?\n",
                  b.height_cm, args->unit);
     if (!args->standard.empty()) {
-      const std::vector<SurveyValue> cols = nhanes_columns(b, "'" + args->mesh + "'");
-      if (args->json) {
-        nlohmann::ordered_json j = nlohmann::ordered_json::object();
-        for (const auto& c : cols) j[c.column] = c.value;
-        fmt::print("{}\n", json_text(j, 2));
-      } else {
-        for (const auto& c : cols) fmt::print("{:<10}{:>8.1f}  {}, {}\n", c.column, c.value, c.unit, c.definition);
-      }
+      print_columns(nhanes_columns(b, "'" + args->mesh + "'"), args->json);
       return;
     }
     if (args->json) {

@@ -6,6 +6,8 @@
 #include "core/data_path.h"
 #include "core/error.h"
 #include "tools/console.h"
+#include "population/ansur.h"
+#include "population/ansur_fit.h"
 #include "population/people.h"
 #include "tools/synth/synthetic_scans.h"
 #include "tools/verb.h"
@@ -47,7 +49,11 @@ void add_synth_db_options(CLI::App* cmd, SynthArgs& a) {
                   "A people file (NHANES, e.g. ../shared/data/anthropometry/nhanes_2017_2020_bmx_demo.csv, or\n"
                   "own columns, see fit-measurements): draw the subjects by survey weight (WTMECPRP) and make\n"
                   "each truth body with fit-measurements from the person's recorded values; subjects.csv\n"
-                  "adds seqn and nhanes_* (the recorded values) beside the values measured on the truth mesh");
+                  "adds seqn and nhanes_* (the recorded values) beside the values measured on the truth mesh.\n"
+                  "Or ANSUR II files, comma-separated (ansur2_female.csv,ansur2_male.csv): soldiers drawn\n"
+                  "uniformly, alternating sexes, each body fitted with every MakeHuman body modifier to the\n"
+                  "--population-measurements columns (default: the 18 of docs/population.md) and the survey's\n"
+                  "other proportions; subjects.csv adds subjectid and the ANSUR columns measured on the truth mesh");
   cmd->add_option("--population-measurements", a.population_measurements,
                   "With --population: the recorded measurements the bodies are fitted to (comma-separated)")
       ->capture_default_str();
@@ -74,7 +80,18 @@ void run_synth_db(SynthArgs& a) {
                      "' exists and is not empty (use --force to write into it)");
   a.options.resume = !a.no_resume;
   a.options.population_measurements = cli::split_commas(a.population_measurements);
-  if (!a.options.population.empty()) {
+  const auto files = cli::split_commas(a.options.population);
+  const bool ansur = !files.empty() && std::all_of(files.begin(), files.end(), [](const std::string& f) { return is_ansur_file(f); });
+  if (ansur) {
+    // ANSUR II: the columns are the survey's; the NHANES default becomes the 18 of the accuracy bar.
+    if (a.population_measurements == SynthArgs{}.population_measurements)
+      a.options.population_measurements = default_ansur_columns();
+    for (const auto& f : files) {
+      const AnsurTable t = read_ansur(f, a.options.population_measurements);
+      cli::info(fmt::format("population {}: {} soldiers; fitting {} columns", f, t.ids.size(),
+                            a.options.population_measurements.size()));
+    }
+  } else if (!a.options.population.empty()) {
     validate_measurement_names(a.options.population_measurements);
     // The file is checked (columns, eligible people) before any folder is touched.
     const PeopleTable table = read_people(a.options.population);
