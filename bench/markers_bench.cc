@@ -1,11 +1,13 @@
 // `markers clean` speed (issue 38: 350 markers × 1 000 frames in ≤ 10 s on 2 cores): a capture
 // simulated from the Vlasic "jumping" meshes (markers/simulate.h defaults, 350 markers, the 30
 // mesh frames at 10 fps interpolated to 345 Hz: 1 001 frames), then cleaned (merge, fill, smooth;
-// markers/clean.h defaults). Wall time on the threads TBB is given (2 on the project's machine).
+// markers/clean.h defaults). Wall time on the threads TBB is given (2 on the project's machine), and
+// the CPU seconds of all threads (on a shared machine, CPU / cores is the idle-machine wall).
 //   ./build/bench/markers_bench --benchmark_repetitions=3
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <ctime>
 #include <filesystem>
 
 #include "core/data_path.h"
@@ -39,7 +41,13 @@ const SimulatedCapture& capture() {
 void BM_MarkersClean(benchmark::State& state) {
   const SimulatedCapture& s = capture();
   CleanResult r;
-  for (auto _ : state) r = clean_markers(s.capture);
+  double cpu = 0;
+  for (auto _ : state) {
+    const std::clock_t c0 = std::clock();  // CPU seconds of every thread of the process
+    r = clean_markers(s.capture);
+    cpu = double(std::clock() - c0) / CLOCKS_PER_SEC;
+  }
+  state.counters["cpu_s_all_threads"] = cpu;
   const CleanEvaluation e = evaluate_cleaning(s.capture, r, s.truth);
   state.counters["frames"] = s.truth.frame_count();
   state.counters["markers"] = s.truth.marker_count();

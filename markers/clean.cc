@@ -95,8 +95,10 @@ Eigen::Vector3d at(const Eigen::MatrixXd& X, int t, int i) { return X.block<1, 3
 bool well_spread(const Eigen::MatrixX3d& A) {
   if (A.rows() < 3) return false;
   const Eigen::MatrixX3d C = A.rowwise() - A.colwise().mean();
-  const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::MatrixXd>(C).singularValues();
-  return sv(1) > 0.25 * sv(0);
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+  es.computeDirect(C.transpose() * C, Eigen::EigenvaluesOnly);
+  const Eigen::Vector3d ev = es.eigenvalues().cwiseMax(0);  // ascending: squared singular values
+  return ev(1) > 0.0625 * ev(2);                             // second singular value > 1/4 of the first
 }
 
 // Marker i at frame t from its present neighbours, moved rigidly from the reference (eq. 2).
@@ -302,7 +304,7 @@ bool reconstruct(const Model& md, const Eigen::MatrixXd& Y, int t, int target, E
   for (size_t k = 0; k < q.size(); ++k) cur.row(k) = at(Y, t, md.group[q[k]]).transpose();
   if (!well_spread(cur)) return false;
   RigidMotion m;
-  for (int it = 0; it < 4; ++it) {
+  for (int it = 0; it < 2; ++it) {
     Eigen::MatrixX3d sq(q.size(), 3);
     for (size_t k = 0; k < q.size(); ++k) sq.row(k) = shape.row(q[k]);
     m = fit_rigid_motion(sq, cur);

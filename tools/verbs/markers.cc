@@ -104,11 +104,11 @@ struct CleanArgs {
 };
 
 void run_clean(const CleanArgs& a) {
-  const MarkerData capture = read_markers(a.in);
-  const MarkerData truth = a.truth.empty() ? MarkerData() : read_markers(a.truth);
   std::string ext = std::filesystem::path(a.out).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
   if (ext != ".c3d" && ext != ".trc") throw InputError("--out must name a .c3d or .trc file, found '" + a.out + "'");
+  const MarkerData capture = read_markers(a.in);
+  const MarkerData truth = a.truth.empty() ? MarkerData() : read_markers(a.truth);
   ProgressBar bar("markers clean");
   const CleanResult r = clean_markers(capture, a.o, [&](double f) { bar.update(f); });
   bar.finish();
