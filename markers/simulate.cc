@@ -130,6 +130,10 @@ void check_options(const std::vector<Eigen::MatrixX3d>& frames, const Eigen::Mat
   if (o.markers < 4 || o.markers > 5000) throw InputError("markers simulate: --markers must be 4…5000");
   if (!(o.rate > 0 && o.mesh_rate > 0 && o.rate >= o.mesh_rate)) throw InputError("markers simulate: needs rate ≥ mesh rate > 0");
   if (o.cameras < 2) throw InputError("markers simulate: needs at least 2 cameras");
+  const double frames_out = (frames.size() - 1) * o.rate / o.mesh_rate + 1;
+  if (frames_out > 65535 || frames_out * o.markers > 2e7)
+    throw InputError("markers simulate: " + std::to_string(static_cast<long>(frames_out)) + " frames of " +
+                     std::to_string(o.markers) + " markers is too large (at most 65 535 frames, 20 million samples)");
   if (!(o.missing >= 0 && o.missing < 0.9)) throw InputError("markers simulate: --missing must be in [0, 0.9)");
   if (o.gap_min < 1 || o.gap_max < o.gap_min) throw InputError("markers simulate: needs 1 ≤ gap-min ≤ gap-max");
   if (!(o.broken >= 0 && o.broken <= 1) || o.ghosts < 0) throw InputError("markers simulate: --broken in [0, 1], --ghosts ≥ 0");
