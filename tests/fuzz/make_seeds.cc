@@ -9,6 +9,8 @@
 #include "core/io/mesh_io.h"
 #include "core/io/npz.h"
 #include "encoding/encoding_file.h"
+#include "markers/c3d.h"
+#include "markers/trc.h"
 #include "model/model_file.h"
 #include "skinning/rig_io.h"
 #include "tiny_files.h"
@@ -120,6 +122,20 @@ int main(int argc, char** argv) {
     e.mean = Eigen::VectorXd::Zero(60);
     e.names = {"rest", "../up/walk"};
     put("fuzz_encoding_npz", "two.npz", encoding_to_npz(e, "layout").serialize());
+  }
+  // Marker captures: 3 markers (one unlabelled piece), 4 frames, one sample missing; C3D in every
+  // processor type and storage, TRC.
+  {
+    MarkerData d;
+    d.labels = {"LASI", "RASI", "*1"};
+    d.rate = 120;
+    d.xyz = Eigen::MatrixXd::Constant(4, 9, 12.5);
+    d.clear(2, 1);
+    for (auto proc : {C3dProcessor::intel, C3dProcessor::dec, C3dProcessor::mips})
+      for (bool floating : {true, false})
+        put("fuzz_c3d", "p" + std::to_string(int(proc)) + (floating ? "_float.c3d" : "_int.c3d"),
+            c3d_bytes(d, {proc, floating, 0.25}));
+    put("fuzz_trc", "three.trc", trc_text(d));
   }
   fs::remove_all(tmp);
   std::cout << "seeds written to " << dir << "\n";

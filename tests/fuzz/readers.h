@@ -28,6 +28,8 @@
 #include "core/makehuman.h"
 #include "encoding/encoding_file.h"
 #include "encoding/relative_rotation_encoding.h"
+#include "markers/c3d.h"
+#include "markers/trc.h"
 #include "model/database.h"
 #include "model/model_file.h"
 #include "registration/landmarks.h"
@@ -228,6 +230,32 @@ inline void read_mhmat(const std::string& in) {
   for (const auto& c : {m.diffuse_color, m.ambient_color, m.specular_color, m.emissive_color})
     check(c.allFinite() && c.minCoeff() >= 0);
   for (double v : {m.shininess, m.opacity, m.translucency}) check(v >= 0 && v <= 1);
+
+// A marker capture that reads must be consistent (labels, 3 columns each, samples finite or
+// missing as a whole) and must write back: C3D to C3D bytes that read the same, TRC to TRC text.
+inline void check_capture(const MarkerData& d) {
+  check_marker_data(d, "fuzz");
+  check(d.xyz.cols() == 3 * static_cast<Eigen::Index>(d.labels.size()));
+}
+
+inline void read_c3d_bytes(const std::string& in) {
+  const MarkerData d = parse_c3d(in, "fuzz.c3d");
+  check_capture(d);
+  if (d.frame_count() <= 64 && d.first_frame >= 1) {
+    allowing_rejection([&] {  // labels a C3D cannot hold (over 255 characters) are refused
+      const MarkerData again = parse_c3d(c3d_bytes(d), "again.c3d");
+      check(again.labels == d.labels && again.frame_count() == d.frame_count());
+    });
+  }
+}
+
+inline void read_trc_text(const std::string& in) {
+  const MarkerData d = parse_trc(in, "fuzz.trc");
+  check_capture(d);
+  if (d.frame_count() <= 64) {
+    const MarkerData again = parse_trc(trc_text(d), "again.trc");
+    check(again.labels == d.labels && again.frame_count() == d.frame_count());
+  }
 }
 
 // fuzz target name (without "fuzz_") → reader.
@@ -241,7 +269,8 @@ inline const std::map<std::string, std::function<void(const std::string&)>>& rea
       {"tgf", read_tgf_file},      {"dmat", read_dmat_file},
       {"model_npz", read_model_npz}, {"rig_npz", read_rig_npz},
       {"encoding_npz", read_encoding_npz},
-      {"mhclo", read_mhclo},       {"mhmat", read_mhmat}};
+      {"mhclo", read_mhclo},       {"mhmat", read_mhmat},
+      {"c3d", read_c3d_bytes},     {"trc", read_trc_text}};
   return table;
 }
 

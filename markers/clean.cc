@@ -1,0 +1,500 @@
+#include "markers/clean.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <tbb/parallel_for.h>
+
+#include "core/error.h"
+#include "core/geometry.h"
+#include "core/point_index.h"
+
+namespace bodymodel {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+bool is_piece(const std::string& label) { return !label.empty() && label[0] == '*'; }
+
+// The marker surface of the reference frame: labelled markers, their neighbours, spacing.
+struct Surface {
+  std::vector<int> columns;  // capture columns of the labelled markers
+  Eigen::MatrixX3d X0;       // reference positions
+  std::vector<std::vector<int>> nbr;
+  std::vector<std::vector<int>> wide;  // the 2·k nearest, for estimates when neighbours are missing
+  Eigen::VectorXd spacing;   // mean distance to the neighbours (eq. 3)
+  int size() const { return static_cast<int>(columns.size()); }
+};
+
+Surface build_surface(const MarkerData& c, const CleanOptions& o) {
+  Surface s;
+  if (o.reference_frame < 0 || o.reference_frame >= c.frame_count())
+    throw InputError("markers clean: reference frame " + std::to_string(o.reference_frame) + " is not in the capture");
+  for (int m = 0; m < c.marker_count(); ++m)
+    if (!is_piece(c.labels[m])) {
+      if (!c.present(o.reference_frame, m))
+        throw InputError("markers clean: labelled marker '" + c.labels[m] + "' is missing in the reference frame " +
+                         std::to_string(o.reference_frame) + " (the marker surface needs every marker there)");
+      s.columns.push_back(m);
+    }
+  if (o.neighbours < 3) throw InputError("markers clean: --neighbours must be at least 3");
+  if (s.size() < o.neighbours + 1)
+    throw InputError("markers clean: " + std::to_string(s.size()) + " labelled markers (names not starting with '*'), need at least " +
+                     std::to_string(o.neighbours + 1));
+  s.X0.resize(s.size(), 3);
+  for (int i = 0; i < s.size(); ++i) s.X0.row(i) = c.at(o.reference_frame, s.columns[i]).transpose();
+  const PointIndex index(s.X0);
+  s.spacing.resize(s.size());
+  for (int i = 0; i < s.size(); ++i) {
+    // The one-ring: the k nearest in the reference frame of the 3·k nearest whose distance to
+    // the marker stays within `rigidity` of itself while both are seen (then the steadiest). This
+    // keeps a hand's markers off the hip it rests against in the reference pose, as the paper's
+    // neighbours along the skin do.
+    std::vector<double> d2;
+    const auto near = index.knn(s.X0.row(i).transpose(), 3 * o.neighbours + 1, &d2);
+    std::vector<std::pair<double, int>> steady, loose;  // (reference distance or spread, marker)
+    for (size_t k = 0; k < near.size(); ++k) {
+      if (near[k] == i) continue;
+      const double ref = std::sqrt(d2[k]);
+      double sum = 0, sum2 = 0;
+      int n = 0;
+      for (int t = 0; t < c.frame_count(); ++t) {
+        if (!c.present(t, s.columns[i]) || !c.present(t, s.columns[near[k]])) continue;
+        const double d = (c.at(t, s.columns[i]) - c.at(t, s.columns[near[k]])).norm();
+        sum += d, sum2 += d * d, ++n;
+      }
+      const double spread = n > 1 ? std::sqrt(std::max(0.0, sum2 / n - (sum / n) * (sum / n))) : 0;
+      if (spread <= std::max(3.0, o.rigidity * ref)) steady.emplace_back(ref, near[k]);
+      else loose.emplace_back(spread / ref, near[k]);
+    }
+    std::sort(steady.begin(), steady.end());
+    std::sort(loose.begin(), loose.end());
+    steady.insert(steady.end(), loose.begin(), loose.end());
+    std::vector<int> n, w;
+    double sum = 0;
+    for (size_t k = 0; k < steady.size(); ++k) {
+      if (static_cast<int>(k) < o.neighbours) n.push_back(steady[k].second), sum += (s.X0.row(steady[k].second) - s.X0.row(i)).norm();
+      if (static_cast<int>(k) < 2 * o.neighbours) w.push_back(steady[k].second);
+    }
+    s.nbr.push_back(n);
+    s.wide.push_back(w);
+    s.spacing(i) = sum / std::max<size_t>(1, n.size());
+  }
+  // Where markers are sparse the tolerances would grow without bound: capped at the median.
+  Eigen::VectorXd sorted = s.spacing;
+  std::sort(sorted.data(), sorted.data() + sorted.size());
+  s.spacing = s.spacing.cwiseMin(sorted(sorted.size() / 2));
+  return s;
+}
+
+bool present(const Eigen::MatrixXd& X, int t, int i) { return !std::isnan(X(t, 3 * i)); }
+Eigen::Vector3d at(const Eigen::MatrixXd& X, int t, int i) { return X.block<1, 3>(t, 3 * i).transpose(); }
+
+// Points that fix a rotation: not (nearly) on one line.
+bool well_spread(const Eigen::MatrixX3d& A) {
+  if (A.rows() < 3) return false;
+  const Eigen::MatrixX3d C = A.rowwise() - A.colwise().mean();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+  es.computeDirect(C.transpose() * C, Eigen::EigenvaluesOnly);
+  const Eigen::Vector3d ev = es.eigenvalues().cwiseMax(0);  // ascending: squared singular values
+  return ev(1) > 0.0625 * ev(2);                             // second singular value > 1/4 of the first
+}
+
+// Marker i at frame t from its present neighbours, moved rigidly from the reference (eq. 2).
+// When fewer than k of its one-ring are there, the next nearest markers stand in (up to 2·k), so
+// that three or more points off one line fix the rotation.
+bool estimate(const Surface& s, const Eigen::MatrixXd& X, int i, int t, Eigen::Vector3d& out) {
+  std::vector<int> q;
+  for (int j : s.wide[i])
+    if (present(X, t, j) && q.size() < s.nbr[i].size()) q.push_back(j);
+  if (q.size() < 3) return false;
+  Eigen::MatrixX3d A(q.size(), 3), B(q.size(), 3);
+  for (size_t k = 0; k < q.size(); ++k) A.row(k) = s.X0.row(q[k]), B.row(k) = at(X, t, q[k]).transpose();
+  if (!well_spread(A)) return false;
+  const RigidMotion m = fit_rigid_motion(A, B);
+  out = m.R * s.X0.row(i).transpose() + m.t;
+  return true;
+}
+
+// Marker i at frame t moved rigidly with its neighbours from the nearest frames before and after
+// where it was seen (weighted by closeness in time): the local shape of a recent frame is nearer
+// the current one than the reference pose's. The reference-frame estimate when neither serves.
+bool anchored_estimate(const Surface& s, const Eigen::MatrixXd& X, int i, int t, Eigen::Vector3d& out) {
+  const int T = static_cast<int>(X.rows());
+  int before = t - 1, after = t + 1;
+  while (before >= 0 && !present(X, before, i)) --before;
+  while (after < T && !present(X, after, i)) ++after;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  double wsum = 0;
+  for (int a : {before, after}) {
+    if (a < 0 || a >= T) continue;
+    std::vector<int> q;
+    for (int j : s.wide[i])
+      if (present(X, t, j) && present(X, a, j) && q.size() < s.nbr[i].size()) q.push_back(j);
+    if (q.size() < 3) continue;
+    Eigen::MatrixX3d A(q.size(), 3), B(q.size(), 3);
+    for (size_t k = 0; k < q.size(); ++k) A.row(k) = at(X, a, q[k]).transpose(), B.row(k) = at(X, t, q[k]).transpose();
+    if (!well_spread(A)) continue;
+    const RigidMotion m = fit_rigid_motion(A, B);
+    const double w = 1.0 / std::abs(t - a);
+    sum += w * (m.R * at(X, a, i) + m.t), wsum += w;
+  }
+  if (wsum == 0) return estimate(s, X, i, t, out);
+  out = sum / wsum;
+  return true;
+}
+
+struct Piece {
+  int column;
+  std::vector<int> frames;
+};
+
+// Where marker i should be at frame t (false: no prediction).
+using Predictor = std::function<bool(int i, int t, Eigen::Vector3d& out)>;
+
+// The mean distance of a piece to marker i's predictions over the piece (false if it overlaps
+// the marker's samples or has no prediction); `worst` the largest ratio distance / tolerance.
+bool piece_distance(const MarkerData& c, const Eigen::MatrixXd& X, const Piece& p, int i, const Predictor& predict,
+                    double tolerance, double& mean, double& worst) {
+  double sum = 0;
+  int n = 0;
+  worst = 0;
+  for (int t : p.frames) {
+    Eigen::Vector3d e;
+    if (present(X, t, i)) return false;  // overlaps the marker's own samples
+    if (!predict(i, t, e)) continue;
+    const double d = (e - c.at(t, p.column)).norm();
+    worst = std::max(worst, d / tolerance);
+    sum += d, ++n;
+  }
+  mean = n ? sum / n : 0;
+  return n > 0;
+}
+
+// The marker a piece belongs to (-1: none): within a1 · spacing of the prediction at the piece's
+// first predicted frame and a2 · spacing over the whole piece (eq. 3), and unambiguous: no other
+// marker's predictions within `ambiguity` times its mean distance.
+int match_piece(const Surface& s, const CleanOptions& o, const MarkerData& c, const Eigen::MatrixXd& X, const Piece& p,
+                const Predictor& predict, double& best_mean) {
+  std::vector<std::pair<int, bool>> contenders;  // (marker, within a1 at the first frame)
+  for (size_t k = 0; k < p.frames.size() && contenders.empty(); ++k) {
+    const int f = p.frames[k];
+    for (int i = 0; i < s.size(); ++i) {
+      Eigen::Vector3d e;
+      if (present(X, f, i) || !predict(i, f, e)) continue;
+      const double d = (e - c.at(f, p.column)).norm();
+      if (d < std::max(1.0, 2 * o.merge_tolerance) * s.spacing(i)) contenders.emplace_back(i, d < o.merge_tolerance * s.spacing(i));
+    }
+  }
+  int best = -1;
+  best_mean = 1e300;
+  double runner_up = 1e300;
+  for (const auto& [i, close] : contenders) {
+    double mean = 0, worst = 0;
+    if (!piece_distance(c, X, p, i, predict, o.piece_tolerance * s.spacing(i), mean, worst)) continue;
+    if (close && worst <= 1 && mean < best_mean) {
+      if (best >= 0) runner_up = std::min(runner_up, best_mean);
+      best = i, best_mean = mean;
+    } else {
+      runner_up = std::min(runner_up, mean);
+    }
+  }
+  if (best >= 0 && runner_up < o.ambiguity * best_mean) return -1;  // two markers explain it: leave it
+  return best;
+}
+
+struct Pieces {
+  std::vector<Piece> list;  // in order of their first frame
+  std::vector<char> done;
+};
+
+Pieces collect_pieces(const MarkerData& c) {
+  Pieces ps;
+  for (int m = 0; m < c.marker_count(); ++m) {
+    if (!is_piece(c.labels[m])) continue;
+    Piece p{m, {}};
+    for (int t = 0; t < c.frame_count(); ++t)
+      if (c.present(t, m)) p.frames.push_back(t);
+    if (!p.frames.empty()) ps.list.push_back(std::move(p));
+  }
+  std::stable_sort(ps.list.begin(), ps.list.end(), [](const Piece& a, const Piece& b) { return a.frames[0] < b.frames[0]; });
+  ps.done.assign(ps.list.size(), 0);
+  return ps;
+}
+
+// Section 4.2: the pieces not merged yet, in order of their first frame (each merge may give a
+// later piece the neighbours it needs). Returns the number merged.
+int merge_round(const MarkerData& c, const Surface& s, const CleanOptions& o, const Predictor& predict, Pieces& ps,
+                Eigen::MatrixXd& X, CleanReport& r) {
+  int merged = 0;
+  for (size_t k = 0; k < ps.list.size(); ++k) {
+    if (ps.done[k] || static_cast<int>(ps.list[k].frames.size()) < o.min_piece) continue;
+    double mean = 0;
+    const Piece& p = ps.list[k];
+    const int i = match_piece(s, o, c, X, p, predict, mean);
+    if (i < 0) continue;
+    for (int t : p.frames) X.block<1, 3>(t, 3 * i) = c.xyz.block<1, 3>(t, 3 * p.column);
+    ps.done[k] = 1;
+    ++merged;
+    r.merges.push_back({c.labels[p.column], c.labels[s.columns[i]], p.frames.front(), p.frames.back(), mean});
+  }
+  return merged;
+}
+
+// Section 4.3: a PCA model of a marker's neighbourhood in its local frame.
+struct Model {
+  std::vector<int> group;  // the marker, then its neighbours
+  Eigen::MatrixX3d mean;   // local positions
+  Eigen::MatrixXd U;       // 3·group × r, row-major coordinates
+  Eigen::VectorXd prior;   // noise variance / component variance, per component
+};
+
+Eigen::MatrixX3d rows_of(const Eigen::MatrixXd& X, int t, const std::vector<int>& idx) {
+  Eigen::MatrixX3d P(idx.size(), 3);
+  for (size_t k = 0; k < idx.size(); ++k) P.row(k) = X.block<1, 3>(t, 3 * idx[k]);
+  return P;
+}
+
+Model fit_model(const Surface& s, const Eigen::MatrixXd& X, int i, double energy) {
+  Model md;
+  md.group.push_back(i);
+  for (int j : s.nbr[i]) md.group.push_back(j);
+  const int g = static_cast<int>(md.group.size());
+  Eigen::MatrixX3d ref(g, 3);
+  for (int k = 0; k < g; ++k) ref.row(k) = s.X0.row(md.group[k]);
+  ref.rowwise() -= ref.colwise().mean();
+  std::vector<int> full;
+  for (int t = 0; t < X.rows(); ++t) {
+    bool all = true;
+    for (int j : md.group) all = all && present(X, t, j);
+    if (all) full.push_back(t);
+  }
+  const size_t stride = std::max<size_t>(1, full.size() / 400);  // enough frames for a 3g-dimensional model
+  Eigen::MatrixXd D(0, 3 * g);
+  for (size_t k = 0; k < full.size(); k += stride) {
+    const Eigen::MatrixX3d cur = rows_of(X, full[k], md.group);
+    const Eigen::MatrixX3d local = apply(fit_rigid_motion(cur, ref), cur);
+    D.conservativeResize(D.rows() + 1, Eigen::NoChange);
+    for (int q = 0; q < g; ++q) D.block<1, 3>(D.rows() - 1, 3 * q) = local.row(q);
+  }
+  md.mean = ref;
+  if (D.rows() < 8) return md;  // too few complete frames: the rigid reference shape alone
+  const Eigen::RowVectorXd mu = D.colwise().mean();
+  for (int q = 0; q < g; ++q) md.mean.row(q) = mu.segment<3>(3 * q);
+  const Eigen::MatrixXd C = (D.rowwise() - mu).transpose() * (D.rowwise() - mu) / double(D.rows() - 1);
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(C);
+  const Eigen::VectorXd ev = es.eigenvalues().reverse().cwiseMax(0);
+  const double total = ev.sum();
+  int r = 0;
+  for (double acc = 0; r < ev.size() && acc < energy * total && r < static_cast<int>(D.rows()) - 2; ++r) acc += ev(r);
+  md.U = es.eigenvectors().rowwise().reverse().leftCols(r);
+  md.prior = (1.0 / ev.head(r).array().max(1e-6)).matrix();  // 1 mm² of noise against each component
+  return md;
+}
+
+// The model's estimate of group member `target` at frame t from the other members present in
+// Y: alternately the rigid placement of the model shape and its PCA coefficients.
+bool reconstruct(const Model& md, const Eigen::MatrixXd& Y, int t, int target, Eigen::Vector3d& out) {
+  std::vector<int> q;
+  for (int k = 0; k < static_cast<int>(md.group.size()); ++k)
+    if (k != target && present(Y, t, md.group[k])) q.push_back(k);
+  if (q.size() < 3) return false;
+  Eigen::MatrixX3d cur(q.size(), 3), shape = md.mean;
+  for (size_t k = 0; k < q.size(); ++k) cur.row(k) = at(Y, t, md.group[q[k]]).transpose();
+  if (!well_spread(cur)) return false;
+  RigidMotion m;
+  for (int it = 0; it < 2; ++it) {
+    Eigen::MatrixX3d sq(q.size(), 3);
+    for (size_t k = 0; k < q.size(); ++k) sq.row(k) = shape.row(q[k]);
+    m = fit_rigid_motion(sq, cur);
+    if (md.U.cols() == 0) break;
+    const Eigen::MatrixX3d local = (cur.rowwise() - m.t.transpose()) * m.R;  // R^T (b − t), row-wise
+    Eigen::MatrixXd A(3 * q.size(), md.U.cols());
+    Eigen::VectorXd b(3 * q.size());
+    for (size_t k = 0; k < q.size(); ++k) {
+      A.middleRows(3 * k, 3) = md.U.middleRows(3 * q[k], 3);
+      b.segment<3>(3 * k) = (local.row(k) - md.mean.row(q[k])).transpose();
+    }
+    Eigen::MatrixXd N = A.transpose() * A;
+    N.diagonal() += md.prior;
+    const Eigen::VectorXd coef = N.ldlt().solve(A.transpose() * b);
+    const Eigen::VectorXd flat = md.U * coef;
+    for (int k = 0; k < static_cast<int>(md.group.size()); ++k) shape.row(k) = md.mean.row(k) + flat.segment<3>(3 * k).transpose();
+  }
+  if (md.U.cols() > 0) {  // the rigid placement of the final shape
+    Eigen::MatrixX3d sq(q.size(), 3);
+    for (size_t k = 0; k < q.size(); ++k) sq.row(k) = shape.row(q[k]);
+    m = fit_rigid_motion(sq, cur);
+  }
+  out = m.R * shape.row(target).transpose() + m.t;
+  return true;
+}
+
+// The holes of marker i at the frames in `todo`, averaged over the models holding i; the frames
+// filled are cleared from `todo`.
+long fill_from_models(const Surface& s, const std::vector<Model>& models, const std::vector<std::vector<std::pair<int, int>>>& holders,
+                      const Eigen::MatrixXd& from, Eigen::MatrixXd& to, int i, std::vector<int>& todo) {
+  long filled = 0;
+  std::vector<int> left;
+  for (int t : todo) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero(), e;
+    int n = 0;
+    for (const auto& [model, member] : holders[i])
+      if (reconstruct(models[model], from, t, member, e)) sum += e, ++n;
+    // Half the PCA models' estimate, half the rigid motion of the neighbours from the nearest
+    // frames where the marker was seen (our addition: it follows short gaps more closely).
+    if (anchored_estimate(s, from, i, t, e)) {
+      sum = n == 0 ? e : Eigen::Vector3d(0.5 * (sum / n + e));
+      n = 1;
+    }
+    if (n == 0) {
+      left.push_back(t);
+      continue;
+    }
+    to.block<1, 3>(t, 3 * i) = (sum / n).transpose();
+    ++filled;
+  }
+  todo = left;
+  return filled;
+}
+
+// Linear interpolation in time between the nearest known samples (held at the ends).
+void interpolate_rest(Eigen::MatrixXd& Y, int i, const std::vector<int>& todo) {
+  const int T = static_cast<int>(Y.rows());
+  for (int t : todo) {
+    int a = t, b = t;
+    while (a >= 0 && !present(Y, a, i)) --a;
+    while (b < T && !present(Y, b, i)) ++b;
+    if (a < 0 && b >= T) continue;  // never seen (cannot happen: the reference frame has it)
+    if (a < 0) a = b;
+    if (b >= T) b = a;
+    const double u = a == b ? 0 : double(t - a) / (b - a);
+    Y.block<1, 3>(t, 3 * i) = (1 - u) * Y.block<1, 3>(a, 3 * i) + u * Y.block<1, 3>(b, 3 * i);
+  }
+}
+
+int count_gaps(const Eigen::MatrixXd& X, int L) {
+  int gaps = 0;
+  for (int i = 0; i < L; ++i)
+    for (int t = 0; t < X.rows(); ++t) gaps += !present(X, t, i) && (t == 0 || present(X, t - 1, i));
+  return gaps;
+}
+
+// Section 4.3, with the neighbours' models averaged in; then filled neighbours may count (second
+// pass); then linear interpolation for what no model reaches.
+Eigen::MatrixXd fill_holes(const Surface& s, const CleanOptions& o, const Eigen::MatrixXd& X, CleanReport& r) {
+  const int L = s.size();
+  r.gaps_after_merge = count_gaps(X, L);
+  r.samples_missing = r.filled_from_neighbours = r.filled_by_interpolation = 0;
+  for (int i = 0; i < L; ++i)
+    for (int t = 0; t < X.rows(); ++t) r.samples_missing += !present(X, t, i);
+  std::vector<Model> models(L);
+  tbb::parallel_for(0, L, [&](int i) { models[i] = fit_model(s, X, i, o.pca_energy); });
+  std::vector<std::vector<std::pair<int, int>>> holders(L);  // (model, member) holding marker i
+  for (int j = 0; j < L; ++j)
+    for (size_t k = 0; k < models[j].group.size(); ++k) holders[models[j].group[k]].emplace_back(j, static_cast<int>(k));
+  std::vector<std::vector<int>> todo(L);
+  for (int i = 0; i < L; ++i)
+    for (int t = 0; t < X.rows(); ++t)
+      if (!present(X, t, i)) todo[i].push_back(t);
+  Eigen::MatrixXd Y = X;
+  std::vector<long> filled(L, 0);
+  tbb::parallel_for(0, L, [&](int i) { filled[i] += fill_from_models(s, models, holders, X, Y, i, todo[i]); });
+  const Eigen::MatrixXd Y1 = Y;
+  tbb::parallel_for(0, L, [&](int i) { filled[i] += fill_from_models(s, models, holders, Y1, Y, i, todo[i]); });
+  for (int i = 0; i < L; ++i) {
+    r.filled_from_neighbours += filled[i];
+    r.filled_by_interpolation += static_cast<long>(todo[i].size());
+    interpolate_rest(Y, i, todo[i]);
+  }
+  r.gaps_left = count_gaps(Y, L);
+  r.gaps_filled = r.gaps_after_merge - r.gaps_left;
+  return Y;
+}
+
+// Section 4.4: each trajectory smoothed in its local frame (the rigid motion of its neighbours
+// from the reference), so the body's rigid motion is not filtered.
+void smooth(const Surface& s, const CleanOptions& o, Eigen::MatrixXd& Y) {
+  if (o.smooth_iterations <= 0) return;
+  const int T = static_cast<int>(Y.rows());
+  const Eigen::MatrixXd in = Y;
+  tbb::parallel_for(0, s.size(), [&](int i) {
+    std::vector<RigidMotion> m(T);
+    Eigen::MatrixX3d l(T, 3), ref(s.nbr[i].size(), 3);
+    for (size_t k = 0; k < s.nbr[i].size(); ++k) ref.row(k) = s.X0.row(s.nbr[i][k]);
+    for (int t = 0; t < T; ++t) {
+      m[t] = fit_rigid_motion(rows_of(in, t, s.nbr[i]), ref);
+      l.row(t) = (m[t].R * at(in, t, i) + m[t].t).transpose();
+    }
+    for (int it = 0; it < o.smooth_iterations; ++it) {
+      const Eigen::MatrixX3d prev = l;
+      for (int t = 1; t + 1 < T; ++t) l.row(t) += o.smooth_lambda * (prev.row(t - 1) - 2 * prev.row(t) + prev.row(t + 1));
+    }
+    for (int t = 0; t < T; ++t) Y.block<1, 3>(t, 3 * i) = (m[t].R.transpose() * (l.row(t).transpose() - m[t].t)).transpose();
+  });
+}
+
+}  // namespace
+
+CleanResult clean_markers(const MarkerData& capture, const CleanOptions& o, const std::function<void(double)>& progress) {
+  check_marker_data(capture, "markers clean input");
+  const Surface s = build_surface(capture, o);
+  CleanResult out;
+  CleanReport& r = out.report;
+  r.markers = s.size();
+  Eigen::MatrixXd X(capture.frame_count(), 3 * s.size());
+  for (int i = 0; i < s.size(); ++i) X.middleCols(3 * i, 3) = capture.xyz.middleCols(3 * s.columns[i], 3);
+  r.gaps_before = count_gaps(X, s.size());
+  Pieces ps = collect_pieces(capture);
+  r.pieces = static_cast<int>(ps.list.size());
+  const Predictor rigid = [&](int i, int t, Eigen::Vector3d& e) { return anchored_estimate(s, X, i, t, e); };
+  for (int pass = 0; pass < 2; ++pass) merge_round(capture, s, o, rigid, ps, X, r);
+  Eigen::MatrixXd Y = fill_holes(s, o, X, r);
+  // The filled trajectories predict better than a rigid fit of the neighbours where the body
+  // deforms: the pieces left are matched against them, and the holes filled again.
+  const Predictor filled = [&](int i, int t, Eigen::Vector3d& e) {
+    e = at(Y, t, i);
+    return e.allFinite();
+  };
+  for (int round = 0; round < o.rounds; ++round) {
+    if (progress) progress(0.2 + 0.6 * (round + 1) / (o.rounds + 1));
+    if (merge_round(capture, s, o, filled, ps, X, r) == 0) break;
+    Y = fill_holes(s, o, X, r);
+  }
+  for (size_t k = 0; k < ps.list.size(); ++k)
+    if (!ps.done[k]) r.unmerged.push_back(capture.labels[ps.list[k].column]);
+  r.merged = static_cast<int>(r.merges.size());
+  if (progress) progress(0.8);
+  smooth(s, o, Y);
+  if (progress) progress(1.0);
+  for (MarkerData* d : {&out.merged, &out.cleaned}) {
+    d->rate = capture.rate;
+    d->first_frame = capture.first_frame;
+    for (int c : s.columns) d->labels.push_back(capture.labels[c]);
+  }
+  out.merged.xyz = std::move(X);
+  out.cleaned.xyz = std::move(Y);
+  return out;
+}
+
+nlohmann::json clean_report_json(const CleanReport& r) {
+  nlohmann::json merges = nlohmann::json::array();
+  for (const auto& m : r.merges)
+    merges.push_back({{"piece", m.piece}, {"marker", m.marker}, {"first_frame", m.first}, {"last_frame", m.last},
+                      {"mean_distance_mm", m.mean_distance_mm}});
+  return {{"markers", r.markers}, {"pieces", r.pieces}, {"merged", r.merged}, {"unmerged", r.unmerged},
+          {"merges", merges}, {"gaps_before_merge", r.gaps_before}, {"gaps_found", r.gaps_after_merge},
+          {"gaps_filled", r.gaps_filled}, {"gaps_left", r.gaps_left}, {"samples_missing", r.samples_missing},
+          {"filled_from_neighbours", r.filled_from_neighbours}, {"filled_by_interpolation", r.filled_by_interpolation}};
+}
+
+std::string clean_summary_line(const CleanReport& r) {
+  return std::to_string(r.markers) + " markers; " + std::to_string(r.merged) + " of " + std::to_string(r.pieces) +
+         " pieces merged (" + std::to_string(r.unmerged.size()) + " left); " + std::to_string(r.gaps_after_merge) +
+         " gaps found (" + std::to_string(r.gaps_before) + " before merging), " + std::to_string(r.gaps_filled) + " filled, " +
+         std::to_string(r.gaps_left) + " left; " + std::to_string(r.filled_from_neighbours) + " samples from neighbours, " +
+         std::to_string(r.filled_by_interpolation) + " by interpolation";
+}
+
+}  // namespace bodymodel

@@ -1,0 +1,211 @@
+// Cleaning a dense-marker capture (markers/clean.h) and simulating one (markers/simulate.h):
+// known answers on a synthetic moving body, then the issue's figures on the Vlasic "jumping"
+// capture (long tests; the crane sequence is kept for the final figure in docs/markers.md).
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <random>
+
+#include "core/data_path.h"
+#include "core/error.h"
+#include "core/io/mesh_io.h"
+#include "markers/c3d.h"
+#include "markers/clean.h"
+#include "markers/simulate.h"
+
+namespace bodymodel {
+namespace {
+
+TEST(MarkerSpline, NaturalSplineIsExactOnLinesAndLeavesTheEndsOpen) {
+  Eigen::VectorXd x(10);
+  for (int t = 0; t < 10; ++t) x(t) = 3 + 2 * t;
+  Eigen::VectorXd holed = x;
+  holed(0) = holed(4) = holed(5) = holed(9) = std::nan("");
+  const Eigen::VectorXd s = spline_fill(holed);
+  EXPECT_TRUE(std::isnan(s(0)) && std::isnan(s(9))) << "no extrapolation";
+  for (int t = 1; t < 9; ++t) EXPECT_NEAR(s(t), x(t), 1e-12);
+}
+
+// A body of two "limbs" (markers on two spheres) that moves, turns and bends at a joint: the
+// second sphere swings about a point between them, so the motion is not one rigid motion.
+MarkerData moving_body(int frames, std::mt19937& rng) {
+  const int per = 60;
+  // Evenly spread (a Fibonacci sphere), as dense markers are placed; a random twist per body.
+  const double twist = std::uniform_real_distribution<double>(0, 6.28)(rng);
+  std::vector<Eigen::Vector3d> dirs;
+  for (int k = 0; k < per; ++k) {
+    const double z = 1 - 2 * (k + 0.5) / per, r = std::sqrt(1 - z * z), phi = twist + k * 2.399963;
+    dirs.emplace_back(r * std::cos(phi), z, r * std::sin(phi));
+  }
+  MarkerData d;
+  for (int m = 0; m < 2 * per; ++m) d.labels.push_back("M" + std::to_string(m + 1));
+  d.rate = 120;
+  d.xyz.resize(frames, 6 * per);
+  for (int t = 0; t < frames; ++t) {
+    const double a = 0.03 * t, swing = 0.6 * std::sin(0.05 * t);
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(a, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    const Eigen::Matrix3d S = Eigen::AngleAxisd(swing, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    const Eigen::Vector3d move(300 * std::sin(0.02 * t), 50 * std::sin(0.1 * t), 2 * t);
+    for (int k = 0; k < per; ++k) {
+      d.set(t, k, R * (150 * dirs[k]) + move);
+      const Eigen::Vector3d limb = S * (Eigen::Vector3d(0, -320, 0) + 140 * dirs[k]) + Eigen::Vector3d(0, -100, 0);
+      d.set(t, per + k, R * limb + move);
+    }
+  }
+  return d;
+}
+
+// The truth cut into a capture: gaps of 5–60 frames, the sample after each gap an unlabelled
+// piece, 1 mm noise.
+MarkerData gappy(const MarkerData& truth, double missing, std::mt19937& rng) {
+  const int T = truth.frame_count(), M = truth.marker_count();
+  std::vector<std::vector<char>> seen(T, std::vector<char>(M, 1));
+  std::uniform_int_distribution<int> marker(0, M - 1), len(5, 60);
+  long gone = 0;
+  while (gone < missing * T * M) {
+    const int m = marker(rng), l = len(rng), s = std::uniform_int_distribution<int>(1, T - l)(rng);
+    for (int t = s; t < s + l; ++t) gone += seen[t][m], seen[t][m] = 0;
+  }
+  std::normal_distribution<double> noise(0, 1);
+  MarkerData c = truth;
+  std::vector<Eigen::VectorXd> pieces;
+  for (int m = 0; m < M; ++m) {
+    bool first = true;
+    for (int t = 0; t < T; ++t) {
+      if (!seen[t][m]) {
+        c.clear(t, m);
+        continue;
+      }
+      if (t > 0 && !seen[t - 1][m]) first = false, pieces.push_back(Eigen::VectorXd::Constant(3 * T, std::nan("")));
+      const Eigen::Vector3d p = truth.at(t, m) + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+      if (first) c.set(t, m, p);
+      else c.clear(t, m), pieces.back().segment<3>(3 * t) = p;
+    }
+  }
+  c.xyz.conservativeResize(Eigen::NoChange, 3 * (M + pieces.size()));
+  for (size_t p = 0; p < pieces.size(); ++p) {
+    c.labels.push_back("*" + std::to_string(p + 1));
+    for (int t = 0; t < T; ++t) c.xyz.block<1, 3>(t, 3 * (M + p)) = pieces[p].segment<3>(3 * t).transpose();
+  }
+  return c;
+}
+
+TEST(MarkerClean, MergesEveryPieceAndFillsBetterThanSplinesOnAMovingBody) {
+  std::mt19937 rng(7);
+  const MarkerData truth = moving_body(250, rng);
+  const MarkerData capture = gappy(truth, 0.2, rng);
+  const CleanResult r = clean_markers(capture);
+  const CleanEvaluation e = evaluate_cleaning(capture, r, truth);
+  EXPECT_EQ(e.wrong_merges, 0);
+  EXPECT_EQ(e.missed_pieces, 0);
+  EXPECT_EQ(r.report.merged, r.report.pieces);
+  EXPECT_EQ(r.report.gaps_left, 0);
+  EXPECT_GT(e.filled, 0.15 * 250 * 120);
+  EXPECT_LT(e.median_fill_mm, 3.0) << "two rigid parts and a joint: the neighbours predict a hole within noise";
+  EXPECT_LT(e.ratio_to_spline, 0.5);
+  ASSERT_TRUE(r.cleaned.xyz.allFinite());
+}
+
+TEST(MarkerClean, LeavesGhostsAndRefusesAnIncompleteReferenceFrame) {
+  std::mt19937 rng(8);
+  const MarkerData truth = moving_body(120, rng);
+  MarkerData capture = gappy(truth, 0.1, rng);
+  const int g = capture.marker_count();
+  capture.labels.push_back("*ghost");
+  capture.xyz.conservativeResize(Eigen::NoChange, 3 * (g + 1));
+  for (int t = 0; t < capture.frame_count(); ++t)
+    if (t >= 30 && t < 40) capture.set(t, g, truth.at(t, 5) + Eigen::Vector3d(0, 0, 120));
+    else capture.clear(t, g);
+  const CleanResult r = clean_markers(capture);
+  EXPECT_NE(std::find(r.report.unmerged.begin(), r.report.unmerged.end(), "*ghost"), r.report.unmerged.end());
+  EXPECT_EQ(evaluate_cleaning(capture, r, truth).wrong_merges, 0);
+  capture.clear(0, 3);
+  try {
+    clean_markers(capture);
+    ADD_FAILURE() << "a labelled marker missing in the reference frame must be refused";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("'M4' is missing in the reference frame"), std::string::npos) << e.what();
+  }
+}
+
+// ---- the Vlasic "jumping" capture (long tests) ---------------------------------------------------
+
+struct Jumping {
+  std::vector<Eigen::MatrixX3d> frames;
+  Eigen::MatrixX3i F;
+};
+
+const Jumping& jumping() {
+  static const Jumping j = [] {
+    Jumping j;
+    std::vector<std::filesystem::path> files;
+    for (const auto& e : std::filesystem::directory_iterator(data_root() / "animations" / "vlasic-jumping"))
+      if (e.path().extension() == ".obj") files.push_back(e.path());
+    std::sort(files.begin(), files.end());
+    for (const auto& f : files) {
+      Mesh m = read_mesh(f);
+      j.frames.push_back(m.V);
+      j.F = m.F;
+    }
+    return j;
+  }();
+  return j;
+}
+
+const SimulatedCapture& jumping_capture() {
+  static const SimulatedCapture s = simulate_capture(jumping().frames, jumping().F, SimulateOptions{});
+  return s;
+}
+
+TEST(MarkersJumping, SimulatedCaptureIsRealisticAndItsPiecesAreTheirMarkers) {
+  const SimulatedCapture& s = jumping_capture();
+  EXPECT_EQ(s.truth.marker_count(), 350);
+  EXPECT_EQ(s.truth.frame_count(), 29 * 12 + 1) << "10 fps meshes at 120 Hz";
+  EXPECT_GE(s.missing, 0.15);
+  EXPECT_GT(s.occluded, 0.01) << "the cameras miss some markers by themselves";
+  EXPECT_EQ(s.broken, 18);
+  EXPECT_GT(s.spacing_mm, 40);
+  EXPECT_LT(s.spacing_mm, 110);
+  for (int m = 0; m < 350; ++m) ASSERT_TRUE(s.capture.present(0, m)) << "the reference frame is complete";
+  int ghosts = 0;
+  for (size_t p = 0; p < s.pieces.size(); ++p) {
+    const int col = 350 + static_cast<int>(p);
+    ASSERT_EQ(s.capture.labels[col], s.pieces[p].label);
+    if (s.pieces[p].marker < 0) {
+      ++ghosts;
+      continue;
+    }
+    for (int t = s.pieces[p].first; t <= s.pieces[p].last; ++t)
+      ASSERT_LT((s.capture.at(t, col) - s.truth.at(t, s.pieces[p].marker)).norm(), 8.0) << "1 mm noise per axis";
+  }
+  EXPECT_EQ(ghosts, 5);
+  const MarkerData again = parse_c3d(c3d_bytes(s.capture), "capture.c3d");
+  EXPECT_EQ(again.labels, s.capture.labels);
+}
+
+// The issue's figures on the development capture (crane is measured once, in docs/markers.md).
+// Reached: holes of 5–60 frames filled within a median 5 mm and under half the spline's error.
+// Not reached yet (asserted at what the method does, so a regression fails): the issue asks for 0
+// wrong merges (here up to 2, short pieces near the hands) and every piece merged.
+TEST(MarkersJumping, CleaningMergesAndFillsHolesOfFiveToSixtyFramesWithinFiveMillimetres) {
+  const SimulatedCapture& s = jumping_capture();
+  const CleanResult r = clean_markers(s.capture);
+  const CleanEvaluation e = evaluate_cleaning(s.capture, r, s.truth);
+  EXPECT_LE(e.wrong_merges, 2);
+  EXPECT_LE(e.missed_pieces, r.report.pieces / 8);
+  EXPECT_GE(r.report.merged, r.report.pieces * 8 / 10);
+  EXPECT_GE(double(r.report.samples_missing) / (350.0 * s.truth.frame_count()), 0.15);
+  EXPECT_GT(e.gap_5_60, 5000);
+  EXPECT_LE(e.median_5_60_mm, 5.0);
+  EXPECT_LT(e.ratio_5_60, 0.5);
+  EXPECT_LE(e.median_fill_mm, 10.0) << "every hole, including those running to the end of the capture";
+  EXPECT_EQ(r.report.gaps_left, 0);
+  ASSERT_TRUE(r.cleaned.xyz.allFinite());
+  std::cout << clean_summary_line(r.report) << "\n" << evaluation_json(e).dump() << "\n";
+}
+
+}  // namespace
+}  // namespace bodymodel

@@ -1,0 +1,68 @@
+// `bodymodel markers simulate` and `markers clean` end to end on the Vlasic jumping capture, and
+// their refusals: bad input exits 2 with one line and leaves no output.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <unistd.h>
+
+#include "core/data_path.h"
+#include "core/io/atomic_write.h"
+#include "markers/marker_data.h"
+
+namespace bodymodel {
+namespace {
+
+namespace fs = std::filesystem;
+
+int run(const std::string& args, std::string* err = nullptr) {
+  const fs::path log = fs::temp_directory_path() / ("bodymodel_markers_cli_" + std::to_string(::getpid()) + ".log");
+  const int rc = std::system((BODYMODEL_EXE + " " + args + " >/dev/null 2>" + log.string()).c_str());
+  if (err) *err = read_text_file(log);
+  fs::remove(log);
+  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+TEST(MarkersCli, SimulateThenCleanWritesEveryMarkerAndAReport) {
+  const fs::path dir = fs::temp_directory_path() / ("bodymodel_markers_cli_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const std::string meshes = (data_root() / "animations" / "vlasic-jumping").string();
+  ASSERT_EQ(run("markers simulate " + meshes + " --out " + (dir / "sim").string()), 0);
+  for (const char* f : {"capture.c3d", "truth.trc", "pieces.csv", "simulate.json"}) EXPECT_TRUE(fs::exists(dir / "sim" / f)) << f;
+  const auto summary = nlohmann::json::parse(read_text_file(dir / "sim" / "simulate.json"));
+  EXPECT_GE(summary["missing_fraction"].get<double>(), 0.15);
+  std::string err;
+  EXPECT_EQ(run("markers simulate " + meshes + " --out " + (dir / "sim").string(), &err), 2) << "an existing folder needs --force";
+  EXPECT_NE(err.find("--force"), std::string::npos) << err;
+
+  ASSERT_EQ(run("markers clean " + (dir / "sim" / "capture.c3d").string() + " --out " + (dir / "clean.c3d").string() +
+                " --truth " + (dir / "sim" / "truth.trc").string()), 0);
+  const MarkerData cleaned = read_markers(dir / "clean.c3d");
+  EXPECT_EQ(cleaned.marker_count(), 350);
+  EXPECT_EQ(cleaned.frame_count(), 349);
+  EXPECT_TRUE(cleaned.xyz.allFinite()) << "every labelled marker at every frame";
+  const auto report = nlohmann::json::parse(read_text_file(dir / "clean.json"));
+  EXPECT_EQ(report["gaps_left"].get<int>(), 0);
+  EXPECT_GT(report["merged"].get<int>(), 0);
+  EXPECT_LE(report["evaluation"]["wrong_merges"].get<int>(), 2);
+  EXPECT_LE(report["evaluation"]["median_fill_5_to_60_mm"].get<double>(), 5.0);
+
+  // A truncated capture: exit 2, one line naming the file, nothing written.
+  const std::string bytes = read_text_file(dir / "sim" / "capture.c3d");
+  write_text_file(dir / "cut.c3d", bytes.substr(0, bytes.size() / 2));
+  EXPECT_EQ(run("markers clean " + (dir / "cut.c3d").string() + " --out " + (dir / "cut_clean.trc").string(), &err), 2);
+  EXPECT_NE(err.find("cut.c3d"), std::string::npos) << err;
+  EXPECT_NE(err.find("truncated"), std::string::npos) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  EXPECT_FALSE(fs::exists(dir / "cut_clean.trc"));
+  EXPECT_FALSE(fs::exists(dir / "cut_clean.json"));
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace bodymodel
