@@ -230,6 +230,7 @@ inline void read_mhmat(const std::string& in) {
   for (const auto& c : {m.diffuse_color, m.ambient_color, m.specular_color, m.emissive_color})
     check(c.allFinite() && c.minCoeff() >= 0);
   for (double v : {m.shininess, m.opacity, m.translucency}) check(v >= 0 && v <= 1);
+}
 
 // A marker capture that reads must be consistent (labels, 3 columns each, samples finite or
 // missing as a whole) and must write back: C3D to C3D bytes that read the same, TRC to TRC text.
