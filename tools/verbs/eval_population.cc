@@ -10,6 +10,8 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+#include <numeric>
+#include <random>
 #include <set>
 #include <sstream>
 
@@ -18,6 +20,8 @@
 #include "core/io/csv.h"
 #include "core/plausibility.h"
 #include "model/morph.h"
+#include "population/ansur.h"
+#include "population/ansur_fit.h"
 #include "population/people.h"
 #include "tools/console.h"
 #include "tools/pipeline/output_folder.h"
@@ -85,7 +89,8 @@ void add_eval_population_options(CLI::App* cmd, EvalPopulationArgs& a) {
   cmd->add_option("--exclude", a.exclude, "subjects.csv of the database the model was built from (its seqn are left out)");
   cmd->add_option("--count", a.count, "People to evaluate")->capture_default_str()->check(CLI::Range(1, 100000));
   cmd->add_option("--seed", a.seed, "Seed of the draw")->capture_default_str();
-  cmd->add_option("--girths", a.girths, "Girths compared (recorded names)")->capture_default_str();
+  cmd->add_option("--girths", a.girths, "Girths compared (recorded names; with ANSUR files, ANSUR columns)")
+      ->capture_default_str();
   cmd->add_option("--change", a.change, "likely (conditional mean, default) or smallest (eq. 11)")
       ->check(CLI::IsMember({"smallest", "likely"}))
       ->capture_default_str();
@@ -242,6 +247,158 @@ void run_eval_population(EvalPopulationArgs& a) {
   cli::info("wrote " + a.out + "/realism.csv and summary.csv");
 }
 
+// ---- ANSUR II soldiers (--population lists ANSUR files) ----------------------------------------
+
+// The soldiers of one or two ANSUR files: who is evaluated (drawn uniformly, alternating files,
+// the --exclude database's subjectid left out) and who the regression is fitted on (the rest).
+struct AnsurPeople {
+  std::vector<AnsurTable> tables;
+  std::vector<std::pair<int, int>> drawn, training;  // (table, row)
+};
+
+AnsurPeople choose_soldiers(const EvalPopulationArgs& a, const std::vector<std::string>& columns) {
+  AnsurPeople P;
+  std::vector<std::string> needed = columns;
+  for (const char* c : {"Age", "stature", "weightkg"}) needed.push_back(c);
+  for (const auto& f : cli::split_commas(a.population)) P.tables.push_back(read_ansur(f, needed));
+  std::set<std::string> skip;
+  if (!a.exclude.empty()) {
+    const std::vector<CsvRecord> rows = read_csv_file(a.exclude);
+    const auto& h = rows.at(0).fields;
+    const auto it = std::find(h.begin(), h.end(), "subjectid");
+    if (it == h.end()) throw InputError("'" + a.exclude + "' has no subjectid column (not a synth-db ANSUR database)");
+    for (size_t r = 1; r < rows.size(); ++r)
+      if (static_cast<size_t>(it - h.begin()) < rows[r].fields.size()) skip.insert(rows[r].fields[it - h.begin()]);
+  }
+  std::mt19937_64 rng(a.seed);
+  std::vector<std::vector<int>> order(P.tables.size());
+  for (size_t t = 0; t < P.tables.size(); ++t) {
+    for (int r = 0; r < static_cast<int>(P.tables[t].ids.size()); ++r)
+      if (!skip.count(P.tables[t].ids[r])) order[t].push_back(r);
+    std::shuffle(order[t].begin(), order[t].end(), rng);
+  }
+  std::set<std::pair<int, int>> drawn;
+  for (int k = 0; k < a.count; ++k) {
+    const int t = k % static_cast<int>(P.tables.size());
+    const size_t i = k / P.tables.size();
+    if (i < order[t].size()) drawn.insert({t, order[t][i]});
+  }
+  P.drawn.assign(drawn.begin(), drawn.end());
+  for (size_t t = 0; t < P.tables.size(); ++t)
+    for (int r = 0; r < static_cast<int>(P.tables[t].ids.size()); ++r)
+      if (!drawn.count({static_cast<int>(t), r})) P.training.push_back({static_cast<int>(t), r});
+  if (P.drawn.empty() || static_cast<int>(P.training.size()) < kMinBaselinePeople)
+    throw InputError(fmt::format("'{}': {} soldiers drawn, {} left for the regression: give more soldiers or a "
+                                 "smaller --count", a.population, P.drawn.size(), P.training.size()));
+  return P;
+}
+
+// Least squares of a column on [1, male, Age, stature, weightkg] over the training soldiers.
+Eigen::VectorXd fit_ansur_baseline(const AnsurPeople& P, const std::vector<std::pair<int, int>>& rows,
+                                   const std::string& column) {
+  Eigen::MatrixXd X(rows.size(), 5);
+  Eigen::VectorXd y(rows.size());
+  for (size_t k = 0; k < rows.size(); ++k) {
+    const AnsurTable& t = P.tables[rows[k].first];
+    const int r = rows[k].second;
+    X.row(k) << 1, t.male[r], t.values(r, t.column("Age")), t.values(r, t.column("stature")),
+        t.values(r, t.column("weightkg"));
+    y(k) = t.values(r, t.column(column));
+  }
+  return X.colPivHouseholderQr().solve(y);
+}
+
+// realism.csv (one row per soldier) and summary.csv (per column: RMSE and bias of the morphed
+// body and of the regression, their ratio), and the table on stdout.
+void write_ansur_realism(const EvalPopulationArgs& a, const AnsurPeople& P, const std::vector<std::string>& columns,
+                         const MeasurementSet& set, const std::vector<Eigen::VectorXd>& measured, StagedFolder& out) {
+  std::vector<Eigen::VectorXd> baseline;
+  for (const auto& c : columns) baseline.push_back(fit_ansur_baseline(P, P.training, c));
+  std::string csv = "subjectid,sex,Age,stature,weightkg";
+  for (const auto& c : columns) csv += fmt::format(",{0}_survey,{0}_model,{0}_regression", c);
+  csv += "\n";
+  const size_t C = columns.size();
+  std::vector<double> se_m(C, 0), se_r(C, 0), bias_m(C, 0), bias_r(C, 0);
+  for (size_t k = 0; k < P.drawn.size(); ++k) {
+    const AnsurTable& t = P.tables[P.drawn[k].first];
+    const int r = P.drawn[k].second;
+    const Eigen::Matrix<double, 5, 1> x(1, t.male[r], t.values(r, t.column("Age")), t.values(r, t.column("stature")),
+                                        t.values(r, t.column("weightkg")));
+    csv += fmt::format("{},{},{:.0f},{:.0f},{:.1f}", csv_field(t.ids[r]), t.male[r] ? "male" : "female", x(2), x(3), x(4));
+    for (size_t c = 0; c < C; ++c) {
+      const double truth = t.values(r, t.column(columns[c])), mod = measured[k](set.index(columns[c])),
+                   lin = baseline[c].dot(x);
+      csv += fmt::format(",{:.1f},{:.2f},{:.2f}", truth, mod, lin);
+      se_m[c] += (mod - truth) * (mod - truth), se_r[c] += (lin - truth) * (lin - truth);
+      bias_m[c] += mod - truth, bias_r[c] += lin - truth;
+    }
+    csv += "\n";
+  }
+  write_text_file(out / "realism.csv", csv);
+  const double n = static_cast<double>(P.drawn.size());
+  std::string summary = "column,people,rmse_model,rmse_regression,ratio,bias_model,bias_regression\n";
+  fmt::print("{:<28} {:>7} {:>11} {:>16} {:>7} {:>11} {:>15}\n", "column (mm, kg)", "people", "RMSE model",
+             "RMSE regression", "ratio", "bias model", "bias regression");
+  for (size_t c = 0; c < C; ++c) {
+    // stature and weight are the morph's inputs: the regression reproduces them, no ratio.
+    const double rm = std::sqrt(se_m[c] / n), rr = std::sqrt(se_r[c] / n);
+    const bool input = columns[c] == "stature" || columns[c] == "weightkg";
+    const std::string ratio = input ? std::string("input") : fmt::format("{:.3f}", rm / rr);
+    summary += fmt::format("{},{},{:.3f},{:.3f},{},{:.3f},{:.3f}\n", columns[c], P.drawn.size(), rm, rr,
+                           input ? "" : ratio, bias_m[c] / n, bias_r[c] / n);
+    fmt::print("{:<28} {:>7} {:>11.2f} {:>16.2f} {:>7} {:>+11.2f} {:>+15.2f}\n", columns[c], P.drawn.size(), rm, rr,
+               ratio, bias_m[c] / n, bias_r[c] / n);
+  }
+  write_text_file(out / "summary.csv", summary);
+  cli::info(fmt::format("wrote {}/realism.csv and summary.csv ({} soldiers; regression fitted on {})", a.out,
+                        P.drawn.size(), P.training.size()));
+}
+
+// eval-population on ANSUR II soldiers: the model's mean body morphed to each drawn soldier's
+// sex, age, stature and weight, measured as `measure --standard ansur2` reads it, against the
+// soldier's own columns and the regression from those four.
+void run_eval_population_ansur(EvalPopulationArgs& a) {
+  const std::vector<std::string> columns =
+      a.girths == EvalPopulationArgs{}.girths ? default_ansur_columns() : cli::split_commas(a.girths);
+  const AnsurPeople P = choose_soldiers(a, columns);
+  StagedFolder out(a.out, a.force);
+  auto model = std::make_shared<const BodyModel>(model_cli::load_model_for_cli(a.model));
+  const SemanticRegression& reg = model->shape.regression;
+  const MakeHuman mh = MakeHuman::load();
+  const MeasurementSet set = ansur_measurement_set(mh);
+  const ShapeMorpher morpher(model);
+  std::vector<Eigen::VectorXd> measured(P.drawn.size());
+  cli::ProgressBar bar("eval-population");
+  const ProgressCallback progress = bar.callback();
+  std::mutex mutex;
+  std::atomic<int> done{0};
+  tbb::task_arena arena(a.jobs > 0 ? a.jobs : tbb::task_arena::automatic);
+  arena.execute([&] {
+    tbb::parallel_for(0, static_cast<int>(P.drawn.size()), [&](int k) {
+      const AnsurTable& t = P.tables[P.drawn[k].first];
+      const int r = P.drawn[k].second;
+      const double v[4] = {double(t.male[r]), t.values(r, t.column("Age")), t.values(r, t.column("stature")) / 10,
+                           t.values(r, t.column("weightkg"))};
+      std::vector<LabelCondition> cond;
+      const char* names[4] = {"sex", "age_years", "height_cm", "weight_kg"};
+      for (int l = 0; l < 4; ++l) {
+        const LabelInfo& info = reg.labels[reg.index(names[l])];
+        cond.push_back(LabelCondition::exact(names[l], l == 0 ? v[l] : std::clamp(v[l], info.min, info.max)));
+      }
+      MorphOptions o;
+      o.sex = t.male[r] ? Sex::male : Sex::female;
+      o.prior_weighted = a.change == "likely";
+      measured[k] = set.measure(morph_body(morpher, nullptr, cond, o).V);
+      const int d = ++done;
+      std::lock_guard<std::mutex> lock(mutex);
+      report_progress(progress, static_cast<double>(d) / P.drawn.size(), t.ids[r]);
+    });
+  });
+  bar.finish();
+  write_ansur_realism(a, P, columns, set, measured, out);
+  out.commit();
+}
+
 }  // namespace
 
 BODYMODEL_VERB(add_eval_population_verb) {
@@ -254,9 +411,19 @@ BODYMODEL_VERB(add_eval_population_verb) {
       "the mesh (waist at the iliac crest, hip) with the person's recorded ones, beside the best\n"
       "height/weight-only predictor: a survey-weighted linear regression of the girth on sex, age,\n"
       "height and weight fitted on every other eligible row of the file. Writes OUT/realism.csv (one\n"
-      "row per person) and OUT/summary.csv (RMSE and bias of both, and their ratio).");
+      "row per person) and OUT/summary.csv (RMSE and bias of both, and their ratio).\n"
+      "ANSUR II files as --population (comma-separated, e.g. ansur2_female.csv,ansur2_male.csv): soldiers drawn\n"
+      "uniformly (alternating files; --exclude a synth-db ANSUR database's subjects.csv leaves its subjectid out),\n"
+      "morphed to sex, age, stature and weight, and every column of --girths (default: the 18 of\n"
+      "docs/population.md) read as `measure --standard ansur2` does, against the regression on those four.");
   add_eval_population_options(cmd, *a);
-  cmd->callback([a] { run_eval_population(*a); });
+  cmd->callback([a] {
+    const auto files = cli::split_commas(a->population);
+    if (!files.empty() && std::all_of(files.begin(), files.end(), [](const std::string& f) { return is_ansur_file(f); }))
+      run_eval_population_ansur(*a);
+    else
+      run_eval_population(*a);
+  });
 }
 
 }  // namespace bodymodel
