@@ -187,6 +187,7 @@ class PyModel {
     d["jacobians"] = s.jacobians;
     d["decodes"] = s.evaluations;
     d["converged"] = s.converged;
+    d["stop_reason"] = s.stop_reason;
     d["history_mean_vertex_error_mm"] = s.history_mean_mm;
     d["seconds"] = s.seconds;
     pyb::dict lab;
