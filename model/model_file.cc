@@ -115,10 +115,19 @@ Eigen::MatrixXd get_basis(const Npz& z, const std::string& key, const std::strin
     const std::string name = key + (p == 0 ? "_codes" : "_codes16");
     const Eigen::Index want = (q.bits.array() == (p == 0 ? 8 : 16)).count();
     if (want == 0) continue;
-    const std::string dtype = z.has(name) ? z.arrays().at(name).dtype : "";
+    // The width as read ('|i1', '<i2') or, for an archive made in memory, as it will be written.
+    std::string dtype = "missing";
+    if (z.has(name)) {
+      const NpyArray& a = z.arrays().at(name);
+      dtype = !a.dtype.empty()            ? a.dtype
+              : a.is_float                ? "<f8"
+              : a.store_int_bytes == 1    ? "|i1"
+              : a.store_int_bytes == 2    ? "<i2"
+                                          : "<i4";
+    }
     if (dtype != (p == 0 ? "|i1" : "<i2"))
       throw InputError(fmt::format("{}: '{}' is '{}', expected {} ({} columns of '{}_column_bits' say {} bits)", what,
-                                   name, z.has(name) ? dtype : "missing", p == 0 ? "int8 ('|i1')" : "int16 ('<i2')",
+                                   name, dtype, p == 0 ? "int8 ('|i1')" : "int16 ('<i2')",
                                    want, key, p == 0 ? 8 : 16));
     parts[p] = z.int_matrix(name);
     if (parts[p].cols() != want || (rows >= 0 && parts[p].rows() != rows))

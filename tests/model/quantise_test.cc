@@ -76,7 +76,7 @@ TEST(ModelFile, QuantisedFileReadsBackAndDecodesWithinTheBound) {
       ASSERT_LE(std::abs(E(i, k)), 0.5 * scales(i / o.block_rows, k) * (1 + 1e-9) + 1e-15);
   const QuantisationError e8 = decoded_body_difference(*model, back, 20);
   EXPECT_GT(e8.max_mm, 0) << "the bases did change";
-X
+  // Mixed: the 8-bit columns' share of the error cut to what 0.25 mm needs (the estimate is not exact).
   const double fraction = std::min(1.0, 0.25 / e8.max_mm);
   o.shape_column_bits = mixed_column_bits(model->shape.pca.basis, coefficient_spread(model->shape), 64, fraction);
   o.full_column_bits = mixed_column_bits(model->full.pca.basis, coefficient_spread(model->full), 64, fraction);
