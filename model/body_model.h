@@ -28,6 +28,9 @@ namespace bodymodel {
 // 2: shape_basis and full_basis stored as float32 (version 1 stored everything as float64;
 // still read).
 inline constexpr int kModelFormatVersion = 2;
+// 3: the bases quantised to 8 or 16 bits (model/model_file.h, model/quantise.h); written only
+// when asked for, so float32 files stay readable by programs that predate it.
+inline constexpr int kQuantisedModelFormatVersion = 3;
 
 // One PCA model with its labels.
 struct SubModel {

@@ -122,10 +122,9 @@ void ModelFitOptions::validate() const {
 std::string ModelFitSummary::report() const {
   return fmt::format(
       "{} components: mean vertex error {:.3f} (start {:.3f}), RMS {:.3f}, p95 {:.3f}, max {:.3f}; {} "
-      "iterations, {} Jacobians ({:.2f} s), {} decodes ({:.2f} s), {:.2f} s{}",
+      "iterations, {} Jacobians ({:.2f} s), {} decodes ({:.2f} s), {:.2f} s; {} ({})",
       components, mean_mm, start_mean_mm, rms_mm, p95_mm, max_mm, iterations, jacobians, jacobian_seconds,
-      evaluations, decode_seconds, seconds,
-      converged ? "" : " (iteration limit)");
+      evaluations, decode_seconds, seconds, converged ? "converged" : "NOT CONVERGED", stop_reason);
 }
 
 // Everything that depends only on the template: slots, the rotation system's pattern and where
@@ -675,18 +674,31 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
         age = -1;  // only a fresh Jacobian may fail or stop the fit
         continue;
       }
-      if (!accepted) return true;  // no descent along the damped steps: a minimum (to tolerance)
-      if (done) return true;
+      // No descent along the damped steps: a minimum (to tolerance).
+      if (!accepted) return std::string("no step lowers the error: a minimum");
+      if (done) return std::string("the last step changed the error or the vertices by less than the tolerances");
     }
-    return false;
+    return std::string();  // the cap
   };
-  bool converged = o.max_iterations == 0;
+  // Converged only when the last stage (all K components) stopped on its own: a fit that runs
+  // out of iterations, including one whose continuation stage used them all, says so.
+  bool converged = false;
+  std::string reason = "no iterations allowed (max_iterations 0): the start is returned";
   int budget = o.max_iterations;
   if (o.continuation_components > 0 && o.continuation_components < K && budget > 0) {
     run(o.continuation_components, o.continuation_tolerance, std::min(budget, o.continuation_iterations));
     budget -= out.summary.iterations;
+    if (budget <= 0)
+      reason = fmt::format("iteration limit: the {} iterations went to the {}-component start", o.max_iterations,
+                           o.continuation_components);
   }
-  if (budget > 0) converged = run(K, o.relative_tolerance, budget);
+  if (budget > 0) {
+    reason = run(K, o.relative_tolerance, budget);
+    converged = !reason.empty();
+    if (!converged)
+      reason = fmt::format("stopped at the iteration limit ({}) before a step met the tolerances", o.max_iterations);
+  }
+  out.summary.stop_reason = reason;
   out.coefficients = c;
   out.V = cur.placed;
   error_summary(cur.placed, Y, out);

@@ -78,7 +78,10 @@ struct ModelFitSummary {
   int iterations = 0;             // steps (loop iterations)
   int jacobians = 0;              // Jacobian evaluations
   int evaluations = 0;            // decodes (residual evaluations), including rejected steps
+  // Whether the fit stopped at a minimum (to the tolerances) rather than at max_iterations; a fit
+  // that did not converge returns its last accepted point and says why in stop_reason.
   bool converged = false;
+  std::string stop_reason;
   double start_mean_mm = 0;       // mean vertex error at the start (projection or mean body)
   double mean_mm = 0, rms_mm = 0, p95_mm = 0, max_mm = 0;  // final vertex error (target units)
   double seconds = 0;
@@ -86,7 +89,7 @@ struct ModelFitSummary {
   // where a fit's time goes (docs/model.md §5.6).
   double decode_seconds = 0, jacobian_seconds = 0;
   std::vector<double> history_mean_mm;  // mean vertex error after each iteration (start first)
-  std::string report() const;     // one line
+  std::string report() const;     // one line, ending in "converged (...)" or "NOT CONVERGED (...)"
 };
 
 struct ModelFit {

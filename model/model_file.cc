@@ -2,10 +2,12 @@
 
 #include "core/io/json_text.h"
 #include "model/format.h"
+#include "model/quantise.h"
 
 #include "core/error.h"
 #include "core/io/file_names.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace bodymodel {
@@ -76,11 +78,80 @@ Eigen::SparseMatrix<double, Eigen::RowMajor> get_sparse(const Npz& z, const std:
   return M;
 }
 
-void put_sub_model(Npz& z, const std::string& p, const SubModel& m, bool shape, bool store_basis = true) {
+// The bases are most of the file (D by K): float32 (relative precision 6e-8, far below what
+// decoding resolves; see model_file.h) or quantised codes with their scales.
+void put_basis(Npz& z, const std::string& key, const Eigen::MatrixXd& B, const ModelFileOptions& o,
+               const Eigen::VectorXi& column_bits) {
+  if (o.basis_bits == 32) {
+    z.put_float32(key, B);
+    return;
+  }
+  const Eigen::VectorXi bits =
+      column_bits.size() > 0 ? column_bits : Eigen::VectorXi(Eigen::VectorXi::Constant(B.cols(), o.basis_bits));
+  QuantisedBasis q = quantise_basis(B, bits, o.block_rows);
+  for (int b : {8, 16}) {
+    std::vector<Eigen::Index> cols;
+    for (Eigen::Index k = 0; k < bits.size(); ++k)
+      if (bits(k) == b) cols.push_back(k);
+    if (cols.empty()) continue;
+    Eigen::MatrixXi C(q.codes.rows(), static_cast<Eigen::Index>(cols.size()));
+    for (size_t j = 0; j < cols.size(); ++j) C.col(static_cast<Eigen::Index>(j)) = q.codes.col(cols[j]);
+    z.put_small_int(key + (b == 8 ? "_codes" : "_codes16"), C, b / 8);
+  }
+  z.put(key + "_column_bits", bits);
+  z.put_float32(key + "_scales", q.scales);
+  z.put_int(key + "_block_rows", q.block_rows);
+  z.put(key + "_column_norms", q.column_norms);
+}
+
+// A basis stored either way; quantised ones are checked (model/quantise.h) before decoding.
+Eigen::MatrixXd get_basis(const Npz& z, const std::string& key, const std::string& what) {
+  if (!z.has(key + "_column_bits")) return z.matrix(key);
+  QuantisedBasis q;
+  q.bits = z.int_vector(key + "_column_bits");
+  Eigen::MatrixXi parts[2];  // the 8-bit and the 16-bit columns
+  Eigen::Index rows = -1, used[2] = {0, 0};
+  for (int p = 0; p < 2; ++p) {
+    const std::string name = key + (p == 0 ? "_codes" : "_codes16");
+    const Eigen::Index want = (q.bits.array() == (p == 0 ? 8 : 16)).count();
+    if (want == 0) continue;
+    // The width as read ('|i1', '<i2') or, for an archive made in memory, as it will be written.
+    std::string dtype = "missing";
+    if (z.has(name)) {
+      const NpyArray& a = z.arrays().at(name);
+      dtype = !a.dtype.empty()            ? a.dtype
+              : a.is_float                ? "<f8"
+              : a.store_int_bytes == 1    ? "|i1"
+              : a.store_int_bytes == 2    ? "<i2"
+                                          : "<i4";
+    }
+    if (dtype != (p == 0 ? "|i1" : "<i2"))
+      throw InputError(fmt::format("{}: '{}' is '{}', expected {} ({} columns of '{}_column_bits' say {} bits)", what,
+                                   name, dtype, p == 0 ? "int8 ('|i1')" : "int16 ('<i2')",
+                                   want, key, p == 0 ? 8 : 16));
+    parts[p] = z.int_matrix(name);
+    if (parts[p].cols() != want || (rows >= 0 && parts[p].rows() != rows))
+      throw InputError(fmt::format("{}: '{}' is {}×{}, expected {} columns ('{}_column_bits') and the other codes' rows",
+                                   what, name, parts[p].rows(), parts[p].cols(), want, key));
+    rows = parts[p].rows();
+  }
+  q.codes.resize(std::max<Eigen::Index>(rows, 0), q.bits.size());
+  for (Eigen::Index k = 0; k < q.bits.size(); ++k) {
+    const int p = q.bits(k) == 8 ? 0 : 1;
+    if (q.bits(k) == 8 || q.bits(k) == 16) q.codes.col(k) = parts[p].col(used[p]++);
+  }
+  q.scales = z.matrix(key + "_scales");
+  const double block_rows = z.scalar(key + "_block_rows");
+  q.block_rows = std::isfinite(block_rows) ? static_cast<int>(std::clamp(block_rows, -1.0, 1e9)) : -1;
+  q.column_norms = z.vector(key + "_column_norms");
+  validate_quantised_basis(q, what, key);
+  return dequantise_basis(q);
+}
+
+void put_sub_model(Npz& z, const std::string& p, const SubModel& m, bool shape, const ModelFileOptions& o,
+                   bool store_basis = true) {
   z.put(p + "_mean", m.pca.mean);
-  // The bases are most of the file (D by K): float32 (relative precision 6e-8, far below
-  // what decoding resolves; see model_file.h).
-  if (store_basis) z.put_float32(p + "_basis", m.pca.basis);
+  if (store_basis) put_basis(z, p + "_basis", m.pca.basis, o, shape ? o.shape_column_bits : o.full_column_bits);
   z.put(p + "_eigenvalues", m.pca.eigenvalues);
   z.put(p + "_coefficients", m.pca.coefficients);
   std::vector<std::string> names, units, sem;
@@ -111,7 +182,7 @@ SubModel get_sub_model(const Npz& z, const std::string& p, bool shape, int D, co
   // shares its basis instead of storing it twice.
   const bool shared = !shape && !z.has(p + "_basis") && z.has("full_basis_is_shape_basis") &&
                       z.scalar("full_basis_is_shape_basis") == 1.0;
-  m.pca.basis = z.matrix(shared ? std::string("shape_basis") : p + "_basis");
+  m.pca.basis = get_basis(z, shared ? std::string("shape_basis") : p + "_basis", what);
   m.pca.eigenvalues = z.vector(p + "_eigenvalues");
   m.pca.coefficients = z.matrix(p + "_coefficients");
   const int K = static_cast<int>(m.pca.basis.cols());
@@ -187,20 +258,42 @@ nlohmann::json portable_metadata(nlohmann::json meta) {
 }
 }  // namespace
 
-Npz model_to_npz(const BodyModel& model) {
+void ModelFileOptions::validate() const {
+  if (basis_bits != 8 && basis_bits != 16 && basis_bits != 32)
+    throw InputError(fmt::format("model file: basis bits must be 8, 16 or 32 (float32), got {}", basis_bits));
+  if (block_rows < 1) throw InputError(fmt::format("model file: quantisation block rows must be ≥ 1, got {}", block_rows));
+  for (const Eigen::VectorXi* bits : {&shape_column_bits, &full_column_bits})
+    for (Eigen::Index k = 0; k < bits->size(); ++k)
+      if ((*bits)(k) != 8 && (*bits)(k) != 16)
+        throw InputError(fmt::format("model file: column bits must be 8 or 16, got {}", (*bits)(k)));
+}
+
+Npz model_to_npz(const BodyModel& model, const ModelFileOptions& o) {
+  o.validate();
   Npz z;
-  z.put_text("metadata", json_text(portable_metadata(model.metadata)));
-  z.put_int("format_version", kModelFormatVersion);
+  // Quantised files are version 3; float32 ones stay 2 so older programs still read them.
+  const int version = o.basis_bits == 32 ? kModelFormatVersion : kQuantisedModelFormatVersion;
+  nlohmann::json meta = portable_metadata(model.metadata);
+  if (meta.is_object()) {
+    meta["format_version"] = version;
+    meta["basis_storage"] = o.basis_bits == 32 ? nlohmann::json("float32")
+                                               : nlohmann::json({{"bits", o.basis_bits},
+                                                                 {"block_rows", o.block_rows},
+                                                                 {"shape_16_bit_columns", (o.shape_column_bits.array() == 16).count()},
+                                                                 {"full_16_bit_columns", (o.full_column_bits.array() == 16).count()}});
+  }
+  z.put_text("metadata", json_text(meta));
+  z.put_int("format_version", version);
   z.put("template_vertices", Eigen::MatrixXd(model.tmpl->rest_vertices()));
   z.put("template_faces", Eigen::MatrixXi(model.tmpl->faces()));
   z.put("encoding_mean", model.mean->values);
-  put_sub_model(z, "shape", model.shape, true);
+  put_sub_model(z, "shape", model.shape, true, o);
   // The basis is most of the file: when the full model's is the shape model's (one person in
   // many poses, or a population of one standard-pose mesh per person) it is stored once.
   const bool shared = model.full.pca.basis.rows() == model.shape.pca.basis.rows() &&
                       model.full.pca.basis.cols() == model.shape.pca.basis.cols() &&
                       model.full.pca.basis == model.shape.pca.basis;
-  put_sub_model(z, "full", model.full, false, !shared);
+  put_sub_model(z, "full", model.full, false, o, !shared);
   if (shared) z.put("full_basis_is_shape_basis", 1.0);
   if (!model.rig.empty()) {
     z.put_text("rig_bone_names", json_list(model.rig.bone_names));
@@ -232,11 +325,12 @@ BodyModel model_from_npz(const Npz& z, const std::string& what) {
     throw InputError(fmt::format("{}: metadata says format '{}', expected 'bodymodel-model'", what,
                                  model.metadata.value("format", std::string("(none)"))));
   double version = z.scalar("format_version");
-  // Version 1 (all float64) has the same keys as version 2 (bases float32): both are read.
-  if (version != kModelFormatVersion && version != 1)
+  // Version 1 (all float64) has the same keys as version 2 (bases float32): both are read, and
+  // version 3 (quantised bases, each with its codes, scales and column norms).
+  if (version != kModelFormatVersion && version != 1 && version != kQuantisedModelFormatVersion)
     throw InputError(fmt::format("{}: model format version {}, this program reads versions 1 to {} "
                                  "(rebuild the model with `bodymodel build`)",
-                                 what, version, kModelFormatVersion));
+                                 what, version, kQuantisedModelFormatVersion));
   Eigen::MatrixXd V = z.matrix("template_vertices");
   Eigen::MatrixXi F = z.int_matrix("template_faces");
   if (V.cols() != 3 || F.cols() != 3)
@@ -285,8 +379,8 @@ BodyModel model_from_npz(const Npz& z, const std::string& what) {
   return model;
 }
 
-void save_model(const std::filesystem::path& path, const BodyModel& model) {
-  model_to_npz(model).save(path);  // deflated (core/io/npz.h)
+void save_model(const std::filesystem::path& path, const BodyModel& model, const ModelFileOptions& options) {
+  model_to_npz(model, options).save(path);  // deflated (core/io/npz.h)
 }
 
 BodyModel load_model(const std::filesystem::path& path) {

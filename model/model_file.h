@@ -5,6 +5,15 @@
 // digits change a decoded body by far less than 0.01 mm). Version 1 files (the same keys, all
 // float64) are still read; other versions are refused with an error naming the version.
 // Members are deflated (numpy's savez_compressed layout; np.load reads either).
+// QUANTISED files (format_version 3, `bodymodel build --quantise 8`, `bodymodel quantise`) hold
+// each basis as integer codes instead of `<p>_basis` (model/quantise.h), read back transparently:
+//   <p>_basis_column_bits    K int32, 8 or 16: how each column is stored
+//   <p>_basis_codes          D by K8 int8: the 8-bit columns, in order (absent when none)
+//   <p>_basis_codes16        D by K16 int16: the 16-bit columns, in order (absent when none)
+//   <p>_basis_scales         ceil(D / B) by K float32: entry (i, k) = scales[i // B, k] · code(i, k)
+//   <p>_basis_block_rows     scalar B (rows sharing one scale within a column)
+//   <p>_basis_column_norms   K, the norms of the columns that were quantised (checks the scales)
+// Float32 files stay version 2, so programs that predate quantisation still read them.
 // D = 15·#F encoding values,
 // K_s / K_f shape / full components, N_s subjects, N_f scans, L_s / L_f labels.
 //   metadata                 JSON text: {"format": "bodymodel-model", "format_version": 2, ...}
@@ -45,6 +54,8 @@
 //   c = m["shape_coefficients"][0]                       # first subject
 //   print(m["shape_label_offsets"][h] + c @ m["shape_label_gradients"][:, h])  # predicted cm
 //   x = m["shape_mean"] + m["shape_basis"] @ c           # its encoding (relative to encoding_mean)
+//   # a quantised file: codes = D by K from _codes / _codes16 by _column_bits, then
+//   #   B = np.repeat(m["shape_basis_scales"], int(m["shape_basis_block_rows"]), axis=0)[:D] * codes
 #pragma once
 
 #include <filesystem>
@@ -54,12 +65,23 @@
 
 namespace bodymodel {
 
-Npz model_to_npz(const BodyModel& model);
+// How the bases are stored: float32 (basis_bits 32, the default) or quantised to 8 or 16 bits
+// in blocks of block_rows rows per scale (model/quantise.h).
+struct ModelFileOptions {
+  int basis_bits = 32;
+  int block_rows = 64;
+  // With basis_bits 8: per-column bits (8 or 16) of each basis (empty: all basis_bits); a
+  // shared basis (full = shape) uses shape_column_bits.
+  Eigen::VectorXi shape_column_bits, full_column_bits;
+  void validate() const;  // InputError naming the bad field
+};
+
+Npz model_to_npz(const BodyModel& model, const ModelFileOptions& options = {});
 // Throws InputError naming the file when a key is missing, the format or version is not this
 // one, or the arrays' shapes disagree.
 BodyModel model_from_npz(const Npz& npz, const std::string& what = "model");
 
-void save_model(const std::filesystem::path& path, const BodyModel& model);
+void save_model(const std::filesystem::path& path, const BodyModel& model, const ModelFileOptions& options = {});
 BodyModel load_model(const std::filesystem::path& path);
 
 }  // namespace bodymodel

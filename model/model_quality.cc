@@ -165,6 +165,7 @@ ModelQuality evaluate_model_quality(const BodyModel& model, const std::vector<Ei
   // is a point of the K-component space), the first from the projection.
   std::vector<std::vector<Eigen::VectorXd>> errors(jobs.size(), std::vector<Eigen::VectorXd>(test.size()));
   std::vector<std::vector<double>> seconds(jobs.size(), std::vector<double>(test.size(), 0.0));
+  std::vector<std::vector<int>> converged(jobs.size(), std::vector<int>(test.size(), -1));
   tbb::parallel_for(0, static_cast<int>(test.size()), [&](int t) {
     Eigen::VectorXd previous;
     for (size_t j = 0; j < jobs.size(); ++j) {
@@ -179,6 +180,7 @@ ModelQuality evaluate_model_quality(const BodyModel& model, const std::vector<Ei
         ModelFit f = fitter.fit(test[t], fo);
         previous = f.coefficients;
         errors[j][t] = f.vertex_error;
+        converged[j][t] = f.summary.converged ? 1 : 0;
       } else {
         errors[j][t] = fit_vertex_pca(vpca, test[t], jobs[j].K).vertex_error;
       }
@@ -197,7 +199,9 @@ ModelQuality evaluate_model_quality(const BodyModel& model, const std::vector<Ei
     for (size_t t = 0; t < test.size(); ++t) {
       const Eigen::VectorXd& e = errors[j][t];
       std::vector<double> ev(e.data(), e.data() + e.size());
-      TestMeshError pm{job.model, names[t], job.K, e.mean(), percentile(ev, 95), e.maxCoeff(), seconds[j][t]};
+      TestMeshError pm{job.model, names[t], job.K, e.mean(), percentile(ev, 95), e.maxCoeff(), seconds[j][t],
+                       converged[j][t]};
+      row.unconverged_fits += converged[j][t] == 0;
       mean_sum += pm.mean_mm;
       max_all = std::max(max_all, pm.max_mm);
       pooled.insert(pooled.end(), ev.begin(), ev.end());
@@ -248,6 +252,7 @@ std::vector<QualityRow> pool_model_quality(const std::vector<ModelQuality>& fold
   struct Acc {
     std::vector<double> means, spec, compact, pooled;
     double max = 0;
+    int unconverged = 0;
   };
   std::map<std::pair<std::string, int>, Acc> acc;
   std::vector<std::pair<std::string, int>> order;
@@ -262,6 +267,7 @@ std::vector<QualityRow> pool_model_quality(const std::vector<ModelQuality>& fold
       a.spec.insert(a.spec.end(), f.specificity_samples_mm[j].begin(), f.specificity_samples_mm[j].end());
       a.compact.push_back(f.rows[j].compactness);
       a.max = std::max(a.max, f.rows[j].generalisation_max_mm);
+      a.unconverged += f.rows[j].unconverged_fits;
     }
   }
   std::stable_sort(order.begin(), order.end(), [](const auto& x, const auto& y) {
@@ -286,6 +292,7 @@ std::vector<QualityRow> pool_model_quality(const std::vector<ModelQuality>& fold
     r.specificity_std_mm = a.spec.size() > 1 ? std::sqrt(var / static_cast<double>(a.spec.size() - 1))
                                              : std::numeric_limits<double>::quiet_NaN();
     r.compactness = mean(a.compact);
+    r.unconverged_fits = a.unconverged;
     rows.push_back(r);
   }
   return rows;

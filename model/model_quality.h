@@ -77,6 +77,7 @@ struct QualityRow {
   double generalisation_max_mm = 0;
   double specificity_mean_mm = 0, specificity_std_mm = 0;  // over samples (NaN when not computed)
   double compactness = 0;             // fraction of the training variance
+  int unconverged_fits = 0;           // test meshes whose model fit stopped at its iteration cap
 };
 
 // Per test mesh and K (the generalisation's detail).
@@ -85,6 +86,9 @@ struct TestMeshError {
   int components = 0;
   double mean_mm = 0, p95_mm = 0, max_mm = 0;
   double seconds = 0;                 // fit time
+  // 1 / 0: the model fit (model/fit.h) converged / stopped at its iteration cap; −1: vertex PCA
+  // (a closed-form fit with a rigid alignment, no cap to hit).
+  int converged = -1;
 };
 
 struct ModelQuality {

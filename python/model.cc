@@ -187,6 +187,7 @@ class PyModel {
     d["jacobians"] = s.jacobians;
     d["decodes"] = s.evaluations;
     d["converged"] = s.converged;
+    d["stop_reason"] = s.stop_reason;
     d["history_mean_vertex_error_mm"] = s.history_mean_mm;
     d["seconds"] = s.seconds;
     pyb::dict lab;
@@ -341,7 +342,7 @@ pose=True fits the full (pose and shape) model instead of the shape model. scale
 per unit of V (0: the unit the model was built from). prior: weight (mm²) of a Gaussian prior on
 the coefficients. Returns the fitted vertices (n, 3), mm, placed on V, and a summary dict with
 the keys of the CLI's JSON: coefficients (K,), vertex_error_mm {mean, rms, p95, max},
-vertex_error (n,) mm, iterations, converged, labels {name: {unit, predicted, measured_input,
+vertex_error (n,) mm, iterations, converged, stop_reason, labels {name: {unit, predicted, measured_input,
 measured_fitted}}, ... Runs with the GIL released; progress(fraction, what) per iteration.)")
       .def("generate", &PyModel::generate, "n"_a, "seed"_a = 1, pyb::kw_only(), "where"_a = pyb::none(),
            "spread"_a = 1.0, "measure_girths"_a = true, "progress"_a = pyb::none(),

@@ -31,6 +31,14 @@ void Npz::put_float32(const std::string& name, const Eigen::MatrixXd& m) {
   put(name, m);
   arrays_[name].store_float32 = true;
 }
+void Npz::put_small_int(const std::string& name, const Eigen::MatrixXi& m, int bytes) {
+  if (bytes != 1 && bytes != 2) throw InputError("npz: small integers are 1 or 2 bytes, got " + std::to_string(bytes));
+  const int limit = bytes == 1 ? 127 : 32767;
+  if (m.size() > 0 && (m.maxCoeff() > limit || m.minCoeff() < -limit - 1))
+    throw InputError("npz: array '" + name + "' holds values outside int" + std::to_string(8 * bytes));
+  put(name, m);
+  arrays_[name].store_int_bytes = bytes;
+}
 void Npz::put(const std::string& name, const Eigen::VectorXd& v) {
   NpyArray a;
   a.shape = {v.size()};
@@ -202,6 +210,17 @@ std::string npy_bytes(const NpyArray& a) {
   } else if (a.is_float) {
     descr = "<f8";
     payload.assign(reinterpret_cast<const char*>(a.f64.data()), a.f64.size() * 8);
+  } else if (a.store_int_bytes == 1) {
+    descr = "|i1";
+    payload.resize(a.i64.size());
+    for (size_t i = 0; i < a.i64.size(); ++i) payload[i] = static_cast<char>(static_cast<int8_t>(a.i64[i]));
+  } else if (a.store_int_bytes == 2) {
+    descr = "<i2";
+    payload.resize(a.i64.size() * 2);
+    for (size_t i = 0; i < a.i64.size(); ++i) {
+      const int16_t v = static_cast<int16_t>(a.i64[i]);
+      std::memcpy(payload.data() + 2 * i, &v, 2);
+    }
   } else if (a.store_int64) {
     descr = "<i8";
     payload.assign(reinterpret_cast<const char*>(a.i64.data()), a.i64.size() * 8);
@@ -300,6 +319,7 @@ NpyArray parse_npy(const std::string& b, const std::string& what) {
     }
   } else if (kind == 'i' || kind == 'u' || kind == 'b') {
     a.is_float = false;
+    if (kind == 'i' && (width == 1 || width == 2)) a.store_int_bytes = static_cast<int>(width);  // saved as it came
     a.i64.resize(n);
     for (int64_t i = 0; i < n; ++i) {
       const char* p = data + width * i;

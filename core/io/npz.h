@@ -25,6 +25,7 @@ struct NpyArray {
                                // values do not all fit int32); otherwise '<i4'
   std::string text;            // for string arrays (dtype '<U' or '|S'): the one string
   bool store_float32 = false;  // float data written as '<f4' (≈ 7 significant digits, half the size)
+  int store_int_bytes = 0;     // integer data written as '|i1' (1) or '<i2' (2); 0: int32/int64 as above
   std::string dtype;           // the numpy dtype it was read with ('<i4', '<f8', ...); "" when made here
 
   int64_t size() const;
@@ -42,6 +43,9 @@ class Npz {
   // The same stored as float32 ('<f4'): for large arrays whose precision needs ≈ 7 digits.
   void put_float32(const std::string& name, const Eigen::MatrixXd& m);
   void put_text(const std::string& name, const std::string& text);   // numpy '<U' scalar
+  // Small integers stored as int8 ('|i1', bytes = 1) or int16 ('<i2', bytes = 2): quantised
+  // arrays. Throws InputError if a value does not fit.
+  void put_small_int(const std::string& name, const Eigen::MatrixXi& m, int bytes);
 
   // Accessors; throw InputError naming the file and the key if missing or of the wrong shape.
   bool has(const std::string& name) const;

@@ -80,6 +80,36 @@ TEST(ModelFit, RecoversKnownCoefficients) {
   std::printf("%s\n", fit.summary.report().c_str());
 }
 
+// A fit says whether it converged: on a body the model made, a normal run stops on its own
+// tolerances; one or no iterations stop at the cap and say so (not converged, with the reason).
+TEST(ModelFit, SaysWhetherItConverged) {
+  auto model = testing::shape_test_model();
+  const Pca& pca = model->shape.pca;
+  ModelFitter fitter(model->tmpl, model->mean, pca);
+  const Eigen::MatrixX3d target = fitter.evaluate(random_coefficients(pca, pca.component_count(), 1.0, 11));
+  const ModelFit normal = fitter.fit(target);
+  EXPECT_TRUE(normal.summary.converged) << normal.summary.report();
+  EXPECT_LT(normal.summary.iterations, ModelFitOptions().max_iterations) << normal.summary.report();
+  EXPECT_NE(normal.summary.report().find("; converged ("), std::string::npos) << normal.summary.report();
+  for (int cont : {0, 16}) {
+    ModelFitOptions tiny;
+    tiny.max_iterations = 1;
+    tiny.continuation_components = cont;
+    const ModelFit capped = fitter.fit(target, tiny);
+    EXPECT_FALSE(capped.summary.converged) << capped.summary.report();
+    EXPECT_EQ(capped.summary.iterations, 1);
+    EXPECT_NE(capped.summary.stop_reason.find("iteration"), std::string::npos) << capped.summary.stop_reason;
+    EXPECT_NE(capped.summary.report().find("NOT CONVERGED"), std::string::npos) << capped.summary.report();
+    // The capped fit is not yet at the answer the normal run reaches.
+    EXPECT_GT(capped.summary.mean_mm, 2 * normal.summary.mean_mm) << capped.summary.report();
+  }
+  ModelFitOptions none;
+  none.max_iterations = 0;
+  const ModelFit start = fitter.fit(target, none);
+  EXPECT_FALSE(start.summary.converged);
+  EXPECT_NE(start.summary.stop_reason.find("no iterations"), std::string::npos) << start.summary.stop_reason;
+}
+
 TEST(ModelFit, RejectsBadInput) {
   auto model = testing::shape_test_model();
   ModelFitter fitter(model->tmpl, model->mean, model->shape.pca);

@@ -173,6 +173,55 @@ TEST(RigFileValidation, EveryInconsistentArrayIsNamed) {
 }
 
 // The verbs that read a model or a rig pass the reader's message on: one line, exit 2, the file.
+// A quantised model file (model_file.h, format 3) whose scales or codes are damaged is refused
+// with one line naming the array and what is wrong; the undamaged one loads with the same basis
+// to within half a step.
+TEST(ModelFileValidation, CorruptQuantisedBasisIsRefused) {
+  fixtures::TempDir dir;
+  const BodyModel tiny_model = model_from_npz(tiny::model_npz(), "tiny");
+  ModelFileOptions o;
+  o.basis_bits = 8;
+  const Npz good = model_to_npz(tiny_model, o);
+  ASSERT_TRUE(good.has("shape_basis_codes"));
+  const BodyModel back = model_from_npz(good, "q8");
+  EXPECT_LE((back.shape.pca.basis - tiny_model.shape.pca.basis).cwiseAbs().maxCoeff(), 0.5 / 127 + 1e-9);
+  const std::vector<Corruption> cases = {
+      {"a scale ten times too large", [](Npz& z) {
+         Eigen::MatrixXd S = z.matrix("shape_basis_scales");
+         S(0, 0) *= 10;
+         z.put_float32("shape_basis_scales", S);
+       }, {"'shape_basis_codes' column 0 decodes to norm", "a corrupt scale in 'shape_basis_scales'"}},
+      {"a NaN scale", set_element("shape_basis_scales", 0, 1, kNaN),
+       {"'shape_basis_scales' row 0, column 1 is nan, expected a finite scale"}},
+      {"a negative scale", set_element("shape_basis_scales", 0, 0, -0.01), {"expected a finite scale ≥ 0"}},
+      {"scales of the wrong shape", [](Npz& z) { z.put("shape_basis_scales", Eigen::MatrixXd(Eigen::MatrixXd::Ones(3, 2))); },
+       {"'shape_basis_scales' is 3×2"}},
+      {"no block size", [](Npz& z) { z.put_int("shape_basis_block_rows", 0); }, {"'shape_basis_block_rows' is 0"}},
+      {"a code of -128", [](Npz& z) {
+         Eigen::MatrixXi C = z.int_matrix("shape_basis_codes");
+         C(3, 1) = -128;
+         z.put_small_int("shape_basis_codes", C, 1);
+       }, {"holds codes outside ±127"}},
+      {"codes as int32", [](Npz& z) { z.put("shape_basis_codes", Eigen::MatrixXi(z.int_matrix("shape_basis_codes"))); },
+       {"'shape_basis_codes' is '<i4', expected int8"}},
+  };
+  for (const Corruption& c : cases) {
+    Npz z = Npz::parse(good.serialize(), "q8.npz");
+    c.apply(z);
+    const fs::path file = dir / "bad_q8.npz";
+    z.save(file);
+    try {
+      load_model(file);
+      ADD_FAILURE() << c.name << ": accepted";
+    } catch (const InputError& e) {
+      const std::string msg = e.what();
+      EXPECT_EQ(msg.find('\n'), std::string::npos) << c.name << ": " << msg;
+      EXPECT_NE(msg.find("bad_q8.npz"), std::string::npos) << c.name << ": " << msg;
+      for (const auto& s : c.expect) EXPECT_NE(msg.find(s), std::string::npos) << c.name << ": " << msg;
+    }
+  }
+}
+
 TEST(ModelFileValidation, VerbsNameTheBadFile) {
   fixtures::TempDir dir;
   Npz z = tiny::model_npz();

@@ -11,6 +11,7 @@
 #include "model/model_file.h"
 #include "tools/console.h"
 #include "tools/verb.h"
+#include "tools/verbs/model_common.h"
 
 namespace bodymodel {
 namespace {
@@ -25,6 +26,7 @@ struct BuildArgs {
   std::string up = "y";
   bool no_measure = false;
   bool first_mesh_faces = false;
+  int quantise = 32;
 };
 
 int axis_of(const std::string& s) {
@@ -64,6 +66,11 @@ void add_build_options(CLI::App* cmd, BuildArgs& a) {
       ->capture_default_str();
   cmd->add_option("--components,--max-components", a.max_components,
                   "Keep at most this many components per model (-1: as many as the variance thresholds keep)")
+      ->capture_default_str();
+  cmd->add_option("--quantise", a.quantise,
+                  "Store the PCA bases as 8- or 16-bit integers (32: float32). 20 random bodies decoded both ways "
+                  "must agree within 0.5 mm, else 16 bits, then float32, are written (docs/model.md)")
+      ->check(CLI::IsMember({8, 16, 32}))
       ->capture_default_str();
   cmd->add_flag("--no-rig", a.no_rig,
                 "Do not attach the MakeHuman skeleton (pose morphing and region masks need it; only "
@@ -183,7 +190,8 @@ void run_build(BuildArgs& a) {
                                 {"first_mesh_faces", a.first_mesh_faces}};
   else
     model.metadata["source"] = {{"registered", a.reg}, {"database", a.db}, {"mm_per_unit", 1.0}};
-  save_model(a.out, model);
+  const ModelFileOptions storage = model_cli::choose_basis_storage(model, a.quantise, 64, 20, 0.5);
+  save_model(a.out, model, storage);
   cli::info("wrote " + a.out);
 }
 

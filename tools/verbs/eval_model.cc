@@ -92,20 +92,29 @@ std::string csv_number(double v) { return std::isfinite(v) ? fmt::format("{:.6g}
 void write_reports(const StagedFolder& out, const std::vector<QualityRow>& rows,
                    const std::vector<std::pair<std::string, ModelQuality>>& folds, const std::string& title) {
   std::string q = "model,components,generalisation_mean_mm,generalisation_p95_mm,generalisation_max_mm,"
-                  "specificity_mean_mm,specificity_std_mm,compactness\n";
+                  "specificity_mean_mm,specificity_std_mm,compactness,unconverged_fits\n";
   for (const auto& r : rows)
-    q += fmt::format("{},{},{},{},{},{},{},{}\n", csv_field(r.model), r.components,
+    q += fmt::format("{},{},{},{},{},{},{},{},{}\n", csv_field(r.model), r.components,
                      csv_number(r.generalisation_mean_mm),
                      csv_number(r.generalisation_p95_mm), csv_number(r.generalisation_max_mm),
-                     csv_number(r.specificity_mean_mm), csv_number(r.specificity_std_mm), csv_number(r.compactness));
+                     csv_number(r.specificity_mean_mm), csv_number(r.specificity_std_mm), csv_number(r.compactness),
+                     r.unconverged_fits);
   write_text_file(out / "quality.csv", q);
-  std::string g = "fold,model,mesh,components,mean_mm,p95_mm,max_mm,fit_seconds\n";
+  // converged: 1/0 for the model's fits (0 = stopped at the iteration cap), empty for vertex PCA.
+  std::string g = "fold,model,mesh,components,mean_mm,p95_mm,max_mm,fit_seconds,converged\n";
+  int unconverged = 0, fits = 0;
   for (const auto& [fold, f] : folds)
-    for (const auto& m : f.per_mesh)
-      g += fmt::format("{},{},{},{},{},{},{},{:.3f}\n", csv_field(fold), csv_field(m.model), csv_field(m.mesh),
-                       m.components, csv_number(m.mean_mm),
-                       csv_number(m.p95_mm), csv_number(m.max_mm), m.seconds);
+    for (const auto& m : f.per_mesh) {
+      g += fmt::format("{},{},{},{},{},{},{},{:.3f},{}\n", csv_field(fold), csv_field(m.model), csv_field(m.mesh),
+                       m.components, csv_number(m.mean_mm), csv_number(m.p95_mm), csv_number(m.max_mm), m.seconds,
+                       m.converged < 0 ? std::string() : std::to_string(m.converged));
+      fits += m.converged >= 0;
+      unconverged += m.converged == 0;
+    }
   write_text_file(out / "generalisation.csv", g);
+  if (unconverged > 0)
+    cli::warn(fmt::format("{} of {} model fits stopped at their iteration cap (converged = 0 in generalisation.csv)",
+                          unconverged, fits));
   // Plot: three panels, the rotation-invariant model (blue) and vertex PCA (orange).
   std::vector<LinePanel> panels;
   for (int which = 0; which < 3; ++which) {

@@ -116,6 +116,7 @@ void run_fit(FitArgs& a) {
       {"jacobians", fit.summary.jacobians},
       {"decodes", fit.summary.evaluations},
       {"converged", fit.summary.converged},
+      {"stop_reason", fit.summary.stop_reason},
       {"history_mean_vertex_error_mm", fit.summary.history_mean_mm},
       {"seconds", fit.summary.seconds},
       {"labels", labels},
@@ -124,6 +125,10 @@ void run_fit(FitArgs& a) {
   fs::path json_path = a.json.empty() ? fs::path(a.out).replace_extension(".json") : fs::path(a.json);
   write_text_file(json_path, json_text(out, 2) + "\n");
   fmt::print("{}\n", fit.summary.report());
+  // A fit at its iteration cap is not the model's closest body: say so where it cannot be missed.
+  if (!fit.summary.converged)
+    cli::warn(fmt::format("the fit did not converge: {}; the body written is the last iterate (try --iterations {})",
+                          fit.summary.stop_reason, std::max(2 * a.iterations, 40)));
   for (auto& [name, j] : labels.items()) {
     std::string line = fmt::format("  {:<14}", name);
     if (j.contains("predicted")) line += fmt::format(" predicted {:>9.3f}", j["predicted"].get<double>());

@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "model/body_model.h"
 #include "model/model_file.h"
+#include "model/quantise.h"
 #include "tools/console.h"
 
 namespace bodymodel::model_cli {
@@ -54,6 +55,60 @@ inline double check_label_range(const LabelInfo& info, double value, bool clamp)
                         "extrapolation (use --clamp to stay inside the data)",
                         info.name, value, info.min, info.max, info.unit));
   return value;
+}
+
+// Quantised storage for a model about to be written (`build --quantise`, `quantise`): the
+// decoded bodies of `samples` random coefficient vectors through the quantised bases are
+// compared with `model`'s. 8 bits first; when bodies move by more than max_error_mm, the columns
+// that matter most get 16 bits (mixed_column_bits, halving the 8-bit share until the check
+// passes, 4 tries), then all 16 bits, then float32. Records the passing check in
+// model.metadata["quantisation_check"]; returns the storage to write with.
+inline ModelFileOptions choose_basis_storage(BodyModel& model, int bits, int block_rows, int samples,
+                                             double max_error_mm) {
+  ModelFileOptions o;
+  o.basis_bits = bits;
+  o.block_rows = block_rows;
+  o.validate();
+  if (!(max_error_mm > 0)) throw InputError(fmt::format("--max-error-mm must be > 0, got {}", max_error_mm));
+  model.metadata.erase("quantisation_check");
+  const bool shared = model.full.pca.basis.cols() == model.shape.pca.basis.cols() &&
+                      model.full.pca.basis == model.shape.pca.basis;
+  Eigen::VectorXd shape_spread = coefficient_spread(model.shape), full_spread = coefficient_spread(model.full);
+  if (shared) shape_spread = shape_spread.cwiseMax(full_spread);
+  double fraction = 1, error = 0;
+  for (int attempt = 0; o.basis_bits < 32; ++attempt) {
+    if (o.basis_bits == 8 && attempt > 0) {  // promote the columns that matter most
+      fraction = std::min(fraction, 0.7 * max_error_mm / error) / (attempt > 1 ? 2 : 1);
+      o.shape_column_bits = mixed_column_bits(model.shape.pca.basis, shape_spread, o.block_rows, fraction);
+      o.full_column_bits = shared ? o.shape_column_bits
+                                  : mixed_column_bits(model.full.pca.basis, full_spread, o.block_rows, fraction);
+    }
+    const QuantisationError e = decoded_body_difference(model, with_quantised_bases(model, o), samples);
+    const auto n16 = (o.shape_column_bits.array() == 16).count(), f16 = (o.full_column_bits.array() == 16).count();
+    const std::string what = o.basis_bits == 16 ? "16-bit bases"
+                             : n16 + f16 == 0  ? "8-bit bases"
+                                               : fmt::format("8-bit bases with 16 bits for {} of {} shape and {} of {} "
+                                                             "full-model columns",
+                                                             n16, model.shape.component_count(), f16,
+                                                             model.full.component_count());
+    cli::info(fmt::format("{}, blocks of {} rows: {}", what, o.block_rows, e.report()));
+    if (e.max_mm <= max_error_mm) {
+      model.metadata["quantisation_check"] = {{"bits", o.basis_bits},       {"block_rows", o.block_rows},
+                                              {"shape_16_bit_columns", n16}, {"full_16_bit_columns", f16},
+                                              {"samples", e.samples},       {"max_vertex_distance_mm", e.max_mm},
+                                              {"mean_vertex_distance_mm", e.mean_mm},
+                                              {"bound_mm", max_error_mm}};
+      return o;
+    }
+    error = e.max_mm;
+    if (o.basis_bits == 8 && attempt < 4) continue;
+    cli::warn(fmt::format("{} move a decoded body by {:.3f} mm, more than {} mm: {}", what, e.max_mm, max_error_mm,
+                          o.basis_bits == 8 ? "trying 16 bits" : "writing float32"));
+    o.basis_bits *= 2;
+    o.shape_column_bits.resize(0);
+    o.full_column_bits.resize(0);
+  }
+  return o;
 }
 
 inline BodyModel load_model_for_cli(const std::string& path) {
