@@ -1,5 +1,7 @@
 #include "assets/dress.h"
 
+#include <fmt/format.h>
+
 #include <map>
 
 #include "core/error.h"
@@ -105,6 +107,72 @@ std::vector<DressedPart> dress_body(const Eigen::MatrixX3d& rest_full, const Eig
     parts.push_back(std::move(p));
   }
   return parts;
+}
+
+namespace {
+
+// Weights of all 19158 rows: the skin's, then each helper's skin triangle's mixed by the tie's
+// barycentric coordinates (non-negative: closest points lie in their triangle).
+SkinWeights weights_with_helpers(const SkinWeights& skin_W, const HelperBinding& tie) {
+  std::vector<Eigen::Triplet<double>> t;
+  for (int v = 0; v < skin_W.outerSize(); ++v)
+    for (SkinWeights::InnerIterator it(skin_W, v); it; ++it) t.emplace_back(v, it.col(), it.value());
+  for (Eigen::Index h = 0; h < tie.triangle.rows(); ++h)
+    for (int k = 0; k < 3; ++k)
+      for (SkinWeights::InnerIterator it(skin_W, tie.triangle(h, k)); it; ++it)
+        t.emplace_back(tie.body_vertex_count + h, it.col(), tie.bary(h, k) * it.value());
+  SkinWeights W(tie.vertex_count, skin_W.cols());
+  W.setFromTriplets(t.begin(), t.end());  // duplicates are summed
+  return W;
+}
+
+}  // namespace
+
+DressedSkinBody dress_skin_body(const Eigen::MatrixX3d& skin_rest, const Eigen::MatrixX3i& skin_F,
+                                const SkinWeights& skin_W, const HelperRegressor& regressor,
+                                const HelperBinding& tie, const std::vector<Asset>& outfit,
+                                const DressOptions& options) {
+  if (skin_rest.rows() != regressor.body_vertex_count || skin_rest.rows() != tie.body_vertex_count ||
+      skin_W.rows() != skin_rest.rows())
+    throw InputError(fmt::format("dress_skin_body: a body of {} vertices and {} weight rows; the helpers need {}",
+                                 skin_rest.rows(), skin_W.rows(), regressor.body_vertex_count));
+  const Eigen::MatrixX3d full = complete_with_helpers(regressor, skin_rest);
+  DressedSkinBody d;
+  d.parts = dress_body(full, skin_F, weights_with_helpers(skin_W, tie), nullptr, outfit, options);
+  std::vector<const AssetBinding*> bindings;
+  for (const Asset& a : outfit) bindings.push_back(&a.binding);
+  d.hidden = hidden_body_vertices(bindings, static_cast<int>(full.rows()));
+  d.hidden.resize(skin_rest.rows());
+  return d;
+}
+
+int ClipPenetration::frames_over(double limit) const {
+  int n = 0;
+  for (Eigen::Index f = 0; f < fraction.rows(); ++f) n += fraction.cols() > 0 && fraction.row(f).maxCoeff() > limit;
+  return n;
+}
+
+ClipPenetration clip_penetration(const std::vector<DressedPart>& parts, const Eigen::MatrixX3d& skin_rest,
+                                 const Eigen::MatrixX3i& skin_F, const SkinWeights& skin_W,
+                                 const std::vector<char>& hidden, const std::vector<BoneTransforms>& frames,
+                                 double depth_mm) {
+  ClipPenetration c;
+  std::vector<const DressedPart*> garments;
+  for (const DressedPart& p : parts)
+    if (p.garment) garments.push_back(&p), c.garments.push_back(p.name);
+  const Eigen::Index F = static_cast<Eigen::Index>(frames.size()), G = static_cast<Eigen::Index>(garments.size());
+  c.fraction.setZero(F, G);
+  c.max_depth_mm.setZero(F, G);
+  for (Eigen::Index f = 0; f < F; ++f) {
+    const Eigen::MatrixX3d body = linear_blend_skinning(skin_rest, skin_W, frames[f]);
+    for (Eigen::Index g = 0; g < G; ++g) {
+      const Eigen::MatrixX3d X = linear_blend_skinning(garments[g]->V, garments[g]->weights, frames[f]);
+      const Penetration p = penetration_of(body_distance(X, body, skin_F, hidden), depth_mm);
+      c.fraction(f, g) = p.fraction;
+      c.max_depth_mm(f, g) = p.max_depth;
+    }
+  }
+  return c;
 }
 
 }  // namespace bodymodel
