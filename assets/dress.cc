@@ -2,9 +2,11 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <map>
 
 #include "core/error.h"
+#include "registration/correspondence.h"
 
 namespace bodymodel {
 
@@ -128,6 +130,22 @@ SkinWeights weights_with_helpers(const SkinWeights& skin_W, const HelperBinding&
 
 }  // namespace
 
+SkinWeights skin_weights_at(const Eigen::MatrixX3d& P, const Eigen::MatrixX3d& body_V, const Eigen::MatrixX3i& body_F,
+                            const SkinWeights& W, Eigen::VectorXd* distance) {
+  const std::vector<SurfaceLocation> loc = locate_on_surface(P, body_V, body_F);
+  std::vector<Eigen::Triplet<double>> t;
+  if (distance) distance->resize(P.rows());
+  for (Eigen::Index i = 0; i < P.rows(); ++i) {
+    for (int k = 0; k < 3; ++k)
+      for (SkinWeights::InnerIterator it(W, body_F(loc[i].face, k)); it; ++it)
+        t.emplace_back(i, it.col(), loc[i].bary[k] * it.value());
+    if (distance) (*distance)[i] = loc[i].distance;
+  }
+  SkinWeights out(P.rows(), W.cols());
+  out.setFromTriplets(t.begin(), t.end());
+  return out;
+}
+
 DressedSkinBody dress_skin_body(const Eigen::MatrixX3d& skin_rest, const Eigen::MatrixX3i& skin_F,
                                 const SkinWeights& skin_W, const HelperRegressor& regressor,
                                 const HelperBinding& tie, const std::vector<Asset>& outfit,
@@ -143,6 +161,15 @@ DressedSkinBody dress_skin_body(const Eigen::MatrixX3d& skin_rest, const Eigen::
   for (const Asset& a : outfit) bindings.push_back(&a.binding);
   d.hidden = hidden_body_vertices(bindings, static_cast<int>(full.rows()));
   d.hidden.resize(skin_rest.rows());
+  if (options.skin_weights_near >= 0)
+    for (DressedPart& p : d.parts) {
+      if (!p.garment) continue;
+      Eigen::VectorXd dist;
+      const SkinWeights near = skin_weights_at(p.V, skin_rest, skin_F, skin_W, &dist);
+      const double span = std::max(1e-9, options.skin_weights_far - options.skin_weights_near);
+      const Eigen::VectorXd a = ((dist.array() - options.skin_weights_near) / span).min(1.0).max(0.0);
+      p.weights = SkinWeights((Eigen::VectorXd(1.0 - a.array())).asDiagonal() * near + a.asDiagonal() * p.weights);
+    }
   return d;
 }
 

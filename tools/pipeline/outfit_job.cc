@@ -34,6 +34,8 @@ OutfitKit load_outfit_kit(const std::string& outfits, const fs::path& makehuman_
                                    kit.spec.source, entry, name));
     kit.assets.emplace(name, std::move(a));
   }
+  kit.dress.skin_weights_near = 10;
+  kit.dress.skin_weights_far = 30;
   if (fit_helpers) {
     const MakeHuman mh = MakeHuman::load(makehuman_dir);
     kit.regressor = fit_helper_regressor(mh, helper_options);
@@ -48,6 +50,11 @@ bool outfit_sex_is_male(const BodyModel& model, Sex conditioned, const Eigen::Ve
   if (k >= 0 && encoding.size() == model.shape.pca.dimension())
     return model.shape.regression.predict(model.shape.pca.project(encoding))[k] >= 0.5;
   return (seed * 0x9e3779b97f4a7c15ull) >> 63;
+}
+
+std::optional<OutfitKit> outfit_kit_if_asked(const std::string& outfits, const fs::path& makehuman_dir) {
+  if (outfits.empty()) return std::nullopt;
+  return load_outfit_kit(outfits, makehuman_dir);
 }
 
 namespace {
@@ -123,7 +130,7 @@ DressedCharacterResult write_dressed_character(const OutfitKit& kit, const Chara
   std::vector<Asset> outfit;
   for (const DrawnItem& i : r.drawn.items) outfit.push_back(kit.assets.at(i.asset));
   const SkinWeights W = skin_weights_of(ch.lbs);
-  DressOptions o;
+  DressOptions o = kit.dress;
   o.skin_colour = r.drawn.skin;
   o.depth_mm = r.depth_mm;
   DressedSkinBody d = dress_skin_body(ch.lbs.rest, ch.F, W, kit.regressor, kit.tie, outfit, o);

@@ -8,6 +8,7 @@
 
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -27,6 +28,10 @@ struct OutfitKit {
   std::map<std::string, Asset> assets;   // by name
   HelperRegressor regressor;
   HelperBinding tie;
+  // How each character is dressed: garments within 1 cm of the skin take the skin's weights
+  // (DressOptions::skin_weights_near) and are pushed `push.clearance` (1 mm) out at rest. Set by
+  // load_outfit_kit (figures: docs/assets.md#outfits).
+  DressOptions dress;
 };
 
 // `outfits` = a JSON file or "default". Reads every asset the file names (InputError "'FILE':
@@ -34,6 +39,9 @@ struct OutfitKit {
 // `fit_helpers` false skips the regressor and tie (to check a file before any work).
 OutfitKit load_outfit_kit(const std::string& outfits, const std::filesystem::path& makehuman_dir,
                           bool fit_helpers = true, const HelperRegressorOptions& helper_options = {});
+
+// load_outfit_kit for a verb's --outfits value; nothing when it is empty.
+std::optional<OutfitKit> outfit_kit_if_asked(const std::string& outfits, const std::filesystem::path& makehuman_dir);
 
 struct DressedCharacterResult {
   DrawnOutfit drawn;

@@ -242,8 +242,7 @@ void run_character(CharacterArgs& a) {
   if (a.unpose && a.in.empty()) throw InputError("character: --unpose needs --in (the posed body)");
   if (!a.judge_scans.empty() && a.judge_poses.empty())
     throw InputError("character: --judge-scans needs --judge-poses (the registrations of those scans)");
-  std::optional<OutfitKit> kit;  // checked before anything is written
-  if (!a.outfits.empty()) kit = load_outfit_kit(a.outfits, data_file("makehuman"));
+  const std::optional<OutfitKit> kit = outfit_kit_if_asked(a.outfits, data_file("makehuman"));  // before any write
   StagedFolder out(a.out, a.force);
   auto model = std::make_shared<const BodyModel>(load_model(a.model));
   if (model->rig.empty())
@@ -263,8 +262,8 @@ void run_character(CharacterArgs& a) {
     o.judge_poses.push_back(std::move(p));
   }
   Eigen::MatrixX3d V;
-  Eigen::VectorXd encoding;  // of a generated body (the outfit's sex when --where does not fix it)
-  Sex sex = Sex::unknown;
+  Eigen::VectorXd encoding;  // of a generated body
+  Sex sex = Sex::unknown;    // the outfit's sex: --where's, else predicted from the encoding
   // The description goes into rig.npz: file names only, not the folders of this machine.
   nlohmann::json desc = {{"model", path_label(a.model)}};
   if (!a.in.empty()) {
@@ -296,12 +295,11 @@ void run_character(CharacterArgs& a) {
     ShapeMorpher morpher(model);
     GenerateOptions go;
     go.morph.sex = sex_of(cond);
-    GeneratedBody g = generate_body(morpher, cond, a.seed, go);
+    const GeneratedBody g = generate_body(morpher, cond, a.seed, go);
     encoding = g.encoding, sex = go.morph.sex;
     if (!g.satisfied) cli::warn("the generated body does not meet every --where condition:\n" + g.summary.report());
     V = g.V;
-    desc["seed"] = a.seed;
-    desc["where"] = a.where;
+    desc["seed"] = a.seed, desc["where"] = a.where;
     cli::info(fmt::format("generated body: {:.1f} cm, {:.1f} kg (measured)", g.measured.height_cm,
                           g.measured.weight_kg));
   }

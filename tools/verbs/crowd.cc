@@ -173,6 +173,8 @@ void write_crowd_summary(const CrowdArgs& a, const fs::path& out, int skipped) {
 
 void run_crowd(CrowdArgs& a) {
   const fs::path out = a.out;
+  // The outfit file and its assets are checked before anything is read or written.
+  const std::optional<OutfitKit> kit = outfit_kit_if_asked(a.outfits, data_file("makehuman"));
   // Every setting that changes a character, the model and clip by content (no paths): a rerun with
   // other settings is refused instead of resumed (tools/pipeline/folder_settings.h). --count may
   // grow: the characters already finished are kept.
@@ -188,9 +190,6 @@ void run_crowd(CrowdArgs& a) {
                                    {"repair", !a.no_repair},
                                    {"outfits", a.outfits.empty() || a.outfits == "default" ? a.outfits
                                                                                            : file_fingerprint(a.outfits)}};
-  // The outfit file and its assets are checked before anything is written.
-  std::optional<OutfitKit> kit;
-  if (!a.outfits.empty()) kit = load_outfit_kit(a.outfits, data_file("makehuman"));
   ResumableFolder folder(out, "crowd.json", settings, a.force, [](const std::string& n) {
     return n == "crowd.csv" || n == "crowd.png" || n == "outfits.csv" || n.rfind("char_", 0) == 0;
   });
