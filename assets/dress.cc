@@ -1,8 +1,12 @@
 #include "assets/dress.h"
 
+#include <fmt/format.h>
+
+#include <algorithm>
 #include <map>
 
 #include "core/error.h"
+#include "registration/correspondence.h"
 
 namespace bodymodel {
 
@@ -105,6 +109,97 @@ std::vector<DressedPart> dress_body(const Eigen::MatrixX3d& rest_full, const Eig
     parts.push_back(std::move(p));
   }
   return parts;
+}
+
+namespace {
+
+// Weights of all 19158 rows: the skin's, then each helper's skin triangle's mixed by the tie's
+// barycentric coordinates (non-negative: closest points lie in their triangle).
+SkinWeights weights_with_helpers(const SkinWeights& skin_W, const HelperBinding& tie) {
+  std::vector<Eigen::Triplet<double>> t;
+  for (int v = 0; v < skin_W.outerSize(); ++v)
+    for (SkinWeights::InnerIterator it(skin_W, v); it; ++it) t.emplace_back(v, it.col(), it.value());
+  for (Eigen::Index h = 0; h < tie.triangle.rows(); ++h)
+    for (int k = 0; k < 3; ++k)
+      for (SkinWeights::InnerIterator it(skin_W, tie.triangle(h, k)); it; ++it)
+        t.emplace_back(tie.body_vertex_count + h, it.col(), tie.bary(h, k) * it.value());
+  SkinWeights W(tie.vertex_count, skin_W.cols());
+  W.setFromTriplets(t.begin(), t.end());  // duplicates are summed
+  return W;
+}
+
+}  // namespace
+
+SkinWeights skin_weights_at(const Eigen::MatrixX3d& P, const Eigen::MatrixX3d& body_V, const Eigen::MatrixX3i& body_F,
+                            const SkinWeights& W, Eigen::VectorXd* distance) {
+  const std::vector<SurfaceLocation> loc = locate_on_surface(P, body_V, body_F);
+  std::vector<Eigen::Triplet<double>> t;
+  if (distance) distance->resize(P.rows());
+  for (Eigen::Index i = 0; i < P.rows(); ++i) {
+    for (int k = 0; k < 3; ++k)
+      for (SkinWeights::InnerIterator it(W, body_F(loc[i].face, k)); it; ++it)
+        t.emplace_back(i, it.col(), loc[i].bary[k] * it.value());
+    if (distance) (*distance)[i] = loc[i].distance;
+  }
+  SkinWeights out(P.rows(), W.cols());
+  out.setFromTriplets(t.begin(), t.end());
+  return out;
+}
+
+DressedSkinBody dress_skin_body(const Eigen::MatrixX3d& skin_rest, const Eigen::MatrixX3i& skin_F,
+                                const SkinWeights& skin_W, const HelperRegressor& regressor,
+                                const HelperBinding& tie, const std::vector<Asset>& outfit,
+                                const DressOptions& options) {
+  if (skin_rest.rows() != regressor.body_vertex_count || skin_rest.rows() != tie.body_vertex_count ||
+      skin_W.rows() != skin_rest.rows())
+    throw InputError(fmt::format("dress_skin_body: a body of {} vertices and {} weight rows; the helpers need {}",
+                                 skin_rest.rows(), skin_W.rows(), regressor.body_vertex_count));
+  const Eigen::MatrixX3d full = complete_with_helpers(regressor, skin_rest);
+  DressedSkinBody d;
+  d.parts = dress_body(full, skin_F, weights_with_helpers(skin_W, tie), nullptr, outfit, options);
+  std::vector<const AssetBinding*> bindings;
+  for (const Asset& a : outfit) bindings.push_back(&a.binding);
+  d.hidden = hidden_body_vertices(bindings, static_cast<int>(full.rows()));
+  d.hidden.resize(skin_rest.rows());
+  if (options.skin_weights_near >= 0)
+    for (DressedPart& p : d.parts) {
+      if (!p.garment) continue;
+      Eigen::VectorXd dist;
+      const SkinWeights near = skin_weights_at(p.V, skin_rest, skin_F, skin_W, &dist);
+      const double span = std::max(1e-9, options.skin_weights_far - options.skin_weights_near);
+      const Eigen::VectorXd a = ((dist.array() - options.skin_weights_near) / span).min(1.0).max(0.0);
+      p.weights = SkinWeights((Eigen::VectorXd(1.0 - a.array())).asDiagonal() * near + a.asDiagonal() * p.weights);
+    }
+  return d;
+}
+
+int ClipPenetration::frames_over(double limit) const {
+  int n = 0;
+  for (Eigen::Index f = 0; f < fraction.rows(); ++f) n += fraction.cols() > 0 && fraction.row(f).maxCoeff() > limit;
+  return n;
+}
+
+ClipPenetration clip_penetration(const std::vector<DressedPart>& parts, const Eigen::MatrixX3d& skin_rest,
+                                 const Eigen::MatrixX3i& skin_F, const SkinWeights& skin_W,
+                                 const std::vector<char>& hidden, const std::vector<BoneTransforms>& frames,
+                                 double depth_mm) {
+  ClipPenetration c;
+  std::vector<const DressedPart*> garments;
+  for (const DressedPart& p : parts)
+    if (p.garment) garments.push_back(&p), c.garments.push_back(p.name);
+  const Eigen::Index F = static_cast<Eigen::Index>(frames.size()), G = static_cast<Eigen::Index>(garments.size());
+  c.fraction.setZero(F, G);
+  c.max_depth_mm.setZero(F, G);
+  for (Eigen::Index f = 0; f < F; ++f) {
+    const Eigen::MatrixX3d body = linear_blend_skinning(skin_rest, skin_W, frames[f]);
+    for (Eigen::Index g = 0; g < G; ++g) {
+      const Eigen::MatrixX3d X = linear_blend_skinning(garments[g]->V, garments[g]->weights, frames[f]);
+      const Penetration p = penetration_of(body_distance(X, body, skin_F, hidden), depth_mm);
+      c.fraction(f, g) = p.fraction;
+      c.max_depth_mm(f, g) = p.max_depth;
+    }
+  }
+  return c;
 }
 
 }  // namespace bodymodel

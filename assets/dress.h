@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "assets/fit.h"
+#include "assets/helpers.h"
 #include "assets/penetration.h"
 #include "core/skeleton.h"
 
@@ -32,6 +33,12 @@ struct DressOptions {
   PushOutOptions push;
   double depth_mm = 2.0;        // the penetration threshold reported
   Eigen::Vector3d skin_colour{0.82, 0.64, 0.54};
+  // dress_skin_body only: garment vertices within `skin_weights_near` mm of the skin take the
+  // weights of their closest skin point (skin_weights_at), blended linearly to the weights carried
+  // through the binding at `skin_weights_far` mm (a skirt's hem keeps the binding's). The carried
+  // weights come from the helper shells, skinned a little differently from the skin beneath:
+  // in motion that is what pushes skin through tight cloth (docs/assets.md). < 0 = off.
+  double skin_weights_near = -1, skin_weights_far = 30;
 };
 
 struct DressedPart {
@@ -52,5 +59,39 @@ struct DressedPart {
 std::vector<DressedPart> dress_body(const Eigen::MatrixX3d& rest_full, const Eigen::MatrixX3i& body_F,
                                     const SkinWeights& W, const BoneTransforms* pose,
                                     const std::vector<Asset>& outfit, const DressOptions& options = {});
+
+// Weights of each point (#P by 3) from its closest point on the body surface (V, F; W the rows
+// of V): the closest triangle's rows mixed by the barycentric coordinates. `distance` (optional)
+// receives each point's distance to the surface (mm).
+SkinWeights skin_weights_at(const Eigen::MatrixX3d& P, const Eigen::MatrixX3d& body_V, const Eigen::MatrixX3i& body_F,
+                            const SkinWeights& W, Eigen::VectorXd* distance = nullptr);
+
+// A character of the statistical model (skin only: skin_rest the 13380 hm08 skin vertices, mm,
+// skin_F its faces, skin_W its weights) dressed at rest: the helpers the assets are bound to
+// rebuilt by the regressor (positions) and the tie (weights: each helper takes its skin
+// triangle's rows mixed by its barycentric coordinates), then dress_body. `hidden` flags the
+// skin vertices the outfit hides (#skin).
+struct DressedSkinBody {
+  std::vector<DressedPart> parts;
+  std::vector<char> hidden;
+};
+DressedSkinBody dress_skin_body(const Eigen::MatrixX3d& skin_rest, const Eigen::MatrixX3i& skin_F,
+                                const SkinWeights& skin_W, const HelperRegressor& regressor,
+                                const HelperBinding& tie, const std::vector<Asset>& outfit,
+                                const DressOptions& options = {});
+
+// Body-through-cloth penetration over a clip as a skinned glb plays it: per frame, the body
+// (skin_rest posed by linear blend skinning with skin_W) and each garment of `parts` (dressed at
+// rest, posed with its carried weights), penetration_of at depth_mm.
+struct ClipPenetration {
+  std::vector<std::string> garments;
+  Eigen::MatrixXd fraction, max_depth_mm;   // #frames by #garments
+  // Frames where some garment has more than `limit` of its vertices deeper than depth_mm.
+  int frames_over(double limit) const;
+};
+ClipPenetration clip_penetration(const std::vector<DressedPart>& parts, const Eigen::MatrixX3d& skin_rest,
+                                 const Eigen::MatrixX3i& skin_F, const SkinWeights& skin_W,
+                                 const std::vector<char>& hidden, const std::vector<BoneTransforms>& frames,
+                                 double depth_mm = 2.0);
 
 }  // namespace bodymodel

@@ -91,5 +91,24 @@ TEST_F(DressCli, BadInputExitsTwoAndWritesNothing) {
   EXPECT_FALSE(fs::exists(dir / "x.mtl"));
 }
 
+// `crowd --outfits` and `character --outfits` check the outfit file and its assets before
+// anything else: one line naming the file and the entry, exit 2, no output folder.
+TEST_F(DressCli, BadOutfitFilesExitTwoAndWriteNothing) {
+  const fs::path bad = dir / "outfits.json";
+  const std::string male = R"("male": {"hair": [{"asset": "short02"}]})";
+  std::ofstream(bad) << R"({"female": {"hair": [{"asset": "bob01"}, {"asset": "bob9", "weight": 2}]}, )" << male << "}";
+  for (const std::string verb : {"crowd no_model.npz --bvh no.bvh", "character no_model.npz"}) {
+    auto r = run_cli(verb + " --outfits " + bad.string() + " --out " + (dir / "out").string());
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find("outfits.json': female.hair[1]: unknown asset 'bob9'"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(dir / "out"));
+  }
+  std::ofstream(bad) << R"({"female": {"hair": [{"asset": "bob01", "palette": "neon"}]}, )" << male << "}";
+  auto r = run_cli("crowd no_model.npz --bvh no.bvh --outfits " + bad.string() + " --out " + (dir / "out").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("female.hair[0]: unknown palette 'neon'"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
 }  // namespace
 }  // namespace bodymodel

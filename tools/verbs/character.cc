@@ -7,8 +7,10 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <optional>
 
 #include "core/body_size.h"
+#include "core/data_path.h"
 #include "core/error.h"
 #include "core/io/csv.h"
 #include "core/io/file_names.h"
@@ -20,6 +22,7 @@
 #include "tools/console.h"
 #include "tools/pipeline/character_job.h"
 #include "tools/pipeline/conditions.h"
+#include "tools/pipeline/outfit_job.h"
 #include "tools/pipeline/output_folder.h"
 #include "tools/verb.h"
 
@@ -29,7 +32,7 @@ namespace {
 struct CharacterArgs {
   std::string model, in, out;
   std::vector<std::string> where, judge_poses;
-  std::string judge_scans;
+  std::string judge_scans, outfits;
   bool unpose = false;
   uint64_t seed = 1;
   bool force = false;
@@ -201,6 +204,22 @@ void add_character_options(CLI::App* cmd, CharacterArgs& a) {
   cmd->add_flag("--fold-rest-reference", a.fold_rest_reference,
                 "Fold repair from the rest body's local shape instead of the body skinned into the pose");
   cmd->add_option("--threads", a.threads, "Threads for the pose morphs (0 = all cores)")->capture_default_str();
+  cmd->add_option("--outfits", a.outfits,
+                  "Also dress the character: a JSON of outfit choices per sex, or 'default' (docs/assets.md#outfits), "
+                  "drawn with --seed: OUT/dressed.glb (rest pose), OUT/outfit.json, OUT/penetration.csv");
+}
+
+// The character in the folder dressed in an outfit drawn with the seed (rest pose).
+void dress_character_folder(const OutfitKit& kit, const BodyModel& model, Sex sex, const Eigen::VectorXd& encoding,
+                            uint64_t seed, const fs::path& dir) {
+  const CharacterRigFile ch = load_character_rig(dir / "rig.npz");
+  const DressedCharacterResult r =
+      write_dressed_character(kit, ch, outfit_sex_is_male(model, sex, encoding, seed), seed, {}, 1.0 / 30, dir);
+  std::string items;
+  for (const DrawnItem& i : r.drawn.items) items += " " + i.asset + " " + i.hex;
+  cli::info(fmt::format("dressed ({}, skin {}):{}; {:.2f} MB; garment vertices > 2 mm inside at rest: {:.2f} % (worst)",
+                        r.drawn.male ? "male" : "female", r.drawn.skin_hex, items, r.glb_bytes / 1e6,
+                        r.penetration.fraction.size() ? 100 * r.penetration.fraction.maxCoeff() : 0.0));
 }
 
 void run_character(CharacterArgs& a) {
@@ -223,6 +242,7 @@ void run_character(CharacterArgs& a) {
   if (a.unpose && a.in.empty()) throw InputError("character: --unpose needs --in (the posed body)");
   if (!a.judge_scans.empty() && a.judge_poses.empty())
     throw InputError("character: --judge-scans needs --judge-poses (the registrations of those scans)");
+  const std::optional<OutfitKit> kit = outfit_kit_if_asked(a.outfits, data_file("makehuman"));  // before any write
   StagedFolder out(a.out, a.force);
   auto model = std::make_shared<const BodyModel>(load_model(a.model));
   if (model->rig.empty())
@@ -242,6 +262,8 @@ void run_character(CharacterArgs& a) {
     o.judge_poses.push_back(std::move(p));
   }
   Eigen::MatrixX3d V;
+  Eigen::VectorXd encoding;  // of a generated body
+  Sex sex = Sex::unknown;    // the outfit's sex: --where's, else predicted from the encoding
   // The description goes into rig.npz: file names only, not the folders of this machine.
   nlohmann::json desc = {{"model", path_label(a.model)}};
   if (!a.in.empty()) {
@@ -273,11 +295,11 @@ void run_character(CharacterArgs& a) {
     ShapeMorpher morpher(model);
     GenerateOptions go;
     go.morph.sex = sex_of(cond);
-    GeneratedBody g = generate_body(morpher, cond, a.seed, go);
+    const GeneratedBody g = generate_body(morpher, cond, a.seed, go);
+    encoding = g.encoding, sex = go.morph.sex;
     if (!g.satisfied) cli::warn("the generated body does not meet every --where condition:\n" + g.summary.report());
     V = g.V;
-    desc["seed"] = a.seed;
-    desc["where"] = a.where;
+    desc["seed"] = a.seed, desc["where"] = a.where;
     cli::info(fmt::format("generated body: {:.1f} cm, {:.1f} kg (measured)", g.measured.height_cm,
                           g.measured.weight_kg));
   }
@@ -286,6 +308,7 @@ void run_character(CharacterArgs& a) {
   bar.finish(fmt::format("{} training + {} held-out poses; examples {:.0f} s, fits {:.0f} s{}", r.training_poses,
                          r.held_out_poses, r.examples_seconds, r.fit_seconds,
                          r.judged.empty() ? "" : fmt::format(", real poses {:.0f} s", r.judge_seconds)));
+  if (kit) dress_character_folder(*kit, *model, sex, encoding, a.seed, out.path());
   out.commit();
   print_fit_table(r.errors);
   const RigErrorRow& lbs = find_row(r.errors, "lbs", "held_out");

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -21,6 +22,7 @@
 #include "tools/pipeline/character_job.h"
 #include "tools/pipeline/conditions.h"
 #include "tools/pipeline/folder_settings.h"
+#include "tools/pipeline/outfit_job.h"
 #include "tools/pipeline/output_folder.h"
 #include "tools/render/render.h"
 #include "tools/verb.h"
@@ -31,7 +33,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct CrowdArgs {
-  std::string model, bvh, out, frames_format = "none";
+  std::string model, bvh, out, frames_format = "none", outfits;
   std::vector<std::string> where;
   int count = 20;
   uint64_t seed = 1;
@@ -69,7 +71,33 @@ void add_crowd_options(CLI::App* cmd, CrowdArgs& a) {
   cmd->add_flag("--no-repair", a.no_repair,
                 "No fold repair of the animation frames (on by default, as `bodymodel animate`; the glb files "
                 "are never repaired)");
+  cmd->add_option("--outfits", a.outfits,
+                  "Dress every character: a JSON of outfit choices per sex, or 'default' (a street; "
+                  "docs/assets.md#outfits): OUT/char_NNN/anim/ dressed.glb, outfit.json, penetration.csv");
   cmd->add_flag("--force", a.force, "Replace an existing output folder made with other settings");
+}
+
+// The dressed crowd's table (OUT/outfits.csv) and summary lines, from each character's outfit.json.
+void write_outfit_summary(const CrowdArgs& a, const fs::path& out) {
+  std::string csv = "character,sex,skin,items,frames,frames_over_limit,worst_fraction,glb_bytes\n";
+  int over = 0, frames = 0;
+  size_t max_bytes = 0;
+  for (int i = 0; i < a.count; ++i) {
+    const fs::path f = out / fmt::format("char_{:03d}", i) / "anim" / "outfit.json";
+    const nlohmann::json j = nlohmann::json::parse(read_text_file(f));
+    std::string items;
+    for (auto& it : j["items"]) items += (items.empty() ? "" : " ") + it["asset"].get<std::string>() + ":" +
+                                         it["srgb"].get<std::string>();
+    const auto& p = j["penetration"];
+    csv += fmt::format("char_{:03d},{},{},{},{},{},{:.5f},{}\n", i, j["sex"].get<std::string>(),
+                       j["skin"]["srgb"].get<std::string>(), items, p["frames"].get<int>(),
+                       p["frames_over_limit"].get<int>(), p["worst_fraction"].get<double>(), j["glb_bytes"].get<size_t>());
+    over += p["frames_over_limit"].get<int>(), frames += p["frames"].get<int>();
+    max_bytes = std::max(max_bytes, j["glb_bytes"].get<size_t>());
+  }
+  write_text_file(out / "outfits.csv", csv);
+  fmt::print("dressed: frames with the body through a garment (> 2 mm over 1 % of its vertices) {} of {}; "
+             "largest dressed.glb {:.2f} MB\n", over, frames, max_bytes / 1e6);
 }
 
 // Up to 10 bodies a row, one scale.
@@ -145,6 +173,8 @@ void write_crowd_summary(const CrowdArgs& a, const fs::path& out, int skipped) {
 
 void run_crowd(CrowdArgs& a) {
   const fs::path out = a.out;
+  // The outfit file and its assets are checked before anything is read or written.
+  const std::optional<OutfitKit> kit = outfit_kit_if_asked(a.outfits, data_file("makehuman"));
   // Every setting that changes a character, the model and clip by content (no paths): a rerun with
   // other settings is refused instead of resumed (tools/pipeline/folder_settings.h). --count may
   // grow: the characters already finished are kept.
@@ -157,9 +187,11 @@ void run_crowd(CrowdArgs& a) {
                                    {"fps", a.fps},
                                    {"max_frames", a.max_frames},
                                    {"frames_format", a.frames_format},
-                                   {"repair", !a.no_repair}};
+                                   {"repair", !a.no_repair},
+                                   {"outfits", a.outfits.empty() || a.outfits == "default" ? a.outfits
+                                                                                           : file_fingerprint(a.outfits)}};
   ResumableFolder folder(out, "crowd.json", settings, a.force, [](const std::string& n) {
-    return n == "crowd.csv" || n == "crowd.png" || n.rfind("char_", 0) == 0;
+    return n == "crowd.csv" || n == "crowd.png" || n == "outfits.csv" || n.rfind("char_", 0) == 0;
   });
   auto model = std::make_shared<const BodyModel>(load_model(a.model));
   if (model->rig.empty())
@@ -202,13 +234,20 @@ void run_crowd(CrowdArgs& a) {
     CharacterRigFile ch = load_character_rig(dir / "rig.npz");
     ClipPoses poses = retarget_clip(clip, ch.skeleton, data_file("makehuman"), true, a.bvh);
     ensure_directory(dir / "anim");
-    animate_character(ch, poses, dir / "anim", ao, sub(0.9, 1.0));
+    const AnimateResult ar = animate_character(ch, poses, dir / "anim", ao, sub(0.9, 1.0));
+    if (kit) {
+      std::vector<BoneTransforms> frames;
+      for (int f : ar.source_frames) frames.push_back(forward_kinematics(ch.skeleton, restrict_pose(poses.poses[f], ch.driven)));
+      write_dressed_character(*kit, ch, outfit_sex_is_male(*model, go.morph.sex, g.encoding, seed), seed, frames,
+                              ar.frame_time, dir / "anim");
+    }
     dir.commit();
   }
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   bar.finish(fmt::format("{} characters ({} already done) in {:.0f} s", a.count, skipped, secs));
   write_crowd_summary(a, out, skipped);
-  cli::info("wrote " + out.string() + "/crowd.csv, crowd.png");
+  if (kit) write_outfit_summary(a, out);
+  cli::info("wrote " + out.string() + "/crowd.csv, crowd.png" + (kit ? ", outfits.csv" : ""));
 }
 
 }  // namespace
@@ -220,7 +259,8 @@ BODYMODEL_VERB(add_crowd_verb) {
       "A crowd of rigged, animated characters: COUNT bodies generated from the model (--where\n"
       "conditions, seeded), each made a character (as `bodymodel character`) and animated with the\n"
       "clip (as `bodymodel animate`): OUT/char_NNN/ {body.obj, rig.npz, fit.csv, character.glb,\n"
-      "anim/animated.glb, anim/animation.csv, anim/frames.png}, OUT/crowd.csv, OUT/crowd.png.\n"
+      "anim/animated.glb, anim/animation.csv, anim/frames.png}, OUT/crowd.csv, OUT/crowd.png; with\n"
+      "--outfits each character also dressed (anim/dressed.glb, outfit.json, penetration.csv).\n"
       "A rerun with the same settings skips the characters already finished.");
   add_crowd_options(cmd, *a);
   cmd->callback([a] { run_crowd(*a); });

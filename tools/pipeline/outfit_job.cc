@@ -1,0 +1,159 @@
+#include "tools/pipeline/outfit_job.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <nlohmann/json.hpp>
+
+#include "core/error.h"
+#include "core/io/atomic_write.h"
+#include "core/makehuman.h"
+#include "skinning/gltf_export.h"
+#include "tools/pipeline/animate_job.h"
+
+namespace bodymodel {
+
+namespace fs = std::filesystem;
+
+OutfitKit load_outfit_kit(const std::string& outfits, const fs::path& makehuman_dir, bool fit_helpers,
+                          const HelperRegressorOptions& helper_options) {
+  OutfitKit kit;
+  kit.spec = outfits == "default" ? default_outfits() : parse_outfits(read_text_file(outfits), outfits);
+  const fs::path root = makehuman_dir / "assets";
+  for (const auto& [entry, name] : each_outfit_asset(kit.spec)) {
+    if (kit.assets.count(name)) continue;
+    fs::path file;
+    try {
+      file = find_asset(root, name);
+    } catch (const InputError& e) {
+      throw InputError(fmt::format("'{}': {}: {}", kit.spec.source, entry, e.what()));
+    }
+    Asset a = load_asset(file);
+    if (a.binding.proxy)
+      throw InputError(fmt::format("'{}': {}: '{}' is a proxy (a replacement body), not something to wear",
+                                   kit.spec.source, entry, name));
+    kit.assets.emplace(name, std::move(a));
+  }
+  kit.dress.skin_weights_near = 10;
+  kit.dress.skin_weights_far = 30;
+  if (fit_helpers) {
+    const MakeHuman mh = MakeHuman::load(makehuman_dir);
+    kit.regressor = fit_helper_regressor(mh, helper_options);
+    kit.tie = bind_helpers(mh.build_vertices(MacroSettings{}), mh.body_faces());
+  }
+  return kit;
+}
+
+bool outfit_sex_is_male(const BodyModel& model, Sex conditioned, const Eigen::VectorXd& encoding, uint64_t seed) {
+  if (conditioned != Sex::unknown) return conditioned == Sex::male;
+  const int k = model.shape.regression.find("sex");
+  if (k >= 0 && encoding.size() == model.shape.pca.dimension())
+    return model.shape.regression.predict(model.shape.pca.project(encoding))[k] >= 0.5;
+  return (seed * 0x9e3779b97f4a7c15ull) >> 63;
+}
+
+std::optional<OutfitKit> outfit_kit_if_asked(const std::string& outfits, const fs::path& makehuman_dir) {
+  if (outfits.empty()) return std::nullopt;
+  return load_outfit_kit(outfits, makehuman_dir);
+}
+
+namespace {
+
+// The largest `keep` weights of each row, renormalised: what a glTF player (4 joints a vertex)
+// applies, so the penetration measured is the one the glb shows.
+SkinWeights largest_weights(const SkinWeights& W, int keep) {
+  std::vector<Eigen::Triplet<double>> t;
+  for (int r = 0; r < W.outerSize(); ++r) {
+    std::vector<std::pair<double, int>> row;
+    for (SkinWeights::InnerIterator it(W, r); it; ++it) row.emplace_back(it.value(), static_cast<int>(it.col()));
+    std::sort(row.rbegin(), row.rend());
+    row.resize(std::min<size_t>(row.size(), keep));
+    double sum = 0;
+    for (auto& [w, b] : row) sum += w;
+    for (auto& [w, b] : row) t.emplace_back(r, b, w / sum);
+  }
+  SkinWeights out(W.rows(), W.cols());
+  out.setFromTriplets(t.begin(), t.end());
+  return out;
+}
+
+// One skinned mesh, a primitive and material per part (as `bodymodel dress`), with the clip.
+size_t write_dressed_glb(const fs::path& path, const std::vector<DressedPart>& parts, const Skeleton& skeleton,
+                         const std::vector<BoneTransforms>& frames, double frame_time) {
+  Eigen::Index nv = 0, nf = 0;
+  for (const DressedPart& p : parts) nv += p.V.rows(), nf += p.F.rows();
+  Eigen::MatrixX3d V(nv, 3);
+  Eigen::MatrixX3i F(nf, 3);
+  std::vector<Eigen::Triplet<double>> t;
+  GltfExportOptions o;
+  o.mesh_name = "dressed";
+  Eigen::Index v0 = 0, f0 = 0;
+  for (const DressedPart& p : parts) {
+    V.middleRows(v0, p.V.rows()) = p.V;
+    F.middleRows(f0, p.F.rows()) = p.F.array() + static_cast<int>(v0);
+    for (int r = 0; r < p.weights.outerSize(); ++r)
+      for (SkinWeights::InnerIterator it(p.weights, r); it; ++it) t.emplace_back(v0 + r, it.col(), it.value());
+    o.parts.push_back({p.name, static_cast<int>(f0), static_cast<int>(p.F.rows()), p.colour.cwiseMin(1.0), p.roughness});
+    v0 += p.V.rows(), f0 += p.F.rows();
+  }
+  SkinWeights W(nv, skeleton.bone_count());
+  W.setFromTriplets(t.begin(), t.end());
+  GltfAnimation clip;
+  clip.frame_time = frame_time;
+  clip.frames = frames;
+  return write_skinned_gltf(path, V, F, {}, skeleton, W, frames.empty() ? nullptr : &clip, o).bytes;
+}
+
+nlohmann::json outfit_json(const DressedCharacterResult& r) {
+  nlohmann::json items = nlohmann::json::array();
+  for (const DrawnItem& i : r.drawn.items)
+    items.push_back({{"slot", i.slot}, {"asset", i.asset}, {"palette", i.palette}, {"srgb", i.hex},
+                     {"linear", {i.colour[0], i.colour[1], i.colour[2]}}});
+  return {{"sex", r.drawn.male ? "male" : "female"},
+          {"skin", {{"srgb", r.drawn.skin_hex}, {"linear", {r.drawn.skin[0], r.drawn.skin[1], r.drawn.skin[2]}}}},
+          {"items", items},
+          {"penetration", {{"depth_mm", r.depth_mm},
+                           {"limit", r.limit},
+                           {"frames", r.penetration.fraction.rows()},
+                           {"frames_over_limit", r.penetration.frames_over(r.limit)},
+                           {"worst_fraction", r.penetration.fraction.size() ? r.penetration.fraction.maxCoeff() : 0.0}}},
+          {"glb_bytes", r.glb_bytes}};
+}
+
+}  // namespace
+
+DressedCharacterResult write_dressed_character(const OutfitKit& kit, const CharacterRigFile& ch, bool male,
+                                               uint64_t seed, const std::vector<BoneTransforms>& frames,
+                                               double frame_time, const fs::path& dir) {
+  DressedCharacterResult r;
+  r.drawn = draw_outfit(kit.spec, male, seed);
+  std::vector<Asset> outfit;
+  for (const DrawnItem& i : r.drawn.items) outfit.push_back(kit.assets.at(i.asset));
+  const SkinWeights W = skin_weights_of(ch.lbs);
+  DressOptions o = kit.dress;
+  o.skin_colour = r.drawn.skin;
+  o.depth_mm = r.depth_mm;
+  DressedSkinBody d = dress_skin_body(ch.lbs.rest, ch.F, W, kit.regressor, kit.tie, outfit, o);
+  for (size_t k = 0; k < r.drawn.items.size(); ++k) d.parts[k + 1].colour = r.drawn.items[k].colour;
+  for (DressedPart& p : d.parts) p.weights = largest_weights(p.weights, 4);
+  r.parts = std::move(d.parts);
+  const std::vector<BoneTransforms> measured =
+      frames.empty() ? std::vector<BoneTransforms>{BoneTransforms(ch.skeleton.bone_count(), Eigen::Affine3d::Identity())}
+                     : frames;
+  r.penetration = clip_penetration(r.parts, ch.lbs.rest, ch.F, W, d.hidden, measured, r.depth_mm);
+  r.glb_bytes = write_dressed_glb(dir / "dressed.glb", r.parts, ch.skeleton, frames, frame_time);
+  std::string csv = "frame";
+  for (const std::string& g : r.penetration.garments) csv += fmt::format(",{0}_inside_fraction,{0}_max_depth_mm", g);
+  csv += "\n";
+  for (Eigen::Index f = 0; f < r.penetration.fraction.rows(); ++f) {
+    csv += std::to_string(f);
+    for (Eigen::Index g = 0; g < r.penetration.fraction.cols(); ++g)
+      csv += fmt::format(",{:.5f},{:.2f}", r.penetration.fraction(f, g), r.penetration.max_depth_mm(f, g));
+    csv += "\n";
+  }
+  write_text_file(dir / "penetration.csv", csv);
+  write_text_file(dir / "outfit.json", outfit_json(r).dump(2) + "\n");
+  return r;
+}
+
+}  // namespace bodymodel

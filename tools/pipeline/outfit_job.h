@@ -1,0 +1,66 @@
+// Dressed characters for `crowd` and `character` (--outfits FILE|default; docs/assets.md#outfits):
+// an outfit drawn per character (assets/outfits.h), its assets fitted to the character's body by
+// their bindings (helpers rebuilt from the skin), hidden skin removed, garments pushed out of the
+// skin at rest, everything skinned with the character's SSD rig (the weights carried through the
+// bindings) and written as one glb with a material (base colour, roughness) per part and the
+// clip; the body-through-cloth penetration of every frame as the glb plays it.
+#pragma once
+
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "assets/dress.h"
+#include "assets/helpers.h"
+#include "assets/outfits.h"
+#include "core/measure.h"
+#include "core/progress.h"
+#include "model/body_model.h"
+#include "tools/pipeline/character_file.h"
+
+namespace bodymodel {
+
+// What every character of a run shares: the outfit file, its assets read once, the helpers.
+struct OutfitKit {
+  OutfitSpec spec;
+  std::map<std::string, Asset> assets;   // by name
+  HelperRegressor regressor;
+  HelperBinding tie;
+  // How each character is dressed: garments within 1 cm of the skin take the skin's weights
+  // (DressOptions::skin_weights_near) and are pushed `push.clearance` (1 mm) out at rest. Set by
+  // load_outfit_kit (figures: docs/assets.md#outfits).
+  DressOptions dress;
+};
+
+// `outfits` = a JSON file or "default". Reads every asset the file names (InputError "'FILE':
+// female.hair[2]: unknown asset 'x' (known: ...)"), then fits the helper regressor (seconds).
+// `fit_helpers` false skips the regressor and tie (to check a file before any work).
+OutfitKit load_outfit_kit(const std::string& outfits, const std::filesystem::path& makehuman_dir,
+                          bool fit_helpers = true, const HelperRegressorOptions& helper_options = {});
+
+// load_outfit_kit for a verb's --outfits value; nothing when it is empty.
+std::optional<OutfitKit> outfit_kit_if_asked(const std::string& outfits, const std::filesystem::path& makehuman_dir);
+
+struct DressedCharacterResult {
+  DrawnOutfit drawn;
+  std::vector<DressedPart> parts;        // at rest; the drawn colours
+  ClipPenetration penetration;           // per frame (the rest pose when there is no clip)
+  double depth_mm = 2.0, limit = 0.01;   // the bound reported: frames over `limit` at depth_mm
+  size_t glb_bytes = 0;
+};
+
+// The body of a character file (ch.lbs.rest, ch.F, the SSD weights of ch.lbs, its skeleton)
+// dressed in the outfit drawn for (male, seed), posed by `frames` (bone maps, as animated.glb;
+// empty = the rest pose only). Writes DIR/dressed.glb (with the clip when there are frames),
+// DIR/outfit.json (what was drawn, colours) and DIR/penetration.csv (per frame and garment).
+DressedCharacterResult write_dressed_character(const OutfitKit& kit, const CharacterRigFile& ch, bool male,
+                                               uint64_t seed, const std::vector<BoneTransforms>& frames,
+                                               double frame_time, const std::filesystem::path& dir);
+
+// The sex an outfit is drawn for: the conditions' when they fix it, else the shape model's
+// "sex" label predicted from the body's encoding (≥ 0.5 male), else a coin from the seed.
+bool outfit_sex_is_male(const BodyModel& model, Sex conditioned, const Eigen::VectorXd& encoding, uint64_t seed);
+
+}  // namespace bodymodel
