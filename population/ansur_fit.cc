@@ -107,8 +107,14 @@ AnsurFitRun fit_ansur_rows(const ProportionFitter& fitter, const MeasurementSet&
   for (int r : rows)
     if (table.male.at(r) != male)
       throw InputError(fmt::format("'{}': fit one sex at a time (rows of both sexes were chosen)", table.source.string()));
-  const MeasurementPrior prior =
-      learn_measurement_prior(prior_table, male, names, prior_rows_of(table, prior_table, o, rows));
+  const std::vector<int> prior_rows = prior_rows_of(table, prior_table, o, rows);
+  int same_sex = 0;
+  for (int r : prior_rows) same_sex += prior_table.male.at(r) == male;
+  if (same_sex < static_cast<int>(names.size()) + 2)
+    throw InputError(fmt::format("'{}': {} soldiers of that sex are left to learn the population prior from (the "
+                                 "ones being fitted are left out): fit a --sample of the file or give --prior FILE",
+                                 prior_table.source.string(), same_sex));
+  const MeasurementPrior prior = learn_measurement_prior(prior_table, male, names, prior_rows);
   const int age_col = table.column("Age");
   AnsurFitRun run;
   run.people.resize(rows.size());

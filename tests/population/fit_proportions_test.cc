@@ -168,3 +168,21 @@ TEST(AnsurFit, GivenColumnsAreMetAndTheOthersFollowThePopulation) {
   EXPECT_GT(regression, 0);
   EXPECT_LE(body, 1.1 * 1.1 * regression);
 }
+
+TEST(AnsurFit, FittingEverySoldierOfThePriorFileIsRefusedWithAClearLine) {
+  // The prior leaves out the soldiers being fitted: fitting the whole file leaves none to learn
+  // it from, which must say what to do instead of failing deep inside.
+  const auto men = ansur_file("ansur2_male.csv");
+  if (!std::filesystem::exists(men) || makehuman().shape_modifiers().empty()) GTEST_SKIP() << men << " not found";
+  const AnsurTable table = read_ansur(men);
+  const MeasurementSet set = ansur_measurement_set(makehuman());
+  const ProportionFitter fitter(makehuman(), set);
+  AnsurFitOptions o;
+  o.given = {"stature"};
+  try {
+    fit_ansur_rows(fitter, set, table, table, o, false);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("--prior"), std::string::npos) << e.what();
+  }
+}
