@@ -18,6 +18,7 @@
 #include "core/makehuman.h"
 #include "skinning/gltf_export.h"
 #include "tools/verb.h"
+#include "tools/verbs/slider_options.h"
 
 namespace bodymodel {
 namespace {
@@ -143,17 +144,7 @@ BODYMODEL_VERB(add_dress_verb) {
       "dress",
       "Dress a MakeHuman body in MakeHuman assets (clothes, shoes, hair, eyebrows, eyelashes, eyes,\n"
       "teeth): fitted by their bindings, posed with the body, garments pushed out of the skin.");
-  auto slider = [&](const char* flag, double* v, const char* help) {
-    cmd->add_option(flag, *v, help)->check(CLI::Range(0.0, 1.0))->capture_default_str();
-  };
-  slider("--gender", &a->settings.gender, "0 female … 1 male");
-  slider("--age", &a->settings.age, "0 = 1 y, 0.5 = 25 y, 1 = 90 y");
-  slider("--muscle", &a->settings.muscle, "muscle mass");
-  slider("--weight", &a->settings.weight, "body weight");
-  slider("--height", &a->settings.height, "body height");
-  slider("--proportions", &a->settings.proportions, "0 uncommon … 1 ideal proportions");
-  slider("--cup", &a->settings.cup, "breast size (female bodies)");
-  slider("--firmness", &a->settings.firmness, "breast firmness (female bodies)");
+  cli::add_macro_slider_options(cmd, a->settings);
   cmd->add_option("--outfit", a->outfit, "asset names, comma-separated (e.g. male_casualsuit01,shoes01,short02)")
       ->delimiter(',')->required();
   cmd->add_option("--pose", a->pose, "a static pose name (motion/poses: fight01, sit01, ...) or a BVH file for the "

@@ -18,6 +18,7 @@
 #include "core/retarget.h"
 #include "tools/console.h"
 #include "tools/verb.h"
+#include "tools/verbs/slider_options.h"
 
 namespace bodymodel {
 namespace {
@@ -163,17 +164,7 @@ BODYMODEL_VERB(add_makehuman_body_verb) {
       "makehuman-body",
       "Build a MakeHuman body from macro sliders (each in [0,1]), optionally posed, and write the\n"
       "body-only mesh in millimetres (13380 vertices; vertex order = the template).");
-  auto slider = [&](const char* flag, double* v, const char* help) {
-    cmd->add_option(flag, *v, help)->check(CLI::Range(0.0, 1.0))->capture_default_str();
-  };
-  slider("--gender", &a->settings.gender, "0 female … 1 male");
-  slider("--age", &a->settings.age, "0 = 1 y, 0.1875 = 10 y, 0.5 = 25 y, 1 = 90 y");
-  slider("--muscle", &a->settings.muscle, "muscle mass");
-  slider("--weight", &a->settings.weight, "body weight");
-  slider("--height", &a->settings.height, "body height");
-  slider("--proportions", &a->settings.proportions, "0 uncommon … 1 ideal proportions");
-  slider("--cup", &a->settings.cup, "breast size (female bodies)");
-  slider("--firmness", &a->settings.firmness, "breast firmness (female bodies)");
+  cli::add_macro_slider_options(cmd, a->settings);
   cmd->add_option("--african", a->african, "ethnic weight; the others are rescaled to sum 1")
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--asian", a->asian, "ethnic weight")->check(CLI::Range(0.0, 1.0));
