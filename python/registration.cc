@@ -8,6 +8,7 @@
 #include <mutex>
 
 #include "core/error.h"
+#include "core/io/shape_space_file.h"
 #include "core/landmarks.h"
 #include "python/common.h"
 #include "registration/evaluation.h"
@@ -43,6 +44,8 @@ std::shared_ptr<const RegistrationTemplate> cached_template(const RegistrationJo
   static std::map<std::string, std::shared_ptr<const RegistrationTemplate>> cache;
   std::string key = o.shape_fit ? "shape:" : "noshape:";
   if (o.start_shape) key += o.start_shape->to_json().dump();
+  // A learned space is read per call (the file may change), so its template is not cached.
+  if (o.learned_space) return std::make_shared<const RegistrationTemplate>(registration_template(o));
   std::lock_guard lock(mutex);
   auto& t = cache[key];
   if (!t) {
@@ -60,7 +63,7 @@ std::vector<Landmark> landmarks_from(const pyb::handle& h) {
   for (auto [k, v] : h.cast<pyb::dict>()) {
     Landmark l;
     l.name = pyb::str(k);
-    l.vertex = template_landmark_vertex(body_landmarks(), l.name, "landmarks");
+    l.vertex = template_landmark_vertex(registration_landmarks(), l.name, "landmarks");
     Eigen::VectorXd t = vector(v, "landmark '" + l.name + "'");
     if (t.size() != 3) throw InputError("landmarks: landmark '" + l.name + "' must be three numbers (x, y, z)");
     l.target = t;
@@ -74,7 +77,7 @@ pyb::tuple register_one(const pyb::handle& points, const pyb::handle& normals, c
                         const std::string& schedule, int fast_steps, double fast_k_end, double transform_length,
                         double scan_unit_mm, bool pose_only, const std::string& pose_joints, bool hand_stage,
                         bool proportions, bool shape_fit, bool proportions_with_shape, bool repair_folds,
-                        const std::string& what, const pyb::object& progress) {
+                        const std::string& shape_space, const std::string& what, const pyb::object& progress) {
   RegistrationJobOptions job;
   job.schedule = schedule;
   job.fast_steps = fast_steps;
@@ -88,6 +91,7 @@ pyb::tuple register_one(const pyb::handle& points, const pyb::handle& normals, c
   job.proportions_with_shape = proportions_with_shape;
   job.folds = repair_folds ? FoldRepair::local : FoldRepair::keep;
   job.start_shape = template_sliders(tmpl);
+  if (!shape_space.empty()) job.learned_space = std::make_shared<const ShapeSpace>(read_shape_space(shape_space));
   const RegistrationSetup setup = registration_setup(job);  // validates, naming the option
   if (!(scan_unit_mm > 0) || !std::isfinite(scan_unit_mm))
     throw InputError(fmt::format("scan_unit_mm must be a positive number, got {}", scan_unit_mm));
@@ -151,6 +155,7 @@ pyb::tuple register_one(const pyb::handle& points, const pyb::handle& normals, c
   } else {
     d["shape"] = pyb::none();
   }
+  if (r.shape_coefficients.size() > 0) d["shape_space_coefficients"] = to_array(Eigen::VectorXd(r.shape_coefficients));
   return pyb::make_tuple(to_array(Eigen::MatrixXd(r.V)), d);
 }
 
@@ -203,7 +208,7 @@ flipped_by_region), folded_in_registration, folded_in_truth and vertex_errors_mm
         "landmarks"_a, "template"_a = pyb::none(), "schedule"_a = "fast", "fast_steps"_a = nr.fast_steps, "fast_stiffness_end"_a = nr.fast_k_end,
         "transform_length"_a = nr.normalization_length, "scan_unit_mm"_a = 1.0, "pose_only"_a = false,
         "pose_joints"_a = "segment", "hand_stage"_a = true, "proportions"_a = true, "shape_fit"_a = true,
-        "proportions_with_shape"_a = false, "repair_local_folds"_a = false, "what"_a = "scan",
+        "proportions_with_shape"_a = false, "repair_local_folds"_a = false, "shape_space"_a = "", "what"_a = "scan",
         "progress"_a = pyb::none(),
         R"(register_scan(points, normals=None, *, landmarks, template=None, schedule='fast', ..., progress=None) -> (V, summary)
 
@@ -218,7 +223,9 @@ template: None (MakeHuman's default body, as the verb) or MakeHuman macro slider
 body, e.g. {'gender': 1.0, 'height': 0.7} (the others default; keys of `bodymodel makehuman-body`).
 Keywords match the verb's flags: schedule 'fast'|'paper', fast_steps, fast_stiffness_end,
 transform_length (mm), pose_only, pose_joints 'segment'|'bone'|'best', hand_stage,
-proportions, shape_fit, proportions_with_shape, repair_local_folds. `what` names the scan in
+proportions, shape_fit, proportions_with_shape, repair_local_folds, shape_space (a file of
+`bodymodel shape-space`: the shape fit moves in that space learned from real bodies; the summary
+then has shape_space_coefficients). `what` names the scan in
 error messages. Returns V (13380, 3) mm in the template's topology and a summary dict: faces
 (the template's triangles), posed_template, scale, bone_names, bone_rotations, shape (fitted
 sliders or None) and the columns of the verb's registration.csv (pose_rms_mm, data_rms_mm, ...).

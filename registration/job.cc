@@ -2,7 +2,10 @@
 
 #include <fmt/format.h>
 
+#include <nlohmann/json.hpp>
+
 #include "core/error.h"
+#include "core/io/json_text.h"
 #include "registration/fit_check.h"
 #include "registration/local_fold_repair.h"
 #include "registration/mesh_scan.h"
@@ -22,13 +25,23 @@ void validate(const RegistrationJobOptions& o) {
     throw InputError(fmt::format("--transform-length must be positive, got {}", o.transform_length));
   if (o.pose_iterations < 0)
     throw InputError(fmt::format("--pose-iterations must not be negative, got {}", o.pose_iterations));
+  if (!(o.learned_space_prior >= 0) || !std::isfinite(o.learned_space_prior))
+    throw InputError(fmt::format("--shape-space-prior must be a finite number ≥ 0, got {}", o.learned_space_prior));
 }
 
 RegistrationTemplate registration_template(const RegistrationJobOptions& o) {
   MakeHuman mh = MakeHuman::load();
+  if (o.learned_space) {
+    if (!o.shape_fit) throw InputError("a learned shape space (--shape-space) needs the shape fit (drop --no-shape-fit)");
+    o.learned_space->validate(mh, "shape space");
+    MakeHuman::Body body = shape_space_body(mh, *o.learned_space, Eigen::VectorXd());
+    const MacroSettings macros = shape_space_parameters(mh, *o.learned_space, Eigen::VectorXd()).macros;
+    RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, std::move(mh), macros, o.learned_space, {}};
+    return tpl;
+  }
   const MacroSettings start = o.start_shape.value_or(MacroSettings{});
   MakeHuman::Body body = mh.body(start);
-  RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, {}, start};
+  RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, {}, start, {}, {}};
   if (o.shape_fit) tpl.shape_space = std::move(mh);
   return tpl;
 }
@@ -46,6 +59,7 @@ RegistrationSetup registration_setup(const RegistrationJobOptions& o) {
   r.fit_proportions = o.proportions;
   r.fit_shape = o.shape_fit;  // only read when the template has a shape space
   r.proportions_with_shape = o.proportions_with_shape;
+  r.shape.space_prior_weight = o.learned_space_prior;
   r.pose.max_icp_iterations = o.pose_iterations;
 
   // pose.parameters left empty means default_pose_parameters() (PoseFitOptions).
@@ -85,6 +99,15 @@ RegistrationJobResult run_registration_job(const RegistrationTemplate& tpl, cons
   const FitCheck fc = check_registration_fit(r.V, r.pose.V, r.rest.V, tpl.mesh.F, scan);
   if (!fc.plausible) throw InputError(what + ": registration failed: " + fc.reason);
   return out;
+}
+
+std::string registration_shape_json(const RegistrationResult& r) {
+  if (!r.shape) return {};
+  nlohmann::json j = r.shape->to_json();
+  if (r.shape_coefficients.size() > 0)
+    j["shape_space_coefficients"] =
+        std::vector<double>(r.shape_coefficients.data(), r.shape_coefficients.data() + r.shape_coefficients.size());
+  return json_text(j, 2) + "\n";
 }
 
 }  // namespace bodymodel

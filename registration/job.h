@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/makehuman.h"
+#include "core/shape_space.h"
 #include "core/progress.h"
 #include "registration/landmarks.h"
 #include "registration/register_scan.h"
@@ -43,6 +44,12 @@ struct RegistrationJobOptions {
   FoldRepair folds = FoldRepair::local;
   // The start body's macro sliders (MakeHuman's default body when unset).
   std::optional<MacroSettings> start_shape;
+  // A shape space learned from real bodies (`bodymodel shape-space`, core/shape_space.h): the
+  // shape fit moves inside it, starting from its mean body (start_shape is then not used).
+  std::shared_ptr<const ShapeSpace> learned_space;
+  // Its prior weight (ShapeFitOptions::space_prior_weight): mm² of mean squared data residual a
+  // coefficient of one standard deviation costs.
+  double learned_space_prior = ShapeFitOptions{}.space_prior_weight;
 };
 
 // InputError naming the option when a value is out of range.
@@ -75,5 +82,9 @@ struct RegistrationJobResult {
 RegistrationJobResult run_registration_job(const RegistrationTemplate& tpl, const RegistrationSetup& setup,
                                            PointCloud& scan, const std::vector<Landmark>& landmarks,
                                            const std::string& what, const ProgressCallback& progress = {});
+
+// The fitted shape as JSON text (for NAME.shape.json): the macro sliders, and with a learned
+// space its coefficients under "shape_space_coefficients". Empty when there was no shape fit.
+std::string registration_shape_json(const RegistrationResult& r);
 
 }  // namespace bodymodel

@@ -6,6 +6,27 @@
 
 namespace bodymodel {
 
+namespace {
+
+// One shape fit from the current pose: in the learned space (so.space) or the macro sliders.
+ShapeFitResult shape_step(const MakeHuman& mh, const ShapeFitOptions& so, const MacroSettings& settings,
+                          const Eigen::VectorXd& coefficients, const PoseFitResult& pose, const PointCloud& scan,
+                          const std::vector<Landmark>& landmarks, ShapeFitSummary* ss) {
+  return so.space ? fit_shape_in_space(mh, coefficients, pose.scale, pose.pose, scan, landmarks, so, ss)
+                  : fit_shape(mh, settings, pose.scale, pose.pose, scan, landmarks, so, ss);
+}
+
+// How far a shape fit moved the shape, in slider units (a learned space's sd times `unit`).
+double shape_moved(const ShapeFitOptions& so, const ShapeFitResult& sr, const MacroSettings& before,
+                   const Eigen::VectorXd& coefficients_before, double unit) {
+  if (so.space) return unit * (sr.coefficients - coefficients_before).cwiseAbs().maxCoeff();
+  double moved = 0;
+  for (const auto& n : so.sliders) moved = std::max(moved, std::abs(macro_slider(sr.settings, n) - macro_slider(before, n)));
+  return moved;
+}
+
+}  // namespace
+
 RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& scan,
                                  const std::vector<Landmark>& landmarks,
                                  const RegistrationOptions& options, const std::string& what,
@@ -91,14 +112,18 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
     ShapeFitOptions so = options.shape;
     so.unsigned_normals = po.unsigned_normals;
     MacroSettings settings = tpl.shape_start;
+    so.space = tpl.learned_space.get();
+    Eigen::VectorXd coefficients = tpl.learned_start;
+    if (so.space && coefficients.size() == 0) coefficients = Eigen::VectorXd::Zero(so.space->components());
+    // "Moved" in slider units; a learned space's sd units are scaled to compare with the same bar.
+    const double unit = so.space ? options.shape_convergence / options.learned_space_convergence : 1.0;
     double moved_last = 0;
     for (int round = 0; round < rounds; ++round) {
       if (!given_start) fit_poses(round);
       ShapeFitSummary ss;
-      ShapeFitResult sr = fit_shape(mh, settings, r.pose.scale, r.pose.pose, scan, landmarks, so, &ss);
-      double moved = 0;
-      for (const auto& n : so.sliders)
-        moved = std::max(moved, std::abs(macro_slider(sr.settings, n) - macro_slider(settings, n)));
+      ShapeFitResult sr = shape_step(mh, so, settings, coefficients, r.pose, scan, landmarks, &ss);
+      const double moved = shape_moved(so, sr, settings, coefficients, unit);
+      if (so.space) coefficients = sr.coefficients;
       settings = sr.settings;
       r.pose.V = std::move(sr.V);
       r.pose.scale = sr.scale;
@@ -124,6 +149,7 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
       if (moved < options.shape_convergence) break;
     }
     r.shape = settings;
+    if (so.space) r.shape_coefficients = coefficients;
     if (options.final_pose_fit && !given_start && moved_last >= options.shape_convergence) {
       fit_poses(rounds - 1);
     } else if (options.proportions_with_shape && !r.proportions.segment.empty() && !given_start) {

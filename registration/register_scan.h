@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -11,6 +12,7 @@
 #include "core/makehuman.h"
 #include "core/mesh.h"
 #include "core/progress.h"
+#include "core/shape_space.h"
 #include "core/skeleton.h"
 #include "registration/landmarks.h"
 #include "registration/nonrigid.h"
@@ -32,6 +34,11 @@ struct RegistrationTemplate {
   // landmark proportions stand in.
   std::optional<MakeHuman> shape_space;
   MacroSettings shape_start;
+  // Optional space learned from real bodies (core/shape_space.h), inside shape_space's
+  // parameters: with it the shape fit moves its coefficients (start: learned_start, empty = the
+  // people's mean body, which the template then is) instead of the macro sliders.
+  std::shared_ptr<const ShapeSpace> learned_space;
+  Eigen::VectorXd learned_start;
 };
 
 struct RegistrationOptions {
@@ -53,6 +60,7 @@ struct RegistrationOptions {
   ShapeFitOptions shape;
   int shape_rounds = 3;
   double shape_convergence = 0.01;
+  double learned_space_convergence = 0.05;  // the same for a learned space's coefficients (sd)
   bool proportions_with_shape = false;
   // When the alternation stops unconverged (the last shape fit moved a slider), one more pose
   // fit on the last shape, so the pose and the shape handed to the non-rigid fit belong together
@@ -99,6 +107,7 @@ struct RegistrationResult {
   PoseFitResult pose;     // scale, joint rotations and the posed template
   Proportions proportions;  // segment ratios applied to the template (empty if none)
   std::optional<MacroSettings> shape;  // fitted sliders (with a shape fit)
+  Eigen::VectorXd shape_coefficients;  // with a learned space: its fitted coefficients (sd)
   Mesh rest;                // the rest template the pose was fitted on (shaped/proportioned, mm)
 };
 

@@ -12,38 +12,6 @@
 
 namespace bodymodel {
 
-double macro_slider(const MacroSettings& s, const std::string& n) {
-  if (n == "gender") return s.gender;
-  if (n == "age") return s.age;
-  if (n == "muscle") return s.muscle;
-  if (n == "weight") return s.weight;
-  if (n == "height") return s.height;
-  if (n == "proportions") return s.proportions;
-  if (n == "cup") return s.cup;
-  if (n == "firmness") return s.firmness;
-  if (n == "african") return s.african;
-  if (n == "asian") return s.asian;
-  if (n == "caucasian") return s.caucasian;
-  throw InputError("unknown macro slider '" + n +
-                   "' (expected gender, age, muscle, weight, height, proportions, cup, firmness, "
-                   "african, asian, caucasian)");
-}
-
-void set_macro_slider(MacroSettings* s, const std::string& n, double v) {
-  if (!std::isfinite(v)) throw InputError("macro slider '" + n + "': value is not finite");
-  v = std::clamp(v, 0.0, 1.0);
-  if (n == "gender") s->gender = v;
-  else if (n == "age") s->age = v;
-  else if (n == "muscle") s->muscle = v;
-  else if (n == "weight") s->weight = v;
-  else if (n == "height") s->height = v;
-  else if (n == "proportions") s->proportions = v;
-  else if (n == "cup") s->cup = v;
-  else if (n == "firmness") s->firmness = v;
-  else if (n == "african" || n == "asian" || n == "caucasian") s->set_ethnic(n, v);
-  else macro_slider(*s, n);  // throws the unknown-name error
-}
-
 namespace {
 
 // A sample pair: posed template vertex `vertex` should lie on the scan's plane (p, n).
@@ -60,17 +28,26 @@ struct Layout {
 
 class Problem {
  public:
-  Problem(const MakeHuman& mh, const MacroSettings& start, double scale, const Pose& pose,
-          const ShapeFitOptions& o)
-      : mh_(mh), start_(start), pose_(pose), o_(o) {
-    L_.sliders = int(o.sliders.size());
+  // Slider mode: `start` sliders. Space mode (o.space): `start_c` coefficients (empty = 0).
+  Problem(const MakeHuman& mh, const MacroSettings& start, const Eigen::VectorXd& start_c, double scale,
+          const Pose& pose, const ShapeFitOptions& o)
+      : mh_(mh), start_(start), pose_(pose), o_(o), space_(o.space) {
+    L_.sliders = space_ ? space_->components() : int(o.sliders.size());
     L_.count = L_.sliders;
     if (o.fit_translation) L_.translation = L_.count, L_.count += 3;
     if (o.fit_scale) L_.scale = L_.count, L_.count += 1;
-    const MakeHuman::Body b0 = mh.body(start);
-    anchor_ = b0.skeleton.heads.row(0).transpose() + pose.root_translation;
     theta0_.resize(L_.count);
-    for (int k = 0; k < L_.sliders; ++k) theta0_[k] = macro_slider(start, o.sliders[k]);
+    if (space_) {
+      theta0_.head(L_.sliders) = start_c.size() > 0 ? start_c : Eigen::VectorXd::Zero(L_.sliders);
+      prior_centre_ = Eigen::VectorXd::Zero(L_.sliders);  // the people's mean
+      prior_sqrt_ = std::sqrt(o.space_prior_weight);
+    } else {
+      for (int k = 0; k < L_.sliders; ++k) theta0_[k] = macro_slider(start, o.sliders[k]);
+      prior_centre_ = theta0_.head(L_.sliders);
+      prior_sqrt_ = std::sqrt(o.prior_weight);
+    }
+    const MakeHuman::Body b0 = body(theta0_);
+    anchor_ = b0.skeleton.heads.row(0).transpose() + pose.root_translation;
     if (L_.translation >= 0) theta0_.segment<3>(L_.translation).setZero();
     if (L_.scale >= 0) theta0_[L_.scale] = scale;
     scale_ = scale;
@@ -78,12 +55,24 @@ class Problem {
 
   const Layout& layout() const { return L_; }
   const Eigen::VectorXd& theta0() const { return theta0_; }
+  const Eigen::VectorXd& prior_centre() const { return prior_centre_; }
+  double prior_sqrt() const { return prior_sqrt_; }
+  // Bounds, finite-difference step and convergence of the shape parameters.
+  double lower() const { return space_ ? -o_.space_limit : 0.0; }
+  double upper() const { return space_ ? o_.space_limit : 1.0; }
+  double fd_step() const { return space_ ? o_.space_fd_step : o_.fd_step; }
+  double convergence() const { return space_ ? o_.space_convergence : o_.convergence; }
+  bool in_space() const { return space_ != nullptr; }
   int builds = 0;
 
   MacroSettings settings(const Eigen::VectorXd& th) const {
+    if (space_) return shape_space_parameters(mh_, *space_, th.head(L_.sliders)).macros;
     MacroSettings s = start_;
     for (int k = 0; k < L_.sliders; ++k) set_macro_slider(&s, o_.sliders[k], th[k]);
     return s;
+  }
+  MakeHuman::Body body(const Eigen::VectorXd& th) const {
+    return space_ ? shape_space_body(mh_, *space_, th.head(L_.sliders)) : mh_.body(settings(th));
   }
   double scale(const Eigen::VectorXd& th) const { return L_.scale >= 0 ? th[L_.scale] : scale_; }
   Pose pose(const MakeHuman::Body& b, const Eigen::VectorXd& th) const {
@@ -93,24 +82,24 @@ class Problem {
     return p;
   }
   // Posed template for the parameters (13380 by 3, mm); the body through *body if given.
-  Eigen::MatrixX3d posed(const Eigen::VectorXd& th, MakeHuman::Body* body = nullptr) {
-    MakeHuman::Body b = mh_.body(settings(th));
+  Eigen::MatrixX3d posed(const Eigen::VectorXd& th, MakeHuman::Body* body_out = nullptr) {
+    MakeHuman::Body b = body(th);
     ++builds;
     Eigen::MatrixX3d V = pose_template(b.mesh.V, b.skeleton, b.weights, scale(th), pose(b, th));
-    if (body) *body = std::move(b);
+    if (body_out) *body_out = std::move(b);
     return V;
   }
-  // Posed template for the sliders of th with the scale replaced (no rebuild needed for the
-  // scale's derivative, but a body is cheap enough: keep it simple and exact).
 
  private:
   const MakeHuman& mh_;
   MacroSettings start_;
   Pose pose_;
   const ShapeFitOptions& o_;
+  const ShapeSpace* space_;
   Layout L_;
   Eigen::Vector3d anchor_;
-  Eigen::VectorXd theta0_;
+  Eigen::VectorXd theta0_, prior_centre_;
+  double prior_sqrt_ = 1.0;
   double scale_ = 1.0;
 };
 
@@ -161,7 +150,8 @@ struct Residuals {
   const std::vector<Pair>& pairs;
   const std::vector<Landmark>& landmarks;
   const Layout& L;
-  const Eigen::VectorXd& theta0;
+  const Eigen::VectorXd& prior_centre;
+  double prior_sqrt;
   const ShapeFitOptions& o;
   double ptp;   // √(point-to-point weight)
 
@@ -182,7 +172,7 @@ struct Residuals {
           wl * (Vp.row(landmarks[k].vertex).transpose() - landmarks[k].target);
     const int base = 4 * np + 3 * nl;
     for (int k = 0; k < L.sliders; ++k)
-      r[base + k] = std::sqrt(o.prior_weight) * (th[k] - theta0[k]);
+      r[base + k] = prior_sqrt * (th[k] - prior_centre[k]);
     if (L.scale >= 0) r[base + L.sliders] = std::sqrt(o.scale_prior) * (th[L.scale] - 1.0);
     return r;
   }
@@ -265,8 +255,8 @@ void solve_for_pairs(Problem& prob, const Residuals& residuals, const ShapeFitOp
         continue;
       }
       Eigen::VectorXd th = st.theta;
-      double h = o.fd_step;
-      if (k < L.sliders && th[k] + h > 1.0) h = -h;
+      double h = k < L.sliders ? prob.fd_step() : o.fd_step;
+      if (k < L.sliders && th[k] + h > prob.upper()) h = -h;
       th[k] += h;
       J.col(k) = (residuals(prob.posed(th), th) - r) / h;
     }
@@ -277,7 +267,7 @@ void solve_for_pairs(Problem& prob, const Residuals& residuals, const ShapeFitOp
       Eigen::MatrixXd A = JtJ;
       A.diagonal() += mu * JtJ.diagonal() + Eigen::VectorXd::Constant(L.count, 1e-9);
       Eigen::VectorXd th = st.theta - A.ldlt().solve(g);
-      for (int k = 0; k < L.sliders; ++k) th[k] = std::clamp(th[k], 0.0, 1.0);
+      for (int k = 0; k < L.sliders; ++k) th[k] = std::clamp(th[k], prob.lower(), prob.upper());
       if (L.scale >= 0) th[L.scale] = std::clamp(th[L.scale], 0.5, 2.0);
       if (!th.allFinite()) {
         mu *= 10;
@@ -302,13 +292,13 @@ void solve_for_pairs(Problem& prob, const Residuals& residuals, const ShapeFitOp
 
 }  // namespace
 
-ShapeFitResult fit_shape(const MakeHuman& mh, const MacroSettings& start, double scale,
-                         const Pose& pose, const PointCloud& scan,
-                         const std::vector<Landmark>& landmarks, const ShapeFitOptions& o,
-                         ShapeFitSummary* summary) {
+namespace {
+
+// The ICP loop of both entry points: pair updates, a few LM steps each, until the shape settles.
+ShapeFitResult run_shape_fit(Problem& prob, const MakeHuman& mh, const PointCloud& scan,
+                             const std::vector<Landmark>& landmarks, const ShapeFitOptions& o,
+                             ShapeFitSummary* summary) {
   const auto t0 = std::chrono::steady_clock::now();
-  check_shape_inputs(start, scale, scan, o);
-  Problem prob(mh, start, scale, pose, o);
   const Layout& L = prob.layout();
   const int nv = MakeHuman::kBodyVertexCount;
   for (const Landmark& l : landmarks)
@@ -328,7 +318,8 @@ ShapeFitResult fit_shape(const MakeHuman& mh, const MacroSettings& start, double
 
   // Residuals for the pairs, landmarks and prior at posed vertices V and parameters th.
   std::vector<Pair> pairs;
-  const Residuals residuals{pairs, landmarks, L, prob.theta0(), o, std::sqrt(o.point_to_point_weight)};
+  const Residuals residuals{pairs, landmarks, L, prob.prior_centre(), prob.prior_sqrt(), o,
+                            std::sqrt(o.point_to_point_weight)};
 
   ShapeFitSummary sum;
   double max_dist = o.initial_max_distance;
@@ -344,7 +335,7 @@ ShapeFitResult fit_shape(const MakeHuman& mh, const MacroSettings& start, double
     solve_for_pairs(prob, residuals, o, st, sum);
     max_dist = std::max(o.max_distance, max_dist * 0.5);
     const double moved = L.sliders > 0 ? (st.theta - theta_it).head(L.sliders).cwiseAbs().maxCoeff() : 0;
-    if (moved < o.convergence && max_dist <= o.max_distance && it > 0) break;
+    if (moved < prob.convergence() && max_dist <= o.max_distance && it > 0) break;
   }
   double lm2 = 0;
   for (const Landmark& l : landmarks) lm2 += (st.V.row(l.vertex).transpose() - l.target).squaredNorm();
@@ -353,6 +344,7 @@ ShapeFitResult fit_shape(const MakeHuman& mh, const MacroSettings& start, double
 
   ShapeFitResult res;
   res.settings = prob.settings(st.theta);
+  if (prob.in_space()) res.coefficients = st.theta.head(L.sliders);
   res.scale = prob.scale(st.theta);
   res.pose = prob.pose(st.body, st.theta);
   res.body = std::move(st.body);
@@ -361,6 +353,34 @@ ShapeFitResult fit_shape(const MakeHuman& mh, const MacroSettings& start, double
   sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (summary) *summary = sum;
   return res;
+}
+
+}  // namespace
+
+ShapeFitResult fit_shape(const MakeHuman& mh, const MacroSettings& start, double scale,
+                         const Pose& pose, const PointCloud& scan,
+                         const std::vector<Landmark>& landmarks, const ShapeFitOptions& o,
+                         ShapeFitSummary* summary) {
+  check_shape_inputs(start, scale, scan, o);
+  ShapeFitOptions so = o;
+  so.space = nullptr;
+  Problem prob(mh, start, Eigen::VectorXd(), scale, pose, so);
+  return run_shape_fit(prob, mh, scan, landmarks, so, summary);
+}
+
+ShapeFitResult fit_shape_in_space(const MakeHuman& mh, const Eigen::VectorXd& start, double scale,
+                                  const Pose& pose, const PointCloud& scan,
+                                  const std::vector<Landmark>& landmarks, const ShapeFitOptions& o,
+                                  ShapeFitSummary* summary) {
+  if (!o.space) throw InputError("shape fit: fit_shape_in_space needs a shape space (ShapeFitOptions::space)");
+  if (start.size() != 0 && (start.size() != o.space->components() || !start.allFinite()))
+    throw InputError("shape fit: " + std::to_string(start.size()) + " start coefficients for a space of " +
+                     std::to_string(o.space->components()) + " components, or not finite");
+  ShapeFitOptions so = o;
+  so.sliders.clear();
+  check_shape_inputs(MacroSettings{}, scale, scan, so);
+  Problem prob(mh, MacroSettings{}, start, scale, pose, so);
+  return run_shape_fit(prob, mh, scan, landmarks, so, summary);
 }
 
 }  // namespace bodymodel

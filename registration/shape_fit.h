@@ -22,16 +22,11 @@
 
 #include "core/makehuman.h"
 #include "core/mesh.h"
+#include "core/shape_space.h"
 #include "core/skeleton.h"
 #include "registration/landmarks.h"
 
 namespace bodymodel {
-
-// Slider names of MacroSettings: "gender", "age", "muscle", "weight", "height", "proportions",
-// "cup", "firmness", and the ethnic weights "african", "asian", "caucasian" (set with
-// MacroSettings::set_ethnic, so the three keep summing to 1). InputError for another name.
-double macro_slider(const MacroSettings& s, const std::string& name);
-void set_macro_slider(MacroSettings* s, const std::string& name, double value);
 
 struct ShapeFitOptions {
   // Fitted sliders (names as macro_slider). Firmness moves few vertices; the ethnic mix is
@@ -66,6 +61,15 @@ struct ShapeFitOptions {
   // not used as samples.
   std::vector<std::string> excluded_below = {"wrist.L", "wrist.R"};
   double convergence = 0.002;  // stop when no slider moves more than this in an ICP iteration
+  // A shape space learned from real bodies (core/shape_space.h; not owned). With it the fit
+  // moves the space's coefficients (in the people's standard deviations) instead of `sliders`,
+  // with the Gaussian prior space_prior_weight·‖c‖² (same units as prior_weight): the people's
+  // variances decide how far each direction moves for a given gain in the data term.
+  const ShapeSpace* space = nullptr;
+  double space_prior_weight = 1.0;
+  double space_fd_step = 0.05;       // sd
+  double space_limit = 5.0;          // |c| bound, sd
+  double space_convergence = 0.01;   // sd
 };
 
 struct ShapeFitSummary {
@@ -79,7 +83,8 @@ struct ShapeFitSummary {
 };
 
 struct ShapeFitResult {
-  MacroSettings settings;      // fitted sliders
+  MacroSettings settings;      // fitted sliders (with a space: the macros of its body)
+  Eigen::VectorXd coefficients;  // with a space: its coefficients (sd units); else empty
   MakeHuman::Body body;        // the body for them (rest mesh, skeleton, weights; mm)
   double scale = 1.0;          // global scale about the root head (pose_template)
   Pose pose;                   // the given rotations; root translation adjusted
@@ -94,5 +99,11 @@ ShapeFitResult fit_shape(const MakeHuman& mh, const MacroSettings& start, double
                          const Pose& pose, const PointCloud& scan,
                          const std::vector<Landmark>& landmarks,
                          const ShapeFitOptions& options = {}, ShapeFitSummary* summary = nullptr);
+// The same in the learned space options.space (required): `start` are its coefficients (sd units,
+// empty = its mean body), also where the fit starts; the prior's centre is the people's mean.
+ShapeFitResult fit_shape_in_space(const MakeHuman& mh, const Eigen::VectorXd& start, double scale,
+                                  const Pose& pose, const PointCloud& scan,
+                                  const std::vector<Landmark>& landmarks,
+                                  const ShapeFitOptions& options, ShapeFitSummary* summary = nullptr);
 
 }  // namespace bodymodel

@@ -106,7 +106,7 @@ std::string register_database_scan(const RegisterArgs& a, const RegistrationTemp
   if (!fs::exists(lm_path))
     throw InputError(lm_path.string() +
                      ": expected the scan's landmarks {name: [x, y, z]}, file not found");
-  std::vector<Landmark> landmarks = read_landmarks(lm_path, body_landmarks());
+  std::vector<Landmark> landmarks = read_landmarks(lm_path, registration_landmarks());
   for (auto& l : landmarks) l.target *= a.scan_unit_mm;
   RegistrationSetup scan_setup = setup;
   RegistrationOptions& scan_options = scan_setup.options;
@@ -134,7 +134,7 @@ std::string register_database_scan(const RegisterArgs& a, const RegistrationTemp
   std::string shape_cols = ",0,0,,,,,,,";
   if (r.shape) {
     const MacroSettings& m = *r.shape;
-    write_text_file(out / (id + ".shape.json"), json_text(m.to_json(), 2) + "\n");
+    write_text_file(out / (id + ".shape.json"), registration_shape_json(r));
     shape_cols = fmt::format(",{},{:.2f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f}",
                              s.shape_rounds, s.shape_seconds, m.gender, m.age, m.muscle,
                              m.weight, m.height, m.proportions, m.cup);
@@ -219,7 +219,7 @@ void run_register(RegisterArgs& a) {
   const std::vector<std::string> ids = selected_scan_ids(db / "scans.csv", a.scan, a.shard);
   // Every setting that changes a registration, and the database by content: a rerun with other
   // settings is refused instead of keeping the earlier results (tools/pipeline/folder_settings.h).
-  const nlohmann::json settings = {
+  nlohmann::json settings = {
       {"verb", "register"},          {"database", file_fingerprint(db / "scans.csv")},
       {"schedule", a.job.schedule},     {"fast_steps", a.job.fast_steps},
       {"fast_stiffness_end", a.job.fast_k_end}, {"transform_length", a.job.transform_length},
@@ -228,6 +228,11 @@ void run_register(RegisterArgs& a) {
       {"shape_fit", a.job.shape_fit},       {"proportions", a.job.proportions},
       {"proportions_with_shape", a.job.proportions_with_shape}, {"start_from_truth", a.start_from_truth},
       {"repair_local_folds", a.repair_local_folds}};
+  // Only when given, so folders made before the option resume as they were.
+  if (!a.no.shape_space.empty()) {
+    settings["shape_space"] = file_fingerprint(a.no.shape_space);
+    settings["shape_space_prior"] = a.job.learned_space_prior;
+  }
   ResumableFolder folder(out, "register.json", settings, a.force,
                          outputs_named({"registration.csv", "evaluation.csv"},
                                        {".ply", ".pose.csv", ".shape.json", ".summary.csv"}));

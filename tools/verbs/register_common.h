@@ -4,7 +4,9 @@
 
 #include <CLI/CLI.hpp>
 #include <memory>
+#include <string>
 
+#include "core/io/shape_space_file.h"
 #include "registration/job.h"
 
 namespace bodymodel::cli {
@@ -12,6 +14,7 @@ namespace bodymodel::cli {
 // The inverse flags (--no-*) are kept in `no` and applied by apply_registration_flags.
 struct NegatedRegistrationFlags {
   bool no_proportions = false, no_shape_fit = false;
+  std::string shape_space;  // --shape-space FILE, read by apply_registration_flags
 };
 
 inline void add_registration_flags(CLI::App* cmd, RegistrationJobOptions& job, NegatedRegistrationFlags& no) {
@@ -31,11 +34,20 @@ inline void add_registration_flags(CLI::App* cmd, RegistrationJobOptions& job, N
                 "Keep the default MakeHuman body's shape (global scale and landmark proportions "
                 "only) instead of fitting the macro sliders (gender, age, muscle, weight, "
                 "height, proportions, cup) in the pose stage");
+  cmd->add_option("--shape-space", no.shape_space,
+                  "Fit the shape in a space learned from real bodies (a file of `bodymodel shape-space`, "
+                  "e.g. ANSUR II's soldiers) instead of the macro sliders; the template starts as its mean body")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--shape-space-prior", job.learned_space_prior,
+                  "With --shape-space: the prior's weight (mm² of mean squared scan distance that one standard "
+                  "deviation of the population costs; larger keeps bodies nearer the population's)")
+      ->capture_default_str();
 }
 
 inline void apply_registration_flags(RegistrationJobOptions& job, const NegatedRegistrationFlags& no) {
   job.proportions = !no.no_proportions;
   job.shape_fit = !no.no_shape_fit;
+  if (!no.shape_space.empty()) job.learned_space = std::make_shared<const ShapeSpace>(read_shape_space(no.shape_space));
 }
 
 }  // namespace bodymodel::cli

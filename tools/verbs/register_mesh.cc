@@ -77,7 +77,7 @@ std::string register_one_mesh(const RegisterMeshArgs& a, const RegistrationTempl
                               const std::function<void(double)>& progress) {
   Mesh mesh = read_mesh(path);
   mesh.V = to_project_frame(mesh.V, a.scale, up);
-  std::vector<Landmark> landmarks = read_mesh_landmarks(a.landmarks, body_landmarks(), mesh.V);
+  std::vector<Landmark> landmarks = read_mesh_landmarks(a.landmarks, registration_landmarks(), mesh.V);
   MeshScanOptions so;
   so.samples = a.samples;
   PointCloud scan = mesh_to_scan(mesh, so, path);
@@ -101,7 +101,7 @@ std::string register_one_mesh(const RegisterMeshArgs& a, const RegistrationTempl
   rec.pose = r.pose.pose;
   write_mesh(out / (stem + ".ply"), r.V, tpl.mesh.F);
   write_pose_csv(out / (stem + ".pose.csv"), tpl.skeleton.names, rec);
-  if (r.shape) write_text_file(out / (stem + ".shape.json"), json_text(r.shape->to_json(), 2) + "\n");
+  if (r.shape) write_text_file(out / (stem + ".shape.json"), registration_shape_json(r));
   write_text_file(
       out / (stem + ".register-mesh.csv"),
       fmt::format("{},{},{},{:.6f},{},{:.4f},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},"
@@ -180,7 +180,7 @@ void run_register_mesh(RegisterMeshArgs& a) {
     throw InputError("--landmarks '" + a.landmarks + "': file not found");
   // Every setting that changes a registration, the landmarks by content: a rerun with other
   // settings is refused instead of keeping the earlier results (tools/pipeline/folder_settings.h).
-  const nlohmann::json settings = {
+  nlohmann::json settings = {
       {"verb", "register-mesh"}, {"landmarks", file_fingerprint(a.landmarks)},
       {"scale", a.scale},       {"schedule", a.job.schedule},
       {"fast_steps", a.job.fast_steps}, {"fast_stiffness_end", a.job.fast_k_end},
@@ -188,6 +188,11 @@ void run_register_mesh(RegisterMeshArgs& a) {
       {"pose_only", a.job.pose_only}, {"keep_folds", a.keep_folds},
       {"proportions", a.job.proportions}, {"shape_fit", a.job.shape_fit},
       {"pose_iterations", a.job.pose_iterations}, {"up", a.up}};
+  // Only when given, so folders made before the option resume as they were.
+  if (!a.no.shape_space.empty()) {
+    settings["shape_space"] = file_fingerprint(a.no.shape_space);
+    settings["shape_space_prior"] = a.job.learned_space_prior;
+  }
   ResumableFolder folder(out, "register-mesh.json", settings, a.force,
                          outputs_named({"register-mesh.csv"}, {".ply", ".pose.csv", ".shape.json", ".register-mesh.csv",
                                                                ".detail.npz"}));
