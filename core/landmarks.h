@@ -25,6 +25,26 @@ inline const std::vector<std::pair<std::string, int>>& body_landmarks() {
   return table;
 }
 
+// Face landmarks a landmark file may add to body_landmarks() (the synthetic database does not
+// place them), chosen by rule on MakeHuman's default body:
+//   nose_tip  the most forward vertex of the head's midline (|x| < 8 mm).
+// Without a face landmark the face is placed by head_top and chin alone, and a chin annotated
+// on the lips slides the whole face up (docs/real-registration.md).
+inline const std::vector<std::pair<std::string, int>>& face_landmarks() {
+  static const std::vector<std::pair<std::string, int>> table = {{"nose_tip", 5054}};
+  return table;
+}
+
+// Every name a landmark file may use: body_landmarks(), then face_landmarks().
+inline const std::vector<std::pair<std::string, int>>& registration_landmarks() {
+  static const std::vector<std::pair<std::string, int>> table = [] {
+    std::vector<std::pair<std::string, int>> t = body_landmarks();
+    for (const auto& f : face_landmarks()) t.push_back(f);
+    return t;
+  }();
+  return table;
+}
+
 // Landmarks behind the survey measurements (NHANES definitions, core/measure.h), on the
 // character's RIGHT side (-x) as NHANES measures. Each is a point on the template surface: the
 // mean of the listed body vertices, so it moves with the body's shape. Chosen once on

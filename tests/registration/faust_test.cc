@@ -52,8 +52,8 @@ TEST(FaustRegistration, HeldOutLandmarksSurfaceAndFoldsWithinBounds) {
   Mesh mesh = read_mesh(path);
   ASSERT_EQ(mesh.V.rows(), 6890);
   mesh.V *= 1000.0;
-  std::vector<Landmark> all = read_mesh_landmarks(kLandmarks, body_landmarks(), mesh.V);
-  ASSERT_EQ(all.size(), 23u);
+  std::vector<Landmark> all = read_mesh_landmarks(kLandmarks, registration_landmarks(), mesh.V);
+  ASSERT_EQ(all.size(), registration_landmarks().size());
   const std::vector<std::string> held_out = {"l_elbow", "r_knee", "l_ankle", "r_wrist"};
   std::vector<Landmark> used, checked;
   for (const auto& l : all)

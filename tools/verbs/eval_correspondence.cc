@@ -15,6 +15,7 @@
 #include <regex>
 
 #include "core/body_size.h"
+#include "core/landmarks.h"
 #include "core/error.h"
 #include "core/geometry.h"
 #include "core/io/atomic_write.h"
@@ -34,7 +35,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct CorrespondenceArgs {
-  std::string reg, truth, out, pairs = "all", truth_up = "y", subject_regex = "^(.*)$";
+  std::string reg, truth, out, pairs = "all", truth_up = "y", subject_regex = "^(.*)$", landmarks;
   double truth_scale = 1.0;
   int samples = 30000;
 };
@@ -74,6 +75,37 @@ void add_eval_correspondence_options(CLI::App* cmd, CorrespondenceArgs& a) {
   cmd->add_option("--samples", a.samples,
                   "Surface samples per side for the two-sided distance")
       ->capture_default_str();
+  cmd->add_option("--landmarks", a.landmarks,
+                  "A landmark file in the truth's vertex numbering (as register-mesh's): also the distance "
+                  "from each registration's template landmark vertex to the truth's, per landmark "
+                  "(landmarks.csv), e.g. nose_tip to see where the face landed")
+      ->check(CLI::ExistingFile);
+}
+
+// Per landmark of --landmarks: how far the registration put the template's landmark vertex from
+// the truth's (the file's entries read on each truth mesh, so vertex indices follow the pose).
+struct LandmarkFigures {
+  std::string csv, lines;
+};
+
+LandmarkFigures landmark_figures(const std::string& file, const std::vector<CorrespondenceMesh>& meshes,
+                                 const std::vector<Mesh>& truth_meshes) {
+  LandmarkFigures L;
+  L.csv = "mesh,landmark,distance_mm\n";
+  std::map<std::string, std::vector<std::pair<double, std::string>>> by_name;
+  for (size_t k = 0; k < meshes.size(); ++k)
+    for (const Landmark& l : read_mesh_landmarks(file, registration_landmarks(), truth_meshes[k].V)) {
+      const double d = (meshes[k].registered.row(l.vertex).transpose() - l.target).norm();
+      L.csv += fmt::format("{},{},{:.3f}\n", csv_field(meshes[k].id), csv_field(l.name), d);
+      by_name[l.name].emplace_back(d, meshes[k].id);
+    }
+  for (const auto& [name, v] : by_name) {
+    double mean = 0;
+    for (const auto& [d, id] : v) mean += d / double(v.size());
+    const auto worst = *std::max_element(v.begin(), v.end());
+    L.lines += fmt::format("landmark {}: mean {:.1f} mm, max {:.1f} mm ({})\n", name, mean, worst.first, worst.second);
+  }
+  return L;
 }
 
 // Each registration with its truth (by file stem). Every registration is evaluated or the run
@@ -291,7 +323,9 @@ void run_eval_correspondence(CorrespondenceArgs& a) {
                          "{:.3f}); locally folded triangles {} in {} meshes; flipped against "
                          "the truth surface {}\n",
                          meshes.size(), ts_mean, ts_max, fold_total, fold_meshes, flip_total);
+  const LandmarkFigures lm = a.landmarks.empty() ? LandmarkFigures{} : landmark_figures(a.landmarks, meshes, truth_meshes);
   ensure_directory(out);
+  if (!a.landmarks.empty()) write_text_file(out / "landmarks.csv", lm.csv);
   write_text_file(out / "pairs.csv", pair_csv);
   write_text_file(out / "meshes.csv", mesh_csv);
   write_text_file(out / "summary.csv", summary);
@@ -302,6 +336,7 @@ void run_eval_correspondence(CorrespondenceArgs& a) {
   fmt::print("{} meshes: two-sided surface distance mean {:.2f} mm (worst {:.2f}); locally "
              "folded triangles {} in {} meshes; flipped against the truth surface {}\n",
              meshes.size(), ts_mean, ts_max, fold_total, fold_meshes, flip_total);
+  fmt::print("{}", lm.lines);
 }
 
 }  // namespace
@@ -317,7 +352,7 @@ BODYMODEL_VERB(add_eval_correspondence_verb) {
       "p95 and max (cm) per pair and pooled over inter-subject pairs (different people) and\n"
       "intra-subject pairs (one person, different poses); per mesh the two-sided surface\n"
       "distance to its truth and folded triangles.\n"
-      "Writes OUT/pairs.csv, OUT/meshes.csv, OUT/summary.csv.\n"
+      "Writes OUT/pairs.csv, OUT/meshes.csv, OUT/summary.csv (and OUT/landmarks.csv with --landmarks).\n"
       "Example (FAUST, in metres; tr_reg_NNN: subject = NNN div 10):\n"
       "  bodymodel eval-correspondence reg/ --truth faust/ --truth-scale 1000 \\\n"
       "      --subject-regex 'tr_reg_(\\d\\d)\\d' --out eval/");

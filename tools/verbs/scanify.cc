@@ -262,7 +262,7 @@ void run_scanify(ScanifyArgs& a) {
         // Landmarks from the mesh's own vertices (or positions in its unit), then the frame.
         std::vector<Landmark> landmarks;
         if (!a.landmarks.empty())
-          landmarks = read_mesh_landmarks(a.landmarks, body_landmarks(), mesh.V);
+          landmarks = read_mesh_landmarks(a.landmarks, registration_landmarks(), mesh.V);
         mesh.V = to_project_frame(mesh.V, a.scale, up);
         ScanifyOptions o = options;
         o.seed = scan_seed(a.seed, stem);
