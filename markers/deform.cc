@@ -107,6 +107,9 @@ MarkerSkin build_marker_skin(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3
   skin.vertex_count = static_cast<int>(rest.rows());
   skin.marker_count = static_cast<int>(reference_markers.rows());
   skin.quadratic_ridge = o.quadratic_ridge;
+  skin.rbf_ridge = o.rbf_ridge;
+  skin.outlier_factor = o.outlier_factor;
+  skin.outlier_floor = o.outlier_floor;
   const Eigen::VectorXd total = vertex_weights.rowwise().sum();
   for (Eigen::Index j = 0; j < rest.rows(); ++j)
     if (!(total(j) > 0)) throw InputError("vertex " + std::to_string(j) + " has no part weight");
@@ -135,31 +138,93 @@ MarkerSkin build_marker_skin(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3
   return skin;
 }
 
+namespace {
+
+// Eq. 6 with weights and a ridge towards the identity: A = (LᵀWQ + μ I₀)(QᵀWQ + μ I)⁻¹.
+Eigen::Matrix<double, 3, 10> fit_quadratic(const Eigen::MatrixXd& Q, const Eigen::MatrixX3d& local,
+                                           const Eigen::VectorXd& w, double ridge) {
+  Eigen::Matrix<double, 10, 10> H = Q.transpose() * w.asDiagonal() * Q;
+  const double mu = ridge * std::max(H.trace() / 10, 1e-12);
+  H.diagonal().array() += mu;
+  const Eigen::Matrix<double, 10, 3> rhs = Q.transpose() * w.asDiagonal() * local + mu * identity_quadratic().transpose();
+  return H.ldlt().solve(rhs).transpose();
+}
+
+// Eq. 7 over the inliers (w = 1): RBF weights interpolating the residual there (exactly when the
+// ridge is 0); outliers get none.
+Eigen::MatrixX3d fit_rbf(const MarkerSkinPart& part, const Eigen::MatrixX3d& residual, const Eigen::VectorXd& w,
+                         double ridge) {
+  std::vector<Eigen::Index> in;
+  for (Eigen::Index k = 0; k < w.size(); ++k)
+    if (w(k) > 0) in.push_back(k);
+  const auto n = static_cast<Eigen::Index>(in.size());
+  Eigen::MatrixXd Phi(n, n), R(n, 3);
+  for (Eigen::Index a = 0; a < n; ++a) {
+    R.row(a) = residual.row(in[static_cast<size_t>(a)]);
+    for (Eigen::Index b = 0; b < n; ++b)
+      Phi(a, b) = cubic_bspline(
+          (part.member_local.row(in[static_cast<size_t>(a)]) - part.member_local.row(in[static_cast<size_t>(b)])).norm() /
+          part.dilation);
+  }
+  Phi.diagonal().array() += ridge;
+  const Eigen::MatrixXd sol = Phi.completeOrthogonalDecomposition().solve(R);
+  Eigen::MatrixX3d out = Eigen::MatrixX3d::Zero(w.size(), 3);
+  for (Eigen::Index a = 0; a < n; ++a) out.row(in[static_cast<size_t>(a)]) = sol.row(a);
+  return out;
+}
+
+}  // namespace
+
+Eigen::VectorXd inlier_weights(const Eigen::VectorXd& r, double factor, double floor) {
+  Eigen::VectorXd w = Eigen::VectorXd::Ones(r.size());
+  if (!(factor > 0) || r.size() < 4) return w;
+  std::vector<double> s(r.data(), r.data() + r.size());
+  std::nth_element(s.begin(), s.begin() + static_cast<long>(s.size() / 2), s.end());
+  const double limit = std::max(factor * s[s.size() / 2], floor);
+  for (Eigen::Index i = 0; i < r.size(); ++i) w(i) = r(i) <= limit ? 1 : 0;
+  return w.sum() >= 3 ? w : Eigen::VectorXd::Ones(r.size());
+}
+
+RigidMotion fit_rigid_robust(const Eigen::MatrixX3d& A, const Eigen::MatrixX3d& B, double factor, double floor,
+                             Eigen::VectorXd* weights) {
+  Eigen::VectorXd w = Eigen::VectorXd::Ones(A.rows());
+  RigidMotion g = fit_rigid_motion(A, B, w);
+  for (int round = 0; round < 3 && factor > 0; ++round) {
+    const Eigen::VectorXd next = inlier_weights((apply(g, A) - B).rowwise().norm(), factor, floor);
+    if (next == w) break;
+    w = next;
+    g = fit_rigid_motion(A, B, w);
+  }
+  if (weights) *weights = w;
+  return g;
+}
+
 PartMotion fit_part_motion(const MarkerSkinPart& part, const Eigen::MatrixX3d& markers, MarkerSkinStage stage,
-                           double quadratic_ridge) {
+                           const MarkerSkin& skin) {
   const Eigen::Index m = static_cast<Eigen::Index>(part.members.size());
   Eigen::MatrixX3d C(m, 3);
-  for (Eigen::Index k = 0; k < m; ++k) C.row(k) = markers.row(part.members[static_cast<size_t>(k)]);
-  const RigidMotion g = fit_rigid_motion(C, part.member_local);
-  PartMotion out{g.R, g.t, identity_quadratic(), Eigen::MatrixX3d::Zero(m, 3)};
-  if (stage == MarkerSkinStage::rigid) return out;
-  const Eigen::MatrixX3d local = (apply(g, C)) / part.scale;  // current members in the local frame
   Eigen::MatrixXd Q(m, 10);
-  for (Eigen::Index k = 0; k < m; ++k) Q.row(k) = quadratic_vector(part.member_local.row(k).transpose() / part.scale).transpose();
-  // Eq. 6 with a ridge towards the identity: A = (LᵀQ + μ I₀)(QᵀQ + μ I)⁻¹.
-  Eigen::Matrix<double, 10, 10> H = Q.transpose() * Q;
-  const double mu = quadratic_ridge * std::max(H.trace() / 10, 1e-12);
-  H.diagonal().array() += mu;
-  const Eigen::Matrix<double, 10, 3> rhs = Q.transpose() * local + mu * identity_quadratic().transpose();
-  out.A = H.ldlt().solve(rhs).transpose();
-  if (stage == MarkerSkinStage::quadratic) return out;
-  // Eq. 7: the RBF interpolating what A leaves at the members, exactly.
-  const Eigen::MatrixX3d residual = local - Q * out.A.transpose();
-  Eigen::MatrixXd Phi(m, m);
-  for (Eigen::Index a = 0; a < m; ++a)
-    for (Eigen::Index b = 0; b < m; ++b)
-      Phi(a, b) = cubic_bspline((part.member_local.row(a) - part.member_local.row(b)).norm() / part.dilation);
-  out.rbf = Phi.completeOrthogonalDecomposition().solve(Eigen::MatrixXd(residual));
+  for (Eigen::Index k = 0; k < m; ++k) {
+    C.row(k) = markers.row(part.members[static_cast<size_t>(k)]);
+    Q.row(k) = quadratic_vector(part.member_local.row(k).transpose() / part.scale).transpose();
+  }
+  // Markers that the part's motion does not explain (a wrong merge or a bad fill of the cleaning)
+  // are left out of the fits, a few rounds (our addition; the paper's markers are checked by hand).
+  Eigen::VectorXd w = Eigen::VectorXd::Ones(m);
+  PartMotion out{Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), identity_quadratic(), Eigen::MatrixX3d::Zero(m, 3)};
+  Eigen::MatrixX3d residual;
+  for (int round = 0; round < 4; ++round) {
+    const RigidMotion g = fit_rigid_motion(C, part.member_local, w);
+    out.R = g.R, out.t = g.t;
+    const Eigen::MatrixX3d local = apply(g, C) / part.scale;
+    if (stage != MarkerSkinStage::rigid) out.A = fit_quadratic(Q, local, w, skin.quadratic_ridge);
+    residual = local - Q * out.A.transpose();
+    const Eigen::VectorXd next = inlier_weights(residual.rowwise().norm() * part.scale, skin.outlier_factor,
+                                                skin.outlier_floor * part.scale);
+    if (next == w) break;
+    w = next;
+  }
+  if (stage == MarkerSkinStage::full) out.rbf = fit_rbf(part, residual, w, skin.rbf_ridge);
   return out;
 }
 
@@ -179,7 +244,7 @@ Eigen::MatrixX3d deform_by_markers(const MarkerSkin& skin, const Eigen::MatrixX3
   if (!markers.allFinite()) throw InputError("markers: every marker must be present (clean the capture first)");
   Eigen::MatrixX3d V = Eigen::MatrixX3d::Zero(skin.vertex_count, 3);
   for (const MarkerSkinPart& part : skin.parts) {
-    const PartMotion m = fit_part_motion(part, markers, stage, skin.quadratic_ridge);
+    const PartMotion m = fit_part_motion(part, markers, stage, skin);
     for (size_t k = 0; k < part.vertices.size(); ++k) {
       const auto kk = static_cast<Eigen::Index>(k);
       V.row(part.vertices[k]) += part.vertex_weight(kk) * part_position(part, m, part.vertex_local.row(kk).transpose()).transpose();

@@ -16,13 +16,19 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "core/geometry.h"
+
 namespace bodymodel {
 
 struct MarkerSkinOptions {
   double membership = 0.2;        // a marker belongs to a part when its weight for it is at least this (§5.2)
   int min_members = 4;            // a part with fewer markers takes the nearest ones to its vertices
-  double quadratic_ridge = 1e-6;  // towards [I 0 | 0], relative to tr(QᵀQ)/10 of the part's quadratic vectors
+  double quadratic_ridge = 0.3;   // towards [I 0 | 0], relative to tr(QᵀQ)/10 of the part's quadratic vectors
   double dilation = 2;            // s_p = dilation × the largest nearest-member distance (the paper: twice)
+  double rbf_ridge = 0.01;        // added to the kernel matrix's diagonal (φ(0) = 2/3); 0 = exact interpolation
+  // A member whose residual exceeds max(outlier_factor × the median, outlier_floor × the part's
+  // scale) is left out of the fits (0 = keep every member).
+  double outlier_factor = 3, outlier_floor = 0.1;
 };
 
 // rigid: parts' rigid motion only; quadratic: plus A; full: plus the RBF residual (the paper's method).
@@ -43,6 +49,8 @@ struct MarkerSkinPart {
 struct MarkerSkin {
   int vertex_count = 0, marker_count = 0;
   double quadratic_ridge = MarkerSkinOptions().quadratic_ridge;
+  double rbf_ridge = MarkerSkinOptions().rbf_ridge;
+  double outlier_factor = MarkerSkinOptions().outlier_factor, outlier_floor = MarkerSkinOptions().outlier_floor;
   std::vector<MarkerSkinPart> parts;  // parts without vertices are dropped
 };
 
@@ -64,7 +72,7 @@ struct PartMotion {
   Eigen::MatrixX3d rbf;
 };
 PartMotion fit_part_motion(const MarkerSkinPart& part, const Eigen::MatrixX3d& markers, MarkerSkinStage stage,
-                           double quadratic_ridge = MarkerSkinOptions().quadratic_ridge);
+                           const MarkerSkin& skin);
 // Where the part puts a point given by its local reference position (eq. 8), in global coordinates.
 Eigen::Vector3d part_position(const MarkerSkinPart& part, const PartMotion& m, const Eigen::Vector3d& local);
 
@@ -72,6 +80,13 @@ Eigen::Vector3d part_position(const MarkerSkinPart& part, const PartMotion& m, c
 // InputError when the marker count differs or a marker is not finite.
 Eigen::MatrixX3d deform_by_markers(const MarkerSkin& skin, const Eigen::MatrixX3d& markers,
                                    MarkerSkinStage stage = MarkerSkinStage::full);
+
+// 0/1 weights: 1 where r ≤ max(factor × median(r), floor); all 1 when factor ≤ 0, fewer than 4
+// residuals or fewer than 3 would stay.
+Eigen::VectorXd inlier_weights(const Eigen::VectorXd& r, double factor, double floor);
+// Kabsch (A → B) refitted on the inliers of its residuals (inlier_weights), up to 3 rounds.
+RigidMotion fit_rigid_robust(const Eigen::MatrixX3d& A, const Eigen::MatrixX3d& B, double factor, double floor,
+                             Eigen::VectorXd* weights = nullptr);
 
 // The cubic B-spline of eq. 7 (support |r| < 2, φ(0) = 2/3).
 double cubic_bspline(double r);

@@ -97,13 +97,31 @@ void fit_rigs(MarkerDeformComparison& r, const std::vector<Eigen::MatrixX3d>& me
   ex.rest = meshes[0];
   const Eigen::MatrixX3d reference = marker_frame(d, 0);
   for (int k : r.train_meshes) {
-    ex.transforms.push_back(fit_marker_skeleton(reference, marker_frame(d, k * r.frames_per_mesh), r.part_markers));
+    ex.transforms.push_back(fit_marker_skeleton(reference, marker_frame(d, k * r.frames_per_mesh), r.part_markers, o.skin));
     ex.poses.push_back(meshes[static_cast<size_t>(k)]);
   }
   LbsFitOptions lo;
   lo.max_influences = o.max_influences;
   r.ssd = fit_lbs(ex, {}, lo);
   r.mwe = fit_mwe(ex, &r.ssd);
+}
+
+// Each vertex's part weights interpolated from its k nearest reference markers (inverse distance),
+// as the paper interpolates the markers' weights over the marker surface.
+Eigen::MatrixXd vertex_weights_from_markers(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3d& reference,
+                                            const Eigen::MatrixXd& marker_weights, int k) {
+  Eigen::MatrixXd W = Eigen::MatrixXd::Zero(rest.rows(), marker_weights.cols());
+  const int n = std::min<int>(k, static_cast<int>(reference.rows()));
+  for (Eigen::Index j = 0; j < rest.rows(); ++j) {
+    const Eigen::VectorXd d2 = (reference.rowwise() - rest.row(j)).rowwise().squaredNorm();
+    std::vector<int> order(static_cast<size_t>(d2.size()));
+    std::iota(order.begin(), order.end(), 0);
+    std::partial_sort(order.begin(), order.begin() + n, order.end(), [&](int a, int b) { return d2(a) < d2(b); });
+    for (int i = 0; i < n; ++i)
+      W.row(j) += marker_weights.row(order[static_cast<size_t>(i)]) / std::max(std::sqrt(d2(order[static_cast<size_t>(i)])), 1e-9);
+    W.row(j) /= W.row(j).sum();
+  }
+  return W;
 }
 
 }  // namespace
@@ -115,7 +133,7 @@ Eigen::MatrixX3d marker_frame(const MarkerData& d, int frame) {
 }
 
 BoneTransforms fit_marker_skeleton(const Eigen::MatrixX3d& reference, const Eigen::MatrixX3d& markers,
-                                   const std::vector<std::vector<int>>& part_markers) {
+                                   const std::vector<std::vector<int>>& part_markers, const MarkerSkinOptions& o) {
   BoneTransforms M;
   for (const auto& mem : part_markers) {
     Eigen::MatrixX3d A(static_cast<Eigen::Index>(mem.size()), 3), B(static_cast<Eigen::Index>(mem.size()), 3);
@@ -123,7 +141,8 @@ BoneTransforms fit_marker_skeleton(const Eigen::MatrixX3d& reference, const Eige
       A.row(static_cast<Eigen::Index>(k)) = reference.row(mem[k]);
       B.row(static_cast<Eigen::Index>(k)) = markers.row(mem[k]);
     }
-    const RigidMotion g = fit_rigid_motion(A, B);
+    const double scale = std::sqrt((A.rowwise() - A.colwise().mean()).rowwise().squaredNorm().mean());
+    const RigidMotion g = fit_rigid_robust(A, B, o.outlier_factor, o.outlier_floor * scale);
     Eigen::Affine3d T = Eigen::Affine3d::Identity();
     T.linear() = g.R;
     T.translation() = g.t;
@@ -161,7 +180,9 @@ MarkerDeformComparison compare_marker_skins(const std::vector<Eigen::MatrixX3d>&
   const Eigen::MatrixXd W = dense_weights(r.ssd);
   Eigen::MatrixXd marker_weights(reference.rows(), W.cols());
   for (Eigen::Index i = 0; i < reference.rows(); ++i) marker_weights.row(i) = W.row(nearest(i));
-  r.skin = build_marker_skin(meshes[0], reference, W, marker_weights, o.skin);
+  const Eigen::MatrixXd vertex_weights =
+      o.weight_markers > 0 ? vertex_weights_from_markers(meshes[0], reference, marker_weights, o.weight_markers) : W;
+  r.skin = build_marker_skin(meshes[0], reference, vertex_weights, marker_weights, o.skin);
   report_progress(progress, 0.7, "held-out frames");
   for (int k : r.test_meshes) r.test_frames.push_back(k * r.frames_per_mesh);
   auto at = [&](size_t k) { return marker_frame(d, r.test_frames[k]); };
@@ -171,7 +192,7 @@ MarkerDeformComparison compare_marker_skins(const std::vector<Eigen::MatrixX3d>&
     r.errors.push_back(method_error(name, truth, [&, st = stage](size_t k) { return deform_by_markers(r.skin, at(k), st); }));
   for (const SkinningRig* rig : {&r.ssd, &r.mwe})
     r.errors.push_back(method_error(rig == &r.ssd ? "ssd" : "mwe", truth, [&](size_t k) {
-      return evaluate_rig(*rig, fit_marker_skeleton(reference, at(k), r.part_markers));
+      return evaluate_rig(*rig, fit_marker_skeleton(reference, at(k), r.part_markers, o.skin));
     }));
   report_progress(progress, 1.0, "done");
   return r;

@@ -36,6 +36,7 @@ struct MarkerDeformOptions {
   double mesh_rate = 10;              // frames per second of the meshes; the capture's rate is the markers'
   double max_marker_distance = 50;    // reference marker to nearest reference vertex (the markers' unit)
   int max_influences = 4;             // SSD slots per vertex
+  int weight_markers = 0;             // Park's vertex weights: from this many nearest markers (0: the SSD weights)
   unsigned seed = 1;
 };
 
@@ -55,9 +56,10 @@ struct MarkerDeformComparison {
   int frames_per_mesh = 1;
 };
 
-// Rigid maps reference → frame of each part from its markers (Kabsch), as a skeleton.
+// Rigid maps reference → frame of each part from its markers (Kabsch, refitted without the outliers
+// as Park's parts are: o.outlier_factor, o.outlier_floor × the markers' RMS radius), as a skeleton.
 BoneTransforms fit_marker_skeleton(const Eigen::MatrixX3d& reference, const Eigen::MatrixX3d& markers,
-                                   const std::vector<std::vector<int>>& part_markers);
+                                   const std::vector<std::vector<int>>& part_markers, const MarkerSkinOptions& o = {});
 
 // The markers of one frame as #M by 3.
 Eigen::MatrixX3d marker_frame(const MarkerData& d, int frame);
