@@ -83,6 +83,31 @@ void part_frame(MarkerSkinPart& part, const Eigen::MatrixX3d& markers, double di
   part.dilation = std::max(dilation * largest, 1e-12);
 }
 
+// The vertex weights (#V by parts kept, rows summing to one) without the parts that have no marker
+// within reach × dilation of the vertex: a quadratic far outside its markers extrapolates wildly
+// (an SSD rig may give a vertex small weights on distant bones). A vertex no part reaches keeps the
+// part whose nearest member is nearest in units of its dilation.
+Eigen::MatrixXd reachable_weights(const MarkerSkin& skin, const Eigen::MatrixX3d& rest, const Eigen::MatrixXd& vertex_weights,
+                                  const std::vector<Eigen::Index>& index, double reach) {
+  Eigen::MatrixXd W = Eigen::MatrixXd::Zero(rest.rows(), static_cast<Eigen::Index>(index.size()));
+  for (Eigen::Index j = 0; j < rest.rows(); ++j) {
+    double best = std::numeric_limits<double>::infinity();
+    Eigen::Index nearest = 0;
+    for (size_t q = 0; q < index.size(); ++q) {
+      const double w = vertex_weights(j, index[q]);
+      if (!(w > 0)) continue;
+      const MarkerSkinPart& part = skin.parts[q];
+      const Eigen::Vector3d local = part.axes * (rest.row(j).transpose() - part.origin);
+      const double d = std::sqrt((part.member_local.rowwise() - local.transpose()).rowwise().squaredNorm().minCoeff()) / part.dilation;
+      if (!(reach > 0) || d <= reach) W(j, static_cast<Eigen::Index>(q)) = w;
+      if (d < best) best = d, nearest = static_cast<Eigen::Index>(q);
+    }
+    if (!(W.row(j).sum() > 0)) W(j, nearest) = 1;
+    W.row(j) /= W.row(j).sum();
+  }
+  return W;
+}
+
 }  // namespace
 
 double cubic_bspline(double r) {
@@ -110,30 +135,31 @@ MarkerSkin build_marker_skin(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3
   skin.rbf_ridge = o.rbf_ridge;
   skin.outlier_factor = o.outlier_factor;
   skin.outlier_floor = o.outlier_floor;
-  const Eigen::VectorXd total = vertex_weights.rowwise().sum();
   for (Eigen::Index j = 0; j < rest.rows(); ++j)
-    if (!(total(j) > 0)) throw InputError("vertex " + std::to_string(j) + " has no part weight");
+    if (!(vertex_weights.row(j).sum() > 0)) throw InputError("vertex " + std::to_string(j) + " has no part weight");
+  std::vector<Eigen::Index> index;  // the parts kept (those with vertices)
   for (Eigen::Index p = 0; p < P; ++p) {
+    if (!(vertex_weights.col(p).maxCoeff() > 0)) continue;
     MarkerSkinPart part;
-    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-    for (Eigen::Index j = 0; j < rest.rows(); ++j)
-      if (vertex_weights(j, p) > 0) {
-        part.vertices.push_back(static_cast<int>(j));
-        centroid += vertex_weights(j, p) * rest.row(j).transpose();
-      }
-    if (part.vertices.empty()) continue;
-    centroid /= vertex_weights.col(p).sum();
+    const Eigen::Vector3d centroid = (vertex_weights.col(p).transpose() * rest).transpose() / vertex_weights.col(p).sum();
     part.members = part_members(reference_markers, marker_weights, static_cast<int>(p), centroid, o);
     part_frame(part, reference_markers, o.dilation);
+    skin.parts.push_back(std::move(part));
+    index.push_back(p);
+  }
+  const Eigen::MatrixXd W = reachable_weights(skin, rest, vertex_weights, index, o.reach);
+  for (size_t q = 0; q < skin.parts.size(); ++q) {
+    MarkerSkinPart& part = skin.parts[q];
+    for (Eigen::Index j = 0; j < rest.rows(); ++j)
+      if (W(j, static_cast<Eigen::Index>(q)) > 0) part.vertices.push_back(static_cast<int>(j));
     const Eigen::Index n = static_cast<Eigen::Index>(part.vertices.size());
     part.vertex_weight.resize(n);
     part.vertex_local.resize(n, 3);
     for (Eigen::Index k = 0; k < n; ++k) {
       const int j = part.vertices[static_cast<size_t>(k)];
-      part.vertex_weight(k) = vertex_weights(j, p) / total(j);
+      part.vertex_weight(k) = W(j, static_cast<Eigen::Index>(q));
       part.vertex_local.row(k) = (part.axes * (rest.row(j).transpose() - part.origin)).transpose();
     }
-    skin.parts.push_back(std::move(part));
   }
   return skin;
 }

@@ -29,6 +29,8 @@ struct MarkerSkinOptions {
   // A member whose residual exceeds max(outlier_factor × the median, outlier_floor × the part's
   // scale) is left out of the fits (0 = keep every member).
   double outlier_factor = 3, outlier_floor = 0.1;
+  // A vertex leaves out the parts with no member within reach × the part's dilation (0: keep all).
+  double reach = 1;
 };
 
 // rigid: parts' rigid motion only; quadratic: plus A; full: plus the RBF residual (the paper's method).
