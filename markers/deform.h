@@ -3,14 +3,18 @@
 // the reference pose, axes: their covariance's eigenvectors). In every frame a part's rigid motion
 // is the absolute-orientation fit (Horn / Kabsch) of its members to their local reference
 // positions; what remains is approximated by a quadratic deformation A (eq. 6, least squares over
-// the members) and the rest is interpolated exactly at the members by radial basis functions
-// (eq. 7: a cubic B-spline, dilation twice the largest distance from a member to its nearest
-// member). A vertex is the weighted blend of where each of its parts puts it (eq. 8–9).
-// Differences from the paper (docs/markers.md): A has a constant column (3 by 10, q = [x y z x² y²
-// z² xy yz zx 1]) because the rigid alignment centres the members but not their quadratic terms,
-// so a rigid-plus-quadratic motion needs it to be reproduced exactly; A is fitted with a small
-// ridge towards the identity (parts with few members stay bounded); the part weights of vertices
-// and markers are given by the caller (markers/deform_evaluation.h takes them from an SSD rig).
+// the members) and the rest is interpolated at the members by radial basis functions (eq. 7: a
+// cubic B-spline, dilation twice the largest distance from a member to its nearest member). A
+// vertex is the weighted blend of where each of its parts puts it (eq. 8–9).
+// Differences from the paper (docs/markers.md#driving-a-skin-by-the-markers), all options:
+// A has a constant column (3 by 10, q = [x y z x² y² z² xy yz zx 1]) because the rigid alignment
+// centres the members but not their quadratic terms, so a rigid-plus-quadratic motion needs it to
+// be reproduced exactly; A is fitted with a ridge towards the identity and the B-spline system with
+// one on its diagonal (exact interpolation of sparse markers is ill-conditioned: the B-spline is not
+// positive definite in 3-D), so by default the markers are followed closely, not exactly; members
+// that the part's fit does not explain are left out (errors of the cleaning); a vertex ignores parts
+// with no member within reach (a quadratic extrapolates wildly far from its markers). The part
+// weights of vertices and markers are the caller's (markers/deform_evaluation.h: an SSD rig's).
 #pragma once
 
 #include <Eigen/Core>
