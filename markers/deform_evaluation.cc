@@ -27,9 +27,11 @@ int check_inputs(const std::vector<Eigen::MatrixX3d>& meshes, const MarkerData& 
       if (!d.present(f, m))
         throw InputError("markers deform input: marker '" + d.labels[static_cast<size_t>(m)] + "' is missing at frame " +
                          std::to_string(f + 1) + " (run markers clean first)");
+  if (!(o.mesh_rate > 0) || !std::isfinite(o.mesh_rate))
+    throw InputError("markers deform: the mesh rate must be a positive number, found " + std::to_string(o.mesh_rate));
   const double ratio = d.rate / o.mesh_rate;
-  const int k = static_cast<int>(std::lround(ratio));
-  if (!(o.mesh_rate > 0) || k < 1 || std::abs(ratio - k) > 1e-6)
+  const int k = ratio < 1e6 ? static_cast<int>(std::lround(ratio)) : 0;
+  if (k < 1 || std::abs(ratio - k) > 1e-6)
     throw InputError("markers deform: the capture rate (" + std::to_string(d.rate) + " Hz) must be a whole multiple of the mesh rate (" + std::to_string(o.mesh_rate) + ")");
   const int expected = (static_cast<int>(meshes.size()) - 1) * k + 1;
   if (d.frame_count() != expected)

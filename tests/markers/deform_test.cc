@@ -182,6 +182,10 @@ TEST(MarkerDeform, RefusesBadInputWithOneLine) {
   s.markers.rate = 125;
   EXPECT_NE(refusal(s).find("whole multiple"), std::string::npos) << refusal(s);
   for (const std::string& m : {refusal(s)}) EXPECT_EQ(m.find('\n'), std::string::npos);
+  s = box_sequence(4, 37);
+  MarkerDeformOptions zero;
+  zero.mesh_rate = 0;
+  EXPECT_THROW(compare_marker_skins(s.meshes, s.F, s.markers, zero), InputError);
 }
 
 }  // namespace
