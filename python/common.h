@@ -47,5 +47,6 @@ void bind_model(pyb::module_& m);
 void bind_skinning(pyb::module_& m);
 void bind_regression(pyb::module_& m);
 void bind_registration(pyb::module_& m);
+void bind_markers(pyb::module_& m);
 
 }  // namespace bodymodel::py

@@ -513,4 +513,5 @@ returning False from it stops the work with bodymodel.Cancelled. Reference: docs
   bind_skinning(m);
   bind_regression(m);
   bind_registration(m);
+  bind_markers(m);
 }

@@ -1,4 +1,4 @@
-// `bodymodel markers simulate` and `markers clean` end to end on the Vlasic jumping capture, and
+// `bodymodel markers simulate`, `markers clean` and `markers deform` end to end on the Vlasic jumping capture, and
 // their refusals: bad input exits 2 with one line and leaves no output.
 #include <gtest/gtest.h>
 
@@ -51,6 +51,25 @@ TEST(MarkersCli, SimulateThenCleanWritesEveryMarkerAndAReport) {
   EXPECT_GT(report["merged"].get<int>(), 0);
   EXPECT_LE(report["evaluation"]["wrong_merges"].get<int>(), 2);
   EXPECT_LE(report["evaluation"]["median_fill_5_to_60_mm"].get<double>(), 5.0);
+
+  // markers deform: Park's skin driven by the cleaned markers, below the SSD and MWE rigs on the
+  // held-out frames (docs/markers.md has the figures); a capture that does not match the meshes'
+  // frame count is refused with one line and nothing written.
+  ASSERT_EQ(run("markers deform " + (dir / "clean.c3d").string() + " --meshes " + meshes + " --out " + (dir / "deform").string() +
+                " --write-every 100"), 0);
+  const auto deform = nlohmann::json::parse(read_text_file(dir / "deform" / "deform.json"));
+  const auto& errors = deform["errors"];
+  EXPECT_LT(errors["park"]["mean_mm"].get<double>(), errors["ssd"]["mean_mm"].get<double>());
+  EXPECT_LT(errors["park"]["mean_mm"].get<double>(), errors["mwe"]["mean_mm"].get<double>());
+  EXPECT_LT(errors["park"]["mean_mm"].get<double>(), 10.0);
+  EXPECT_EQ(deform["test_frames"].size(), 15u);
+  EXPECT_TRUE(fs::exists(dir / "deform" / "errors.csv"));
+  EXPECT_TRUE(fs::exists(dir / "deform" / "park_00300.obj"));
+  EXPECT_EQ(run("markers deform " + (dir / "clean.c3d").string() + " --meshes " + meshes + " --mesh-rate 15 --out " +
+                (dir / "deform15").string(), &err), 2);
+  EXPECT_NE(err.find("the capture has 349 frames but 30 meshes"), std::string::npos) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  EXPECT_FALSE(fs::exists(dir / "deform15"));
 
   // A truncated capture: exit 2, one line naming the file, nothing written.
   const std::string bytes = read_text_file(dir / "sim" / "capture.c3d");

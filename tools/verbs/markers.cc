@@ -1,6 +1,7 @@
-// `bodymodel markers simulate|clean`: dense-marker captures (Park & Hodgins 2006, issue 38).
+// `bodymodel markers simulate|clean|deform`: dense-marker captures (Park & Hodgins 2006, issue 38).
 // simulate: a realistic C3D capture (and its truth) from a mesh sequence; clean: label, merge,
-// fill and smooth a capture (markers/clean.h), with a JSON report.
+// fill and smooth a capture (markers/clean.h), with a JSON report; deform: drive the reference
+// mesh by cleaned markers (markers/deform.h) beside SSD and MWE rigs, against the truth meshes.
 #include <fmt/format.h>
 
 #include <memory>
@@ -8,8 +9,10 @@
 #include "core/io/atomic_write.h"
 #include "core/io/csv.h"
 #include "core/io/json_text.h"
+#include "core/io/mesh_io.h"
 #include "markers/c3d.h"
 #include "markers/clean.h"
+#include "markers/deform_evaluation.h"
 #include "markers/simulate.h"
 #include "markers/trc.h"
 #include "tools/console.h"
@@ -24,7 +27,7 @@ CLI::App* markers_group(CLI::App& app) {
   for (CLI::App* s : app.get_subcommands(std::function<bool(CLI::App*)>()))
     if (s->get_name() == "markers") return s;
   CLI::App* s = app.add_subcommand("markers", "Dense-marker captures (Park & Hodgins 2006): simulate a C3D capture "
-                                              "from a mesh sequence, clean a capture (label, merge, fill, smooth)");
+                                              "from a mesh sequence, clean a capture (label, merge, fill, smooth), drive a skin by it");
   s->require_subcommand(1);
   return s;
 }
@@ -148,12 +151,81 @@ void add_clean(CLI::App* group) {
   cmd->callback([a] { run_clean(*a); });
 }
 
+struct DeformArgs {
+  std::string markers, meshes, out;
+  double unit_mm = 1000;
+  int write_every = 0;
+  bool force = false;
+  MarkerDeformOptions o;
+};
+
+std::string deform_table(const MarkerDeformComparison& r) {
+  std::vector<std::string> header = {"mesh_frame", "capture_frame"};
+  for (const auto& e : r.errors) header.push_back(e.method + "_mean_mm");
+  std::string csv = csv_row(header) + "\n";
+  for (size_t k = 0; k < r.test_frames.size(); ++k) {
+    std::vector<std::string> row = {std::to_string(r.test_meshes[k]), std::to_string(r.test_frames[k])};
+    for (const auto& e : r.errors) row.push_back(fmt::format("{:.4f}", e.frame_mean[k]));
+    csv += csv_row(row) + "\n";
+  }
+  return csv;
+}
+
+void run_deform(const DeformArgs& a) {
+  if (!(a.unit_mm > 0)) throw InputError("--unit-mm must be positive");
+  const MarkerData markers = read_markers(a.markers);
+  MeshSequence seq = read_mesh_sequence(a.meshes);
+  for (auto& V : seq.frames) V *= a.unit_mm;
+  StagedFolder out(a.out, a.force);
+  ProgressBar bar("markers deform");
+  const MarkerDeformComparison r = compare_marker_skins(seq.frames, seq.F, markers, a.o, bar.callback());
+  bar.finish();
+  nlohmann::json errors = nlohmann::json::object();
+  std::string line;
+  for (const auto& e : r.errors) {
+    errors[e.method] = {{"mean_mm", e.mean}, {"max_mm", e.max}};
+    line += fmt::format("{}{} {:.2f} / {:.1f}", line.empty() ? "" : ", ", e.method, e.mean, e.max);
+  }
+  const nlohmann::json summary = {
+      {"verb", "markers deform"}, {"markers", a.markers}, {"meshes", a.meshes}, {"parts", a.o.parts},
+      {"mesh_rate", a.o.mesh_rate}, {"train_meshes", r.train_meshes}, {"test_meshes", r.test_meshes},
+      {"test_frames", r.test_frames}, {"errors", errors}};
+  write_text_file(out / "deform.json", json_text(summary, 1) + "\n");
+  write_text_file(out / "errors.csv", deform_table(r));
+  for (int f = 0; a.write_every > 0 && f < markers.frame_count(); f += a.write_every)
+    write_mesh(out / fmt::format("park_{:05d}.obj", f), deform_by_markers(r.skin, marker_frame(markers, f)) / a.unit_mm, seq.F);
+  out.commit();
+  info(fmt::format("{} held-out frames, mean / max vertex error (mm): {} → {}", r.test_frames.size(), line, a.out));
+}
+
+void add_deform(CLI::App* group) {
+  auto* cmd = group->add_subcommand(
+      "deform",
+      "Drive the reference mesh (frame 0 of MESHES) by cleaned markers with Park & Hodgins' model (rigid\n"
+      "parts, a quadratic deformation each, an RBF residual), beside SSD and MWE rigs driven by a skeleton\n"
+      "fitted to the markers; even mesh frames train, odd ones are held out and compared with the truth.\n"
+      "Writes OUT/deform.json, OUT/errors.csv (and OUT/park_FFFFF.obj with --write-every).\n"
+      "  bodymodel markers deform clean.trc --meshes ../shared/data/animations/vlasic-jumping --out deform/");
+  auto a = std::make_shared<DeformArgs>();
+  cmd->add_option("markers", a->markers, "Cleaned capture (.c3d or .trc): every marker labelled and present")->required();
+  cmd->add_option("--meshes", a->meshes, "Folder of the truth mesh frames (frame 0: the reference pose)")->required();
+  cmd->add_option("--out", a->out, "Output folder")->required();
+  cmd->add_option("--mesh-rate", a->o.mesh_rate, "Frames per second of the meshes")->capture_default_str();
+  cmd->add_option("--unit-mm", a->unit_mm, "Millimetres per mesh unit (1000: metres)")->capture_default_str();
+  cmd->add_option("--parts", a->o.parts, "Rigid parts (recovered from the training meshes)")->capture_default_str();
+  cmd->add_option("--max-distance", a->o.max_marker_distance, "Largest distance (mm) of a reference marker from the mesh")->capture_default_str();
+  cmd->add_option("--write-every", a->write_every, "Write Park's mesh every N capture frames (0: none)")->capture_default_str();
+  cmd->add_flag("--force", a->force, "Replace an existing output folder");
+  cmd->callback([a] { run_deform(*a); });
+}
+
 }  // namespace
 
 BODYMODEL_VERB(add_markers_verb) {
   CLI::App* group = markers_group(app);
   add_simulate(group);
   add_clean(group);
+  add_deform(group);
 }
 
 }  // namespace bodymodel::cli
