@@ -5,6 +5,7 @@
 #include <map>
 
 #include "core/error.h"
+#include "core/statistics.h"
 #include "markers/clean.h"
 
 namespace bodymodel {
@@ -42,19 +43,6 @@ Eigen::VectorXd spline_fill(const Eigen::VectorXd& x) {
 }
 
 namespace {
-
-double median(std::vector<double> v) {
-  if (v.empty()) return std::nan("");
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
-
-double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return std::nan("");
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(p * v.size()));
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[k];
-}
 
 // Mean distance from a capture column's samples to a truth column over the samples' frames.
 double mean_distance(const MarkerData& c, int column, const MarkerData& truth, int marker) {
@@ -123,7 +111,7 @@ CleanEvaluation evaluate_cleaning(const MarkerData& capture, const CleanResult& 
   e.filled = static_cast<long>(all.size());
   e.interior_filled = static_cast<long>(interior.size());
   e.median_fill_mm = median(all);
-  e.p95_fill_mm = percentile(all, 0.95);
+  e.p95_fill_mm = percentile(all, 95.0);
   double sum = 0;
   for (double v : all) sum += v;
   e.mean_fill_mm = all.empty() ? std::nan("") : sum / all.size();

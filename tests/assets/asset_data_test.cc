@@ -23,6 +23,7 @@
 #include "core/retarget.h"
 #include "core/makehuman.h"
 #include "core/skeleton.h"
+#include "core/statistics.h"
 #include "skinning/skinning_rig.h"
 
 namespace bodymodel {
@@ -145,9 +146,8 @@ Pose static_pose(const std::string& name, const Skeleton& sk) {
   return bvh_frame_to_pose(read_bvh(mh().pose_file(name)), 0, sk);
 }
 
-double percentile(Eigen::VectorXd v, double p) {
-  std::sort(v.data(), v.data() + v.size());
-  return v[static_cast<Eigen::Index>(p / 100.0 * double(v.size() - 1))];
+double percentile(const Eigen::VectorXd& v, double p) {
+  return bodymodel::percentile(std::vector<double>(v.data(), v.data() + v.size()), p);
 }
 
 TEST(AssetData, GarmentFollowsAMorphedAndPosedBody) {
