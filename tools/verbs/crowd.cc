@@ -33,7 +33,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct CrowdArgs {
-  std::string model, bvh, out, frames_format = "none", outfits;
+  std::string model, bvh, out, frames_format = "none", outfits, lods = "default";
   std::vector<std::string> where;
   int count = 20;
   uint64_t seed = 1;
@@ -74,6 +74,11 @@ void add_crowd_options(CLI::App* cmd, CrowdArgs& a) {
   cmd->add_option("--outfits", a.outfits,
                   "Dress every character: a JSON of outfit choices per sex, or 'default' (a street; "
                   "docs/assets.md#outfits): OUT/char_NNN/anim/ dressed.glb, outfit.json, penetration.csv");
+  cmd->add_option("--lods", a.lods,
+                  "With --outfits: levels of detail in dressed.glb: 'default' (the full body, a MakeHuman proxy "
+                  "with simplified assets, the low-poly proxy within 2000 triangles; docs/assets.md#levels-of-detail) "
+                  "or 'none' (the full body only)")
+      ->capture_default_str();
   cmd->add_flag("--force", a.force, "Replace an existing output folder made with other settings");
 }
 
@@ -174,11 +179,11 @@ void write_crowd_summary(const CrowdArgs& a, const fs::path& out, int skipped) {
 void run_crowd(CrowdArgs& a) {
   const fs::path out = a.out;
   // The outfit file and its assets are checked before anything is read or written.
-  const std::optional<OutfitKit> kit = outfit_kit_if_asked(a.outfits, data_file("makehuman"));
+  const std::optional<OutfitKit> kit = outfit_kit_if_asked(a.outfits, data_file("makehuman"), a.lods);
   // Every setting that changes a character, the model and clip by content (no paths): a rerun with
   // other settings is refused instead of resumed (tools/pipeline/folder_settings.h). --count may
   // grow: the characters already finished are kept.
-  const nlohmann::json settings = {{"verb", "crowd"},
+  nlohmann::json settings = {{"verb", "crowd"},
                                    {"model", file_fingerprint(a.model)},
                                    {"bvh", file_fingerprint(a.bvh)},
                                    {"where", a.where},
@@ -190,6 +195,7 @@ void run_crowd(CrowdArgs& a) {
                                    {"repair", !a.no_repair},
                                    {"outfits", a.outfits.empty() || a.outfits == "default" ? a.outfits
                                                                                            : file_fingerprint(a.outfits)}};
+  if (!a.outfits.empty()) settings["lods"] = a.lods;
   ResumableFolder folder(out, "crowd.json", settings, a.force, [](const std::string& n) {
     return n == "crowd.csv" || n == "crowd.png" || n == "outfits.csv" || n.rfind("char_", 0) == 0;
   });
