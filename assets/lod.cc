@@ -121,8 +121,14 @@ DressedPart proxy_body_part(const Asset& proxy, const DressedSkinBody& dressed, 
     b.weights.row(i).cwiseAbs().maxCoeff(&k);
     hidden[i] = dressed.full_hidden.at(static_cast<size_t>(b.vertices(i, k)));
   }
+  // A proxy face is far larger than the body's: dropping it when one corner is hidden (as
+  // visible_faces does for the body) opens gaps between garments, so only faces hidden at every
+  // corner go.
+  std::vector<int> keep;
+  for (Eigen::Index f = 0; f < proxy.faces.rows(); ++f)
+    if (!(hidden[proxy.faces(f, 0)] && hidden[proxy.faces(f, 1)] && hidden[proxy.faces(f, 2)])) keep.push_back(int(f));
   std::vector<int> map;
-  const SimplifiedMesh m = compact(V, visible_faces(proxy.faces, hidden), &map);
+  const SimplifiedMesh m = compact(V, proxy.faces(keep, Eigen::all), &map);
   DressedPart p;
   p.name = body.name;
   p.kind = body.kind;

@@ -33,9 +33,9 @@ SimplifiedMesh simplify_mesh(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& 
 DressedPart simplified_part(const DressedPart& source, int target_triangles, double max_error = 0);
 
 // The body replaced by a proxy (.proxy asset): fitted to `dressed.full_rest` by its binding,
-// weights carried through it from dressed.full_weights, a proxy face dropped when one of its
-// vertices is hidden (its binding's largest-weight body vertex is hidden by the outfit). The
-// colour and roughness are the body part's (`body`).
+// weights carried through it from dressed.full_weights, a proxy face dropped when all its
+// vertices are hidden (a vertex is hidden when its binding's largest-weight body vertex is hidden
+// by the outfit). The colour and roughness are the body part's (`body`).
 DressedPart proxy_body_part(const Asset& proxy, const DressedSkinBody& dressed, const DressedPart& body);
 
 struct LodSpec {

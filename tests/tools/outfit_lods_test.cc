@@ -27,6 +27,7 @@
 #include "registration/correspondence.h"
 #include "skinning/skinning_rig.h"
 #include "support/fixtures.h"
+#include "support/run_cli.h"
 #include "tools/pipeline/outfit_job.h"
 
 namespace bodymodel {
@@ -108,6 +109,9 @@ const std::vector<DressedLods>& dressed_pair() {
     d.full_only_bytes = write_dressed_character(kit, d.ch, male, 1000003ull + male, d.frames, 1.0 / 5, dir / "full_only").glb_bytes;
     kit.lods = true;
     d.lod1_budget = kit.lod1_triangles;
+    // BODYMODEL_LOD_KEEP=DIR keeps the two glb files (female.glb, male.glb) to look at.
+    if (const char* keep = std::getenv("BODYMODEL_LOD_KEEP"); keep && *keep)
+      fs::copy_file(d.glb, fs::path(keep) / (male ? "male.glb" : "female.glb"), fs::copy_options::overwrite_existing);
     out.push_back(std::move(d));
   }
   return out;
@@ -279,6 +283,18 @@ TEST(OutfitLods, ThreeJsLoadsThePicksAndDrawsEveryLevel) {
   const double d0 = std::stod(m[7]);
   EXPECT_GT(d0, 5000);   // of 150 000 pixels: a person, not an empty frame
   for (int k = 1; k < 3; ++k) EXPECT_NEAR(std::stod(m[7 + k]) / d0, 1.0, 0.1) << "LOD" << k;
+}
+
+// A bad --lods is refused before anything is read or written (exit 2, one line naming it).
+TEST(OutfitLods, BadLodsValueExitsTwoAndWritesNothing) {
+  if (!fs::exists(BODYMODEL_EXE)) GTEST_SKIP() << "bodymodel not built";
+  fixtures::TempDir tmp;
+  for (const std::string verb : {"crowd missing.npz --bvh missing.bvh", "character missing.npz"}) {
+    const auto r = fixtures::run_cli(verb + " --outfits default --lods 2 --out " + (tmp / "out").string());
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find("--lods: expected 'default' or 'none', found '2'"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(tmp / "out")) << verb;
+  }
 }
 
 }  // namespace

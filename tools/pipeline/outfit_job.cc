@@ -128,7 +128,7 @@ std::vector<std::vector<DressedPart>> dressed_lods(const OutfitKit& kit, const s
                                                    const DressedSkinBody& d, bool male) {
   LodSpec one{kit.lod1_triangles, &kit.proxies.at(male ? "male1591" : "female1605"), {"eyelashes", "teeth"},
               kit.lod1_error_mm};
-  LodSpec two{kit.lod2_triangles, &kit.proxies.at("proxy741"), {"eyebrows", "eyelashes", "eyes", "teeth"},
+  LodSpec two{kit.lod2_triangles, &kit.proxies.at("proxy741"), {"eyebrows", "eyelashes", "teeth"},
               kit.lod2_error_mm};
   std::vector<std::vector<DressedPart>> lods = {level_of_detail(parts, d, one), level_of_detail(parts, d, two)};
   for (auto& level : lods)

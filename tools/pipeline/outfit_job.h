@@ -34,7 +34,8 @@ struct OutfitKit {
   DressOptions dress;
   // Levels of detail in dressed.glb (docs/assets.md#levels-of-detail): LOD1 the MakeHuman proxy of
   // the character's sex (female1605 / male1591) with the assets simplified to lod1_triangles,
-  // LOD2 the low-poly proxy (proxy741) and the larger assets within lod2_triangles. Read by
+  // LOD2 the low-poly proxy (proxy741) and the assets but brows, lashes and teeth within
+  // lod2_triangles. Read by
   // load_outfit_kit when fitting the helpers; false = the full level only.
   bool lods = true;
   int lod1_triangles = 8000, lod2_triangles = 2000;
