@@ -4,7 +4,8 @@
 // frame). Checks the triangle budgets, that every level's weights sum to one (as computed and as
 // stored in the glb), that each level's vertices stay near the full level's surface in every frame
 // (the levels deform consistently), the glb's layout and size, and the Khronos validator when it
-// is installed (scripts/test.sh puts it in build/npm).
+// is installed (scripts/test.sh puts it in build/npm); then three.js in headless Chromium: the
+// levels under THREE.LOD, and the crowd viewer (tools/viewer/crowd.html) with 1000 instances.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -12,6 +13,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <regex>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
 #define TINYGLTF_NO_STB_IMAGE
 #define TINYGLTF_NO_STB_IMAGE_WRITE
@@ -295,6 +299,80 @@ TEST(OutfitLods, BadLodsValueExitsTwoAndWritesNothing) {
     EXPECT_NE(r.output.find("--lods: expected 'default' or 'none', found '2'"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(tmp / "out")) << verb;
   }
+}
+
+// The crowd viewer (tools/viewer/crowd.html) in headless Chromium with three.js: 1000 animated
+// instances of the two dressed characters, LOD by distance, at a fixed frame: every instance has
+// its three levels, THREE.LOD uses each, every character's body, garments and hair colours are
+// drawn (unlit pass), and the seconds per frame for 1000 and for one are measured (software GL:
+// printed for docs/viewer.md, not bounded). Skipped as the browser tests are.
+TEST(OutfitLods, CrowdViewerDrawsAThousandAnimatedCharacters) {
+  const std::string chromium = std::getenv("BODYMODEL_CHROMIUM") ? std::getenv("BODYMODEL_CHROMIUM") : "/usr/bin/chromium";
+  if (!fs::exists(chromium)) GTEST_SKIP() << chromium << " not found (Debian package chromium)";
+  const fs::path three = std::getenv("BODYMODEL_THREE") ? fs::path(std::getenv("BODYMODEL_THREE"))
+                                                        : fs::absolute("npm/node_modules/three");
+  if (!fs::exists(three / "examples/jsm/utils/SkeletonUtils.js"))
+    GTEST_SKIP() << three << " has no three.js (scripts/setup.sh; or set BODYMODEL_THREE)";
+  const std::vector<DressedLods>& pair = dressed_pair();
+  if (pair.empty()) GTEST_SKIP() << "makehuman/assets not found";
+  fixtures::TempDir tmp;
+  fs::copy_file(pair[0].glb, tmp / "a.glb");
+  fs::copy_file(pair[1].glb, tmp / "b.glb");
+  const fs::path page = fs::path(__FILE__).parent_path().parent_path().parent_path() / "tools" / "viewer" / "crowd.html";
+  fs::copy_file(page, tmp / "crowd.html");
+  fs::create_directory_symlink(three, tmp / "three");
+  // No --virtual-time-budget: the page finishes before its load event (synchronous reads) and
+  // times its frames with a clock that runs.
+  const std::string cmd = "'" + chromium +
+                          "' --headless=new --no-sandbox --disable-gpu --use-angle=swiftshader "
+                          "--enable-unsafe-swiftshader --allow-file-access-from-files "
+                          "--dump-dom 'file://" + (tmp / "crowd.html").string() +
+                          "?files=a.glb,b.glb&count=1000&w=960&h=540&time=1.3&measure=2&check=1' 2>/dev/null";
+  std::string dom;
+  if (FILE* p = popen(cmd.c_str(), "r")) {
+    char buf[4096];
+    size_t n;
+    while ((n = fread(buf, 1, sizeof buf, p)) > 0) dom.append(buf, n);
+    pclose(p);
+  }
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(dom, m, std::regex("<pre id=\"result\"[^>]*>([^<]*)</pre>"))) << dom.substr(0, 800);
+  const nlohmann::json r = nlohmann::json::parse(std::string(m[1]));
+  ASSERT_TRUE(r.value("ok", false)) << r.dump();
+  EXPECT_EQ(r["count"], 1000);
+  ASSERT_EQ(r["levels"].size(), 1000u);
+  for (const auto& l : r["levels"]) ASSERT_EQ(l, 3);
+  int picked = 0;
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_GT(r["picked"][k].get<int>(), 0) << "no instance at LOD" << k;
+    picked += r["picked"][k].get<int>();
+  }
+  EXPECT_EQ(picked, 1000);
+  // Unlit colours: each character's skin, garments and hair on screen.
+  auto pixels = [&](const DressedPart& p) {
+    for (const auto& [key, n] : r["colours"].items())
+      if (key.rfind(p.name + "#", 0) == 0) {
+        const Eigen::Vector3d c = p.colour.cwiseMin(1.0);
+        // The key's sRGB bytes must be this character's colour (two characters may share a name).
+        const auto byte = [](double v) {
+          return static_cast<int>(std::lround(255 * (v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055)));
+        };
+        const std::string hex = fmt::format("{:02x}{:02x}{:02x}", byte(c[0]), byte(c[1]), byte(c[2]));
+        if (key == p.name + "#" + hex) return n.get<int>();
+      }
+    return -1;
+  };
+  for (const DressedLods& d : pair)
+    for (const DressedPart& p : d.r.parts)
+      if (p.kind == "body" || p.garment || p.kind == "hair")
+        EXPECT_GT(pixels(p), 2000) << p.name << " of the " << (d.r.drawn.male ? "man" : "woman");
+  const double many = r["seconds_per_frame"], one = r["seconds_per_frame_one"], anim = r["seconds_per_frame_animation"];
+  std::printf("1000 characters (2 distinct), LOD0/1/2 %d/%d/%d: %.3f s a frame (%.2f frames/s; animation %.3f s); "
+              "one character %.4f s (%.1f frames/s): %.0f times slower\n",
+              r["picked"][0].get<int>(), r["picked"][1].get<int>(), r["picked"][2].get<int>(), many, 1 / many, anim, one,
+              1 / one, many / one);
+  EXPECT_GT(many, 0);
+  EXPECT_GT(one, 0);
 }
 
 }  // namespace
