@@ -5,10 +5,10 @@
 #include <algorithm>
 #include <nlohmann/json.hpp>
 
+#include "assets/lod.h"
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "core/makehuman.h"
-#include "assets/lod.h"
 #include "skinning/gltf_export.h"
 #include "tools/pipeline/animate_job.h"
 
@@ -126,6 +126,10 @@ size_t write_dressed_glb(const fs::path& path, const std::vector<const std::vect
 // Levels 1 and 2 of a dressed character (OutfitKit::lods), weights limited as the glb plays them.
 std::vector<std::vector<DressedPart>> dressed_lods(const OutfitKit& kit, const std::vector<DressedPart>& parts,
                                                    const DressedSkinBody& d, bool male) {
+  for (const char* name : {"female1605", "male1591", "proxy741"})
+    if (!kit.proxies.count(name))
+      throw InputError(std::string("levels of detail need the proxy '") + name +
+                       "': load the outfit kit with its helpers (load_outfit_kit fit_helpers), or set lods false");
   LodSpec one{kit.lod1_triangles, &kit.proxies.at(male ? "male1591" : "female1605"), {"eyelashes", "teeth"},
               kit.lod1_error_mm};
   LodSpec two{kit.lod2_triangles, &kit.proxies.at("proxy741"), {"eyebrows", "eyelashes", "teeth"},

@@ -35,12 +35,11 @@ struct OutfitKit {
   // Levels of detail in dressed.glb (docs/assets.md#levels-of-detail): LOD1 the MakeHuman proxy of
   // the character's sex (female1605 / male1591) with the assets simplified to lod1_triangles,
   // LOD2 the low-poly proxy (proxy741) and the assets but brows, lashes and teeth within
-  // lod2_triangles. Read by
-  // load_outfit_kit when fitting the helpers; false = the full level only.
+  // lod2_triangles. false = the full level only (`--lods none`).
   bool lods = true;
   int lod1_triangles = 8000, lod2_triangles = 2000;
   double lod1_error_mm = 4, lod2_error_mm = 12;   // how far a simplified vertex may leave the part
-  std::map<std::string, Asset> proxies;  // by name
+  std::map<std::string, Asset> proxies;  // by name; read by load_outfit_kit with the helpers
 };
 
 // `outfits` = a JSON file or "default". Reads every asset the file names (InputError "'FILE':
