@@ -24,6 +24,7 @@
 
 #include "assets/lod.h"
 #include "core/data_path.h"
+#include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "core/io/bvh.h"
 #include "core/makehuman.h"
@@ -32,6 +33,7 @@
 #include "skinning/skinning_rig.h"
 #include "support/fixtures.h"
 #include "support/run_cli.h"
+#include "tools/pipeline/crowd_viewer.h"
 #include "tools/pipeline/outfit_job.h"
 
 namespace bodymodel {
@@ -318,16 +320,21 @@ TEST(OutfitLods, CrowdViewerDrawsAThousandAnimatedCharacters) {
   fixtures::TempDir tmp;
   fs::copy_file(pair[0].glb, tmp / "a.glb");
   fs::copy_file(pair[1].glb, tmp / "b.glb");
+  // Written as `crowd --outfits` writes it: the page with its files, the modules under three/.
   const fs::path page = fs::path(__FILE__).parent_path().parent_path().parent_path() / "tools" / "viewer" / "crowd.html";
-  fs::copy_file(page, tmp / "crowd.html");
-  fs::create_directory_symlink(three, tmp / "three");
+  ASSERT_TRUE(write_crowd_viewer(tmp.path, read_text_file(page), {"a.glb", "b.glb"}, three));
+  EXPECT_TRUE(fs::is_regular_file(tmp / "three/examples/jsm/utils/BufferGeometryUtils.js"));
+  fs::create_directories(tmp / "no_three");
+  EXPECT_FALSE(write_crowd_viewer(tmp / "no_three", read_text_file(page), {"a.glb"}, tmp / "nowhere"));
+  EXPECT_TRUE(fs::is_regular_file(tmp / "no_three/crowd.html"));
+  EXPECT_THROW(write_crowd_viewer(tmp / "none", read_text_file(page), {}, three), InputError);
   // No --virtual-time-budget: the page finishes before its load event (synchronous reads) and
   // times its frames with a clock that runs.
   const std::string cmd = "'" + chromium +
                           "' --headless=new --no-sandbox --disable-gpu --use-angle=swiftshader "
                           "--enable-unsafe-swiftshader --allow-file-access-from-files "
                           "--dump-dom 'file://" + (tmp / "crowd.html").string() +
-                          "?files=a.glb,b.glb&count=1000&w=960&h=540&time=1.3&measure=2&check=1' 2>/dev/null";
+                          "?count=1000&w=960&h=540&time=1.3&measure=2&check=1' 2>/dev/null";   // files: the page's own
   std::string dom;
   if (FILE* p = popen(cmd.c_str(), "r")) {
     char buf[4096];
@@ -340,6 +347,7 @@ TEST(OutfitLods, CrowdViewerDrawsAThousandAnimatedCharacters) {
   const nlohmann::json r = nlohmann::json::parse(std::string(m[1]));
   ASSERT_TRUE(r.value("ok", false)) << r.dump();
   EXPECT_EQ(r["count"], 1000);
+  EXPECT_EQ(r["distinct"], 2);   // both files of window.CROWD_FILES
   ASSERT_EQ(r["levels"].size(), 1000u);
   for (const auto& l : r["levels"]) ASSERT_EQ(l, 3);
   int picked = 0;

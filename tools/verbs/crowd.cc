@@ -21,11 +21,13 @@
 #include "tools/pipeline/animate_job.h"
 #include "tools/pipeline/character_job.h"
 #include "tools/pipeline/conditions.h"
+#include "tools/pipeline/crowd_viewer.h"
 #include "tools/pipeline/folder_settings.h"
 #include "tools/pipeline/outfit_job.h"
 #include "tools/pipeline/output_folder.h"
 #include "tools/render/render.h"
 #include "tools/verb.h"
+#include "tools/viewer/viewer_assets.h"
 
 namespace bodymodel {
 namespace {
@@ -103,6 +105,16 @@ void write_outfit_summary(const CrowdArgs& a, const fs::path& out) {
   write_text_file(out / "outfits.csv", csv);
   fmt::print("dressed: frames with the body through a garment (> 2 mm over 1 % of its vertices) {} of {}; "
              "largest dressed.glb {:.2f} MB\n", over, frames, max_bytes / 1e6);
+  if (a.lods == "none") return;
+  // The crowd viewer over the characters' glb files, with the three.js modules it imports.
+  std::vector<std::string> glbs;
+  for (int i = 0; i < a.count; ++i) glbs.push_back(fmt::format("char_{:03d}/anim/dressed.glb", i));
+  const fs::path three = cli::default_three_js().parent_path().parent_path();   // …/three/build/three.min.js
+  if (write_crowd_viewer(out, cli::crowd_viewer_html(), glbs, three))
+    cli::info("crowd viewer: " + (out / "crowd.html").string() + " (serve the folder over http, e.g. python3 -m http.server)");
+  else
+    cli::warn("crowd viewer: three.js modules not found under '" + three.string() + "' (scripts/setup.sh); " +
+              (out / "crowd.html").string() + " needs them as ./three");
 }
 
 // Up to 10 bodies a row, one scale.
@@ -197,7 +209,8 @@ void run_crowd(CrowdArgs& a) {
                                                                                            : file_fingerprint(a.outfits)}};
   if (!a.outfits.empty()) settings["lods"] = a.lods;
   ResumableFolder folder(out, "crowd.json", settings, a.force, [](const std::string& n) {
-    return n == "crowd.csv" || n == "crowd.png" || n == "outfits.csv" || n.rfind("char_", 0) == 0;
+    return n == "crowd.csv" || n == "crowd.png" || n == "outfits.csv" || n == "crowd.html" || n == "three" ||
+           n.rfind("char_", 0) == 0;
   });
   auto model = std::make_shared<const BodyModel>(load_model(a.model));
   if (model->rig.empty())
