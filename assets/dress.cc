@@ -154,12 +154,14 @@ DressedSkinBody dress_skin_body(const Eigen::MatrixX3d& skin_rest, const Eigen::
       skin_W.rows() != skin_rest.rows())
     throw InputError(fmt::format("dress_skin_body: a body of {} vertices and {} weight rows; the helpers need {}",
                                  skin_rest.rows(), skin_W.rows(), regressor.body_vertex_count));
-  const Eigen::MatrixX3d full = complete_with_helpers(regressor, skin_rest);
   DressedSkinBody d;
-  d.parts = dress_body(full, skin_F, weights_with_helpers(skin_W, tie), nullptr, outfit, options);
+  d.full_rest = complete_with_helpers(regressor, skin_rest);
+  d.full_weights = weights_with_helpers(skin_W, tie);
+  d.parts = dress_body(d.full_rest, skin_F, d.full_weights, nullptr, outfit, options);
   std::vector<const AssetBinding*> bindings;
   for (const Asset& a : outfit) bindings.push_back(&a.binding);
-  d.hidden = hidden_body_vertices(bindings, static_cast<int>(full.rows()));
+  d.full_hidden = hidden_body_vertices(bindings, static_cast<int>(d.full_rest.rows()));
+  d.hidden = d.full_hidden;
   d.hidden.resize(skin_rest.rows());
   if (options.skin_weights_near >= 0)
     for (DressedPart& p : d.parts) {

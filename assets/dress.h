@@ -74,6 +74,11 @@ SkinWeights skin_weights_at(const Eigen::MatrixX3d& P, const Eigen::MatrixX3d& b
 struct DressedSkinBody {
   std::vector<DressedPart> parts;
   std::vector<char> hidden;
+  // All 19158 rows as the assets were fitted: positions, weights (skin, then each helper's skin
+  // triangle's) and the vertices the outfit hides, for fitting more assets (proxies, assets/lod.h).
+  Eigen::MatrixX3d full_rest;
+  SkinWeights full_weights;
+  std::vector<char> full_hidden;
 };
 DressedSkinBody dress_skin_body(const Eigen::MatrixX3d& skin_rest, const Eigen::MatrixX3i& skin_F,
                                 const SkinWeights& skin_W, const HelperRegressor& regressor,

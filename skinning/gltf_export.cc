@@ -221,10 +221,16 @@ void add_material_parts(tinygltf::Model& model, BufferBuilder& buf, const tinygl
     m.pbrMetallicRoughness.baseColorFactor = {part.base_colour[0], part.base_colour[1], part.base_colour[2], 1.0};
     m.pbrMetallicRoughness.roughnessFactor = part.roughness;
     m.pbrMetallicRoughness.metallicFactor = part.metallic;
-    model.materials.push_back(m);
+    // Levels of detail of one character share their parts' materials (same name and factors).
+    const auto same = std::find_if(model.materials.begin(), model.materials.end(), [&](const tinygltf::Material& o) {
+      return o.name == m.name && o.pbrMetallicRoughness.baseColorFactor == m.pbrMetallicRoughness.baseColorFactor &&
+             o.pbrMetallicRoughness.roughnessFactor == m.pbrMetallicRoughness.roughnessFactor &&
+             o.pbrMetallicRoughness.metallicFactor == m.pbrMetallicRoughness.metallicFactor;
+    });
     tinygltf::Primitive p = prim;
     add_indices(buf, p, F.middleRows(part.first_triangle, part.triangle_count));
-    p.material = static_cast<int>(model.materials.size()) - 1;
+    p.material = static_cast<int>(same - model.materials.begin());
+    if (same == model.materials.end()) model.materials.push_back(m);   // index = the old size
     mesh.primitives.push_back(p);
     next += part.triangle_count;
   }
@@ -279,10 +285,11 @@ void add_joints_and_weights(BufferBuilder& buf, tinygltf::Primitive& prim, const
                                               TINYGLTF_TYPE_VEC4, n, TINYGLTF_TARGET_ARRAY_BUFFER);
 }
 
-// The joint nodes 0..B-1, the skin with its inverse bind matrices, the mesh node B and the scene
-// (with a common root node B + 1 when the skeleton has several roots).
+// The joint nodes 0..B-1, the skin with its inverse bind matrices, the mesh nodes B..B+L-1 (one
+// per level of detail, mesh k on node B + k, all with skin 0) and the scene (with a common root
+// node B + L when the skeleton has several roots).
 void add_skeleton_and_scene(tinygltf::Model& model, BufferBuilder& buf, const Skeleton& skeleton, double s,
-                            const GltfExportOptions& options) {
+                            const std::vector<std::string>& mesh_names) {
   const int B = skeleton.bone_count();
   for (int b = 0; b < B; ++b) {
     tinygltf::Node node;
@@ -311,15 +318,18 @@ void add_skeleton_and_scene(tinygltf::Model& model, BufferBuilder& buf, const Sk
   for (int b = 0; b < B; ++b)
     if (skeleton.parents[static_cast<size_t>(b)] < 0) roots.push_back(b);
 
-  tinygltf::Node mesh_node;
-  mesh_node.name = options.mesh_name;
-  mesh_node.mesh = 0;
-  mesh_node.skin = 0;
-  model.nodes.push_back(mesh_node);   // node B
-
+  const int L = static_cast<int>(mesh_names.size());
   tinygltf::Scene scene;
   scene.name = "scene";
-  scene.nodes.push_back(B);
+  for (int k = 0; k < L; ++k) {
+    tinygltf::Node mesh_node;
+    mesh_node.name = mesh_names[static_cast<size_t>(k)];
+    mesh_node.mesh = k;
+    mesh_node.skin = 0;
+    if (L > 1) mesh_node.extras = tinygltf::Value(tinygltf::Value::Object{{"lod", tinygltf::Value(k)}});
+    model.nodes.push_back(mesh_node);   // node B + k
+    scene.nodes.push_back(B + k);
+  }
   if (roots.size() == 1) {
     skin.skeleton = roots[0];
     scene.nodes.push_back(roots[0]);
@@ -328,9 +338,9 @@ void add_skeleton_and_scene(tinygltf::Model& model, BufferBuilder& buf, const Sk
     tinygltf::Node top;
     top.name = "skeleton_root";
     top.children = roots;
-    model.nodes.push_back(top);   // node B + 1
-    skin.skeleton = B + 1;
-    scene.nodes.push_back(B + 1);
+    model.nodes.push_back(top);   // node B + L
+    skin.skeleton = B + L;
+    scene.nodes.push_back(B + L);
   }
   model.skins.push_back(skin);
   model.scenes.push_back(scene);
@@ -437,13 +447,22 @@ void add_animation(tinygltf::Model& model, BufferBuilder& buf, const Skeleton& s
 std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const Eigen::MatrixX3d& N_in,
                                const Skeleton& skeleton, const SkinWeights& W, const GltfAnimation* animation,
                                const GltfExportOptions& options, GltfExportSummary* summary) {
-  // ---- checks ----
-  check_skinned_inputs(V, F, skeleton, W, options);
-  const int n = static_cast<int>(V.rows()), B = skeleton.bone_count();
-  const Eigen::MatrixX3d N = checked_normals(V, F, N_in);
+  GltfLevel level{options.mesh_name, V, F, N_in, W, options.parts};
+  return skinned_lods_gltf_bytes({level}, skeleton, animation, options, summary);
+}
+
+std::string skinned_lods_gltf_bytes(const std::vector<GltfLevel>& levels, const Skeleton& skeleton,
+                                    const GltfAnimation* animation, const GltfExportOptions& options,
+                                    GltfExportSummary* summary) {
+  if (levels.empty()) throw InputError("glTF export: no mesh to write");
+  // ---- checks, all levels before anything is built ----
+  std::vector<Eigen::MatrixX3d> normals;
+  for (const GltfLevel& l : levels) {
+    check_skinned_inputs(l.V, l.F, skeleton, l.W, options);
+    normals.push_back(checked_normals(l.V, l.F, l.N));
+  }
+  const int B = skeleton.bone_count();
   GltfExportSummary sum;
-  sum.vertices = n;
-  sum.triangles = static_cast<int>(F.rows());
   sum.joints = B;
   const double s = options.unit_scale;
 
@@ -452,22 +471,30 @@ std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i
   model.asset.generator = options.generator;
   BufferBuilder buf(&model);
 
-  // ---- mesh attributes (the buffer holds positions, normals, joints, weights, indices) ----
-  tinygltf::Primitive prim;
-  add_positions_and_normals(buf, prim, V, N, s);
-  add_joints_and_weights(buf, prim, W, n, B, sum);
-  tinygltf::Mesh mesh;
-  mesh.name = options.mesh_name;
-  if (options.parts.empty()) {
-    add_indices(buf, prim, F);
-    mesh.primitives.push_back(prim);
-  } else {
-    add_material_parts(model, buf, prim, F, options.parts, mesh);
+  // ---- one mesh per level (the buffer holds positions, normals, joints, weights, indices) ----
+  std::vector<std::string> names;
+  for (size_t k = 0; k < levels.size(); ++k) {
+    const GltfLevel& l = levels[k];
+    const int n = static_cast<int>(l.V.rows());
+    sum.vertices += n;
+    sum.triangles += static_cast<int>(l.F.rows());
+    tinygltf::Primitive prim;
+    add_positions_and_normals(buf, prim, l.V, normals[k], s);
+    add_joints_and_weights(buf, prim, l.W, n, B, sum);
+    tinygltf::Mesh mesh;
+    mesh.name = l.name;
+    if (l.parts.empty()) {
+      add_indices(buf, prim, l.F);
+      mesh.primitives.push_back(prim);
+    } else {
+      add_material_parts(model, buf, prim, l.F, l.parts, mesh);
+    }
+    model.meshes.push_back(mesh);
+    names.push_back(l.name);
   }
-  model.meshes.push_back(mesh);
 
-  // ---- joints: nodes 0..B-1, the mesh node B ----
-  add_skeleton_and_scene(model, buf, skeleton, s, options);
+  // ---- joints: nodes 0..B-1, the mesh nodes B.. ----
+  add_skeleton_and_scene(model, buf, skeleton, s, names);
 
   // ---- animation ----
   if (animation && !animation->frames.empty()) add_animation(model, buf, skeleton, *animation, options, s, sum);

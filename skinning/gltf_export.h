@@ -78,6 +78,25 @@ std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i
                                const GltfExportOptions& options = {},
                                GltfExportSummary* summary = nullptr);
 
+// One mesh of a multi-mesh export: a level of detail of one character (same skeleton).
+struct GltfLevel {
+  std::string name;                     // the mesh and its node
+  Eigen::MatrixX3d V;                   // as skinned_gltf_bytes' V, F, N, W and options.parts
+  Eigen::MatrixX3i F;
+  Eigen::MatrixX3d N;
+  SkinWeights W;
+  std::vector<GltfMaterialPart> parts;
+};
+
+// Several skinned meshes sharing one skeleton, skin and animation (levels of detail): mesh k on
+// node B + k (B joints), every mesh node in the scene; with more than one level each mesh node
+// carries extras {"lod": k}. Parts with the same name and factors share one material. The
+// summary adds up vertices and triangles over the levels. options.mesh_name and options.parts
+// are not used (each level has its own).
+std::string skinned_lods_gltf_bytes(const std::vector<GltfLevel>& levels, const Skeleton& skeleton,
+                                    const GltfAnimation* animation = nullptr, const GltfExportOptions& options = {},
+                                    GltfExportSummary* summary = nullptr);
+
 // skinned_gltf_bytes written to `path` atomically.
 GltfExportSummary write_skinned_gltf(const std::filesystem::path& path, const Eigen::MatrixX3d& V,
                                      const Eigen::MatrixX3i& F, const Eigen::MatrixX3d& N,

@@ -3,6 +3,7 @@
 // reproduces our LBS of the same frame within 1e-3 mm.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -311,6 +312,37 @@ TEST(GltfExport, MaterialPartsBecomePrimitivesSharingTheVertices) {
   EXPECT_THROW(skinned_gltf_bytes(c.V, c.F, {}, c.skeleton, c.W, nullptr, bright), InputError);
 }
 
+// Levels of detail: one mesh and mesh node per level, all bound to the one skin, in the scene,
+// tagged with extras {"lod": k}; materials with the same name and factors shared.
+TEST(GltfExport, LevelsShareOneSkinAndTheirMaterials) {
+  const Character c = make_character();
+  const int nf = static_cast<int>(c.F.rows()), B = c.skeleton.bone_count();
+  GltfLevel full{"lod0", c.V, c.F, {}, c.W, {{"skin", 0, 100, {0.8, 0.6, 0.5}, 0.7}, {"cloth", 100, nf - 100, {0.2, 0.3, 0.5}, 0.9}}};
+  GltfLevel coarse{"lod1", c.V, c.F.topRows(150), {}, c.W, {{"skin", 0, 100, {0.8, 0.6, 0.5}, 0.7}, {"cloth", 100, 50, {0.2, 0.3, 0.5}, 0.9}}};
+  GltfExportSummary sum;
+  const tinygltf::Model m = load(skinned_lods_gltf_bytes({full, coarse}, c.skeleton, nullptr, {}, &sum));
+  ASSERT_EQ(m.meshes.size(), 2u);
+  ASSERT_EQ(m.skins.size(), 1u);
+  EXPECT_EQ(m.materials.size(), 2u);
+  EXPECT_EQ(sum.triangles, nf + 150);
+  EXPECT_EQ(sum.vertices, 2 * static_cast<int>(c.V.rows()));
+  for (int k = 0; k < 2; ++k) {
+    const tinygltf::Node& node = m.nodes.at(static_cast<size_t>(B + k));
+    EXPECT_EQ(node.name, k ? "lod1" : "lod0");
+    EXPECT_EQ(node.mesh, k);
+    EXPECT_EQ(node.skin, 0);
+    EXPECT_EQ(node.extras.Get("lod").GetNumberAsInt(), k);
+    EXPECT_NE(std::find(m.scenes[0].nodes.begin(), m.scenes[0].nodes.end(), B + k), m.scenes[0].nodes.end());
+    for (int p = 0; p < 2; ++p) EXPECT_EQ(m.meshes[static_cast<size_t>(k)].primitives[static_cast<size_t>(p)].material, p);
+  }
+  EXPECT_EQ(m.accessors.at(static_cast<size_t>(m.meshes[1].primitives[1].indices)).count, 150u);
+  // One level: the single-mesh layout, no extras.
+  EXPECT_FALSE(load(skinned_lods_gltf_bytes({full}, c.skeleton)).nodes.at(static_cast<size_t>(B)).extras.IsObject());
+  EXPECT_THROW(skinned_lods_gltf_bytes({}, c.skeleton), InputError);
+  coarse.W = c.W.topRows(10);
+  EXPECT_THROW(skinned_lods_gltf_bytes({full, coarse}, c.skeleton), InputError);   // checked level by level
+}
+
 TEST(GltfExport, KhronosValidatorReportsNoErrors) {
   const char* modules = std::getenv("BODYMODEL_GLTF_VALIDATOR");
   const char* node_path = std::getenv("NODE_PATH");
@@ -332,9 +364,16 @@ TEST(GltfExport, KhronosValidatorReportsNoErrors) {
   two.parts = {{"skin", 0, 100, {0.8, 0.6, 0.5}}, {"cloth", 100, static_cast<int>(c.F.rows()) - 100, {0.2, 0.3, 0.5}}};
   const auto parts = dir / "parts.glb";
   write_skinned_gltf(parts, c.V, c.F, {}, c.skeleton, c.W, &anim, two);  // two materials
+  const auto levels = dir / "levels.glb";   // two levels of detail sharing the skin and materials
+  {
+    GltfLevel full{"lod0", c.V, c.F, {}, c.W, two.parts}, coarse{"lod1", c.V, c.F.topRows(150), {}, c.W, two.parts};
+    coarse.parts[1].triangle_count = 50;
+    const std::string bytes = skinned_lods_gltf_bytes({full, coarse}, c.skeleton, &anim);
+    write_text_file(levels, bytes);
+  }
   const auto script = std::filesystem::path(__FILE__).parent_path() / "gltf_validate.js";
   const auto log = dir / "validator.txt";
-  const int rc = std::system((env + "node " + script.string() + " " + file.string() + " " + flat.string() + " " + parts.string() + " > " +
+  const int rc = std::system((env + "node " + script.string() + " " + file.string() + " " + flat.string() + " " + parts.string() + " " + levels.string() + " > " +
                               log.string() + " 2>&1").c_str());
   const std::string text = read_text_file(log);
   std::filesystem::remove_all(dir);
@@ -343,6 +382,7 @@ TEST(GltfExport, KhronosValidatorReportsNoErrors) {
   EXPECT_NE(text.find("tube.glb: errors 0 "), std::string::npos) << text;
   EXPECT_NE(text.find("flat.glb: errors 0 "), std::string::npos) << text;
   EXPECT_NE(text.find("parts.glb: errors 0 "), std::string::npos) << text;
+  EXPECT_NE(text.find("levels.glb: errors 0 "), std::string::npos) << text;
   std::printf("%s", text.c_str());   // the validator's counts and first messages, for the log
 }
 

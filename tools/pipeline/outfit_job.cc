@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <nlohmann/json.hpp>
 
+#include "assets/lod.h"
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "core/makehuman.h"
@@ -40,6 +41,8 @@ OutfitKit load_outfit_kit(const std::string& outfits, const fs::path& makehuman_
     const MakeHuman mh = MakeHuman::load(makehuman_dir);
     kit.regressor = fit_helper_regressor(mh, helper_options);
     kit.tie = bind_helpers(mh.build_vertices(MacroSettings{}), mh.body_faces());
+    for (const char* name : {"female1605", "male1591", "proxy741"})
+      kit.proxies.emplace(name, load_asset(find_asset(root, name)));
   }
   return kit;
 }
@@ -52,9 +55,14 @@ bool outfit_sex_is_male(const BodyModel& model, Sex conditioned, const Eigen::Ve
   return (seed * 0x9e3779b97f4a7c15ull) >> 63;
 }
 
-std::optional<OutfitKit> outfit_kit_if_asked(const std::string& outfits, const fs::path& makehuman_dir) {
+std::optional<OutfitKit> outfit_kit_if_asked(const std::string& outfits, const fs::path& makehuman_dir,
+                                             const std::string& lods) {
+  if (lods != "default" && lods != "none")
+    throw InputError("--lods: expected 'default' or 'none', found '" + lods + "'");
   if (outfits.empty()) return std::nullopt;
-  return load_outfit_kit(outfits, makehuman_dir);
+  OutfitKit kit = load_outfit_kit(outfits, makehuman_dir);
+  kit.lods = lods == "default";
+  return kit;
 }
 
 namespace {
@@ -77,34 +85,64 @@ SkinWeights largest_weights(const SkinWeights& W, int keep) {
   return out;
 }
 
-// One skinned mesh, a primitive and material per part (as `bodymodel dress`), with the clip.
-size_t write_dressed_glb(const fs::path& path, const std::vector<DressedPart>& parts, const Skeleton& skeleton,
-                         const std::vector<BoneTransforms>& frames, double frame_time) {
+// One skinned mesh of the parts, a primitive and material per part (as `bodymodel dress`).
+GltfLevel dressed_level(const std::string& name, const std::vector<DressedPart>& parts, int bones) {
+  GltfLevel l;
+  l.name = name;
   Eigen::Index nv = 0, nf = 0;
   for (const DressedPart& p : parts) nv += p.V.rows(), nf += p.F.rows();
-  Eigen::MatrixX3d V(nv, 3);
-  Eigen::MatrixX3i F(nf, 3);
+  l.V.resize(nv, 3);
+  l.F.resize(nf, 3);
   std::vector<Eigen::Triplet<double>> t;
-  GltfExportOptions o;
-  o.mesh_name = "dressed";
   Eigen::Index v0 = 0, f0 = 0;
   for (const DressedPart& p : parts) {
-    V.middleRows(v0, p.V.rows()) = p.V;
-    F.middleRows(f0, p.F.rows()) = p.F.array() + static_cast<int>(v0);
+    l.V.middleRows(v0, p.V.rows()) = p.V;
+    l.F.middleRows(f0, p.F.rows()) = p.F.array() + static_cast<int>(v0);
     for (int r = 0; r < p.weights.outerSize(); ++r)
       for (SkinWeights::InnerIterator it(p.weights, r); it; ++it) t.emplace_back(v0 + r, it.col(), it.value());
-    o.parts.push_back({p.name, static_cast<int>(f0), static_cast<int>(p.F.rows()), p.colour.cwiseMin(1.0), p.roughness});
+    l.parts.push_back({p.name, static_cast<int>(f0), static_cast<int>(p.F.rows()), p.colour.cwiseMin(1.0), p.roughness});
     v0 += p.V.rows(), f0 += p.F.rows();
   }
-  SkinWeights W(nv, skeleton.bone_count());
-  W.setFromTriplets(t.begin(), t.end());
+  l.W.resize(nv, bones);
+  l.W.setFromTriplets(t.begin(), t.end());
+  return l;
+}
+
+// The levels (the full one first) as one glb sharing the skeleton and the clip.
+size_t write_dressed_glb(const fs::path& path, const std::vector<const std::vector<DressedPart>*>& levels,
+                         const Skeleton& skeleton, const std::vector<BoneTransforms>& frames, double frame_time) {
+  std::vector<GltfLevel> meshes;
+  for (size_t k = 0; k < levels.size(); ++k)
+    meshes.push_back(dressed_level(levels.size() == 1 ? "dressed" : fmt::format("dressed_LOD{}", k), *levels[k],
+                                   skeleton.bone_count()));
   GltfAnimation clip;
   clip.frame_time = frame_time;
   clip.frames = frames;
-  return write_skinned_gltf(path, V, F, {}, skeleton, W, frames.empty() ? nullptr : &clip, o).bytes;
+  const std::string bytes = skinned_lods_gltf_bytes(meshes, skeleton, frames.empty() ? nullptr : &clip);
+  write_atomically(path, [&](std::ostream& os) { os.write(bytes.data(), static_cast<std::streamsize>(bytes.size())); });
+  return bytes.size();
+}
+
+// Levels 1 and 2 of a dressed character (OutfitKit::lods), weights limited as the glb plays them.
+std::vector<std::vector<DressedPart>> dressed_lods(const OutfitKit& kit, const std::vector<DressedPart>& parts,
+                                                   const DressedSkinBody& d, bool male) {
+  for (const char* name : {"female1605", "male1591", "proxy741"})
+    if (!kit.proxies.count(name))
+      throw InputError(std::string("levels of detail need the proxy '") + name +
+                       "': load the outfit kit with its helpers (load_outfit_kit fit_helpers), or set lods false");
+  LodSpec one{kit.lod1_triangles, &kit.proxies.at(male ? "male1591" : "female1605"), {"eyelashes", "teeth"},
+              kit.lod1_error_mm};
+  LodSpec two{kit.lod2_triangles, &kit.proxies.at("proxy741"), {"eyebrows", "eyelashes", "teeth"},
+              kit.lod2_error_mm};
+  std::vector<std::vector<DressedPart>> lods = {level_of_detail(parts, d, one), level_of_detail(parts, d, two)};
+  for (auto& level : lods)
+    for (DressedPart& p : level) p.weights = largest_weights(p.weights, 4);
+  return lods;
 }
 
 nlohmann::json outfit_json(const DressedCharacterResult& r) {
+  nlohmann::json lod_triangles = {triangle_count(r.parts)};
+  for (const auto& l : r.lods) lod_triangles.push_back(triangle_count(l));
   nlohmann::json items = nlohmann::json::array();
   for (const DrawnItem& i : r.drawn.items)
     items.push_back({{"slot", i.slot}, {"asset", i.asset}, {"palette", i.palette}, {"srgb", i.hex},
@@ -117,6 +155,7 @@ nlohmann::json outfit_json(const DressedCharacterResult& r) {
                            {"frames", r.penetration.fraction.rows()},
                            {"frames_over_limit", r.penetration.frames_over(r.limit)},
                            {"worst_fraction", r.penetration.fraction.size() ? r.penetration.fraction.maxCoeff() : 0.0}}},
+          {"lod_triangles", lod_triangles},
           {"glb_bytes", r.glb_bytes}};
 }
 
@@ -137,11 +176,14 @@ DressedCharacterResult write_dressed_character(const OutfitKit& kit, const Chara
   for (size_t k = 0; k < r.drawn.items.size(); ++k) d.parts[k + 1].colour = r.drawn.items[k].colour;
   for (DressedPart& p : d.parts) p.weights = largest_weights(p.weights, 4);
   r.parts = std::move(d.parts);
+  if (kit.lods) r.lods = dressed_lods(kit, r.parts, d, male);
   const std::vector<BoneTransforms> measured =
       frames.empty() ? std::vector<BoneTransforms>{BoneTransforms(ch.skeleton.bone_count(), Eigen::Affine3d::Identity())}
                      : frames;
   r.penetration = clip_penetration(r.parts, ch.lbs.rest, ch.F, W, d.hidden, measured, r.depth_mm);
-  r.glb_bytes = write_dressed_glb(dir / "dressed.glb", r.parts, ch.skeleton, frames, frame_time);
+  std::vector<const std::vector<DressedPart>*> levels = {&r.parts};
+  for (const auto& l : r.lods) levels.push_back(&l);
+  r.glb_bytes = write_dressed_glb(dir / "dressed.glb", levels, ch.skeleton, frames, frame_time);
   std::string csv = "frame";
   for (const std::string& g : r.penetration.garments) csv += fmt::format(",{0}_inside_fraction,{0}_max_depth_mm", g);
   csv += "\n";

@@ -32,6 +32,14 @@ struct OutfitKit {
   // (DressOptions::skin_weights_near) and are pushed `push.clearance` (1 mm) out at rest. Set by
   // load_outfit_kit (figures: docs/assets.md#outfits).
   DressOptions dress;
+  // Levels of detail in dressed.glb (docs/assets.md#levels-of-detail): LOD1 the MakeHuman proxy of
+  // the character's sex (female1605 / male1591) with the assets simplified to lod1_triangles,
+  // LOD2 the low-poly proxy (proxy741) and the assets but brows, lashes and teeth within
+  // lod2_triangles. false = the full level only (`--lods none`).
+  bool lods = true;
+  int lod1_triangles = 8000, lod2_triangles = 2000;
+  double lod1_error_mm = 4, lod2_error_mm = 12;   // how far a simplified vertex may leave the part
+  std::map<std::string, Asset> proxies;  // by name; read by load_outfit_kit with the helpers
 };
 
 // `outfits` = a JSON file or "default". Reads every asset the file names (InputError "'FILE':
@@ -40,12 +48,15 @@ struct OutfitKit {
 OutfitKit load_outfit_kit(const std::string& outfits, const std::filesystem::path& makehuman_dir,
                           bool fit_helpers = true, const HelperRegressorOptions& helper_options = {});
 
-// load_outfit_kit for a verb's --outfits value; nothing when it is empty.
-std::optional<OutfitKit> outfit_kit_if_asked(const std::string& outfits, const std::filesystem::path& makehuman_dir);
+// load_outfit_kit for a verb's --outfits value; nothing when it is empty. `lods` is the verb's
+// --lods: "default" (three levels) or "none" (the full level only); InputError otherwise.
+std::optional<OutfitKit> outfit_kit_if_asked(const std::string& outfits, const std::filesystem::path& makehuman_dir,
+                                             const std::string& lods = "default");
 
 struct DressedCharacterResult {
   DrawnOutfit drawn;
   std::vector<DressedPart> parts;        // at rest; the drawn colours
+  std::vector<std::vector<DressedPart>> lods;  // levels 1, 2 (empty when kit.lods is false)
   ClipPenetration penetration;           // per frame (the rest pose when there is no clip)
   double depth_mm = 2.0, limit = 0.01;   // the bound reported: frames over `limit` at depth_mm
   size_t glb_bytes = 0;
@@ -53,7 +64,8 @@ struct DressedCharacterResult {
 
 // The body of a character file (ch.lbs.rest, ch.F, the SSD weights of ch.lbs, its skeleton)
 // dressed in the outfit drawn for (male, seed), posed by `frames` (bone maps, as animated.glb;
-// empty = the rest pose only). Writes DIR/dressed.glb (with the clip when there are frames),
+// empty = the rest pose only). Writes DIR/dressed.glb (with the clip when there are frames; with
+// kit.lods one mesh node per level, "dressed_LOD0".."dressed_LOD2", sharing the skin),
 // DIR/outfit.json (what was drawn, colours) and DIR/penetration.csv (per frame and garment).
 DressedCharacterResult write_dressed_character(const OutfitKit& kit, const CharacterRigFile& ch, bool male,
                                                uint64_t seed, const std::vector<BoneTransforms>& frames,

@@ -32,7 +32,7 @@ namespace {
 struct CharacterArgs {
   std::string model, in, out;
   std::vector<std::string> where, judge_poses;
-  std::string judge_scans, outfits;
+  std::string judge_scans, outfits, lods = "default";
   bool unpose = false;
   uint64_t seed = 1;
   bool force = false;
@@ -207,6 +207,11 @@ void add_character_options(CLI::App* cmd, CharacterArgs& a) {
   cmd->add_option("--outfits", a.outfits,
                   "Also dress the character: a JSON of outfit choices per sex, or 'default' (docs/assets.md#outfits), "
                   "drawn with --seed: OUT/dressed.glb (rest pose), OUT/outfit.json, OUT/penetration.csv");
+  cmd->add_option("--lods", a.lods,
+                  "With --outfits: levels of detail in dressed.glb: 'default' (the full body, a MakeHuman proxy "
+                  "with simplified assets, the low-poly proxy within 2000 triangles; docs/assets.md#levels-of-detail) "
+                  "or 'none' (the full body only)")
+      ->capture_default_str();
 }
 
 // The character in the folder dressed in an outfit drawn with the seed (rest pose).
@@ -242,7 +247,7 @@ void run_character(CharacterArgs& a) {
   if (a.unpose && a.in.empty()) throw InputError("character: --unpose needs --in (the posed body)");
   if (!a.judge_scans.empty() && a.judge_poses.empty())
     throw InputError("character: --judge-scans needs --judge-poses (the registrations of those scans)");
-  const std::optional<OutfitKit> kit = outfit_kit_if_asked(a.outfits, data_file("makehuman"));  // before any write
+  const std::optional<OutfitKit> kit = outfit_kit_if_asked(a.outfits, data_file("makehuman"), a.lods);  // before any write
   StagedFolder out(a.out, a.force);
   auto model = std::make_shared<const BodyModel>(load_model(a.model));
   if (model->rig.empty())

@@ -21,11 +21,13 @@
 #include "tools/pipeline/animate_job.h"
 #include "tools/pipeline/character_job.h"
 #include "tools/pipeline/conditions.h"
+#include "tools/pipeline/crowd_viewer.h"
 #include "tools/pipeline/folder_settings.h"
 #include "tools/pipeline/outfit_job.h"
 #include "tools/pipeline/output_folder.h"
 #include "tools/render/render.h"
 #include "tools/verb.h"
+#include "tools/viewer/viewer_assets.h"
 
 namespace bodymodel {
 namespace {
@@ -33,7 +35,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct CrowdArgs {
-  std::string model, bvh, out, frames_format = "none", outfits;
+  std::string model, bvh, out, frames_format = "none", outfits, lods = "default";
   std::vector<std::string> where;
   int count = 20;
   uint64_t seed = 1;
@@ -74,6 +76,11 @@ void add_crowd_options(CLI::App* cmd, CrowdArgs& a) {
   cmd->add_option("--outfits", a.outfits,
                   "Dress every character: a JSON of outfit choices per sex, or 'default' (a street; "
                   "docs/assets.md#outfits): OUT/char_NNN/anim/ dressed.glb, outfit.json, penetration.csv");
+  cmd->add_option("--lods", a.lods,
+                  "With --outfits: levels of detail in dressed.glb: 'default' (the full body, a MakeHuman proxy "
+                  "with simplified assets, the low-poly proxy within 2000 triangles; docs/assets.md#levels-of-detail) "
+                  "or 'none' (the full body only)")
+      ->capture_default_str();
   cmd->add_flag("--force", a.force, "Replace an existing output folder made with other settings");
 }
 
@@ -98,6 +105,16 @@ void write_outfit_summary(const CrowdArgs& a, const fs::path& out) {
   write_text_file(out / "outfits.csv", csv);
   fmt::print("dressed: frames with the body through a garment (> 2 mm over 1 % of its vertices) {} of {}; "
              "largest dressed.glb {:.2f} MB\n", over, frames, max_bytes / 1e6);
+  if (a.lods == "none") return;
+  // The crowd viewer over the characters' glb files, with the three.js modules it imports.
+  std::vector<std::string> glbs;
+  for (int i = 0; i < a.count; ++i) glbs.push_back(fmt::format("char_{:03d}/anim/dressed.glb", i));
+  const fs::path three = cli::default_three_js().parent_path().parent_path();   // …/three/build/three.min.js
+  if (write_crowd_viewer(out, cli::crowd_viewer_html(), glbs, three))
+    cli::info("crowd viewer: " + (out / "crowd.html").string() + " (serve the folder over http, e.g. python3 -m http.server)");
+  else
+    cli::warn("crowd viewer: three.js modules not found under '" + three.string() + "' (scripts/setup.sh); " +
+              (out / "crowd.html").string() + " needs them as ./three");
 }
 
 // Up to 10 bodies a row, one scale.
@@ -174,11 +191,11 @@ void write_crowd_summary(const CrowdArgs& a, const fs::path& out, int skipped) {
 void run_crowd(CrowdArgs& a) {
   const fs::path out = a.out;
   // The outfit file and its assets are checked before anything is read or written.
-  const std::optional<OutfitKit> kit = outfit_kit_if_asked(a.outfits, data_file("makehuman"));
+  const std::optional<OutfitKit> kit = outfit_kit_if_asked(a.outfits, data_file("makehuman"), a.lods);
   // Every setting that changes a character, the model and clip by content (no paths): a rerun with
   // other settings is refused instead of resumed (tools/pipeline/folder_settings.h). --count may
   // grow: the characters already finished are kept.
-  const nlohmann::json settings = {{"verb", "crowd"},
+  nlohmann::json settings = {{"verb", "crowd"},
                                    {"model", file_fingerprint(a.model)},
                                    {"bvh", file_fingerprint(a.bvh)},
                                    {"where", a.where},
@@ -190,8 +207,10 @@ void run_crowd(CrowdArgs& a) {
                                    {"repair", !a.no_repair},
                                    {"outfits", a.outfits.empty() || a.outfits == "default" ? a.outfits
                                                                                            : file_fingerprint(a.outfits)}};
+  if (!a.outfits.empty()) settings["lods"] = a.lods;
   ResumableFolder folder(out, "crowd.json", settings, a.force, [](const std::string& n) {
-    return n == "crowd.csv" || n == "crowd.png" || n == "outfits.csv" || n.rfind("char_", 0) == 0;
+    return n == "crowd.csv" || n == "crowd.png" || n == "outfits.csv" || n == "crowd.html" || n == "three" ||
+           n.rfind("char_", 0) == 0;
   });
   auto model = std::make_shared<const BodyModel>(load_model(a.model));
   if (model->rig.empty())

@@ -10,6 +10,7 @@ namespace bodymodel::cli {
 const char* viewer_index_html();
 const char* viewer_js();
 const char* serve_html();   // `bodymodel serve`'s page
+const char* crowd_viewer_html();   // the crowd viewer `crowd --outfits` writes (crowd.html)
 
 // three.min.js to copy or serve: $BODYMODEL_THREE, else the build folder's npm install
 // (scripts/setup.sh). The build folder's path lives in the generated viewer_assets.cc only, so

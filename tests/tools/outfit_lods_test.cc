@@ -1,0 +1,387 @@
+// Levels of detail of a dressed character (tools/pipeline/outfit_job.h, `crowd --outfits`,
+// `character --outfits`, docs/assets.md#levels-of-detail): two MakeHuman bodies cut to their skin
+// as a model's characters are, dressed by the default outfits, walking CMU 02_02 (every 24th
+// frame). Checks the triangle budgets, that every level's weights sum to one (as computed and as
+// stored in the glb), that each level's vertices stay near the full level's surface in every frame
+// (the levels deform consistently), the glb's layout and size, and the Khronos validator when it
+// is installed (scripts/test.sh puts it in build/npm); then three.js in headless Chromium: the
+// levels under THREE.LOD, and the crowd viewer (tools/viewer/crowd.html) with 1000 instances.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <regex>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#define TINYGLTF_NO_STB_IMAGE
+#define TINYGLTF_NO_STB_IMAGE_WRITE
+#define TINYGLTF_NO_EXTERNAL_IMAGE
+#include <tiny_gltf.h>  // declarations only: the implementation is in skinning/gltf_export.cc
+
+#include "assets/lod.h"
+#include "core/data_path.h"
+#include "core/error.h"
+#include "core/io/atomic_write.h"
+#include "core/io/bvh.h"
+#include "core/makehuman.h"
+#include "core/retarget.h"
+#include "registration/correspondence.h"
+#include "skinning/skinning_rig.h"
+#include "support/fixtures.h"
+#include "support/run_cli.h"
+#include "tools/pipeline/crowd_viewer.h"
+#include "tools/pipeline/outfit_job.h"
+
+namespace bodymodel {
+namespace {
+
+namespace fs = std::filesystem;
+
+// All parts of a level posed by their weights, as one mesh.
+void posed_level(const std::vector<DressedPart>& parts, const BoneTransforms& pose, Eigen::MatrixX3d& V,
+                 Eigen::MatrixX3i& F) {
+  Eigen::Index nv = 0, nf = 0;
+  for (const DressedPart& p : parts) nv += p.V.rows(), nf += p.F.rows();
+  V.resize(nv, 3);
+  F.resize(nf, 3);
+  Eigen::Index v0 = 0, f0 = 0;
+  for (const DressedPart& p : parts) {
+    V.middleRows(v0, p.V.rows()) = linear_blend_skinning(p.V, p.weights, pose);
+    F.middleRows(f0, p.F.rows()) = p.F.array() + static_cast<int>(v0);
+    v0 += p.V.rows(), f0 += p.F.rows();
+  }
+}
+
+double quantile(std::vector<double> x, double q) {
+  std::sort(x.begin(), x.end());
+  return x[static_cast<size_t>(q * (x.size() - 1))];
+}
+
+std::string validator_env() {
+  if (const char* m = std::getenv("BODYMODEL_GLTF_VALIDATOR"); m && *m) return std::string("NODE_PATH=") + m + " ";
+  if (fs::exists("npm/node_modules/gltf-validator")) return "NODE_PATH=" + fs::absolute("npm/node_modules").string() + " ";
+  return "";
+}
+
+// Two characters (a woman, a man) dressed with levels of detail, walking: made once for the tests.
+struct DressedLods {
+  CharacterRigFile ch;
+  std::vector<BoneTransforms> frames;   // the rest pose, then every 24th frame of CMU 02_02
+  DressedCharacterResult r;
+  fs::path glb;
+  int lod1_budget = 0;
+  size_t full_only_bytes = 0;   // the glb with LOD0 only
+};
+
+const std::vector<DressedLods>& dressed_pair() {
+  static fixtures::TempDir tmp;
+  static std::vector<DressedLods> out;
+  static bool made = false;
+  if (made) return out;
+  made = true;
+  fs::path mh_dir;
+  try {
+    mh_dir = data_root() / "makehuman";
+  } catch (const std::exception&) {
+  }
+  if (mh_dir.empty() || !fs::is_directory(mh_dir / "assets")) return out;
+  const MakeHuman mh = MakeHuman::load(mh_dir);
+  OutfitKit kit = load_outfit_kit("default", mh_dir);
+  const BvhMotion clip = read_bvh(mh_dir / "motion/cmu/02_02.bvh");
+  const int nb = MakeHuman::kBodyVertexCount;
+  for (int male = 0; male < 2; ++male) {
+    MacroSettings s;
+    s.gender = male ? 0.9 : 0.1;
+    s.weight = male ? 0.7 : 0.4;
+    const Eigen::MatrixX3d full = mh.build_vertices(s);
+    DressedLods d;
+    // A character as a model makes it: skin only, with its SSD weights (4 influences).
+    d.ch.skeleton = mh.skeleton(full);
+    d.ch.F = mh.body_faces();
+    d.ch.lbs = lbs_rig_from_weights(full.topRows(nb), Eigen::MatrixXd(mh.weights().topRows(nb)), 4);
+    const Retargeter rt(clip, d.ch.skeleton, RetargetMap::for_clip(clip, mh.directory()));
+    d.frames = {BoneTransforms(d.ch.skeleton.bone_count(), Eigen::Affine3d::Identity())};
+    for (int f = 0; f < rt.frame_count(); f += 24) d.frames.push_back(forward_kinematics(d.ch.skeleton, rt.pose(f)));
+    const fs::path dir = tmp / (male ? "male" : "female");
+    fs::create_directories(dir);
+    d.r = write_dressed_character(kit, d.ch, male, 1000003ull + male, d.frames, 1.0 / 5, dir);
+    d.glb = dir / "dressed.glb";
+    kit.lods = false;   // the same character without levels of detail, for the size they add
+    fs::create_directories(dir / "full_only");
+    d.full_only_bytes = write_dressed_character(kit, d.ch, male, 1000003ull + male, d.frames, 1.0 / 5, dir / "full_only").glb_bytes;
+    kit.lods = true;
+    d.lod1_budget = kit.lod1_triangles;
+    // BODYMODEL_LOD_KEEP=DIR keeps the two glb files (female.glb, male.glb) to look at.
+    if (const char* keep = std::getenv("BODYMODEL_LOD_KEEP"); keep && *keep)
+      fs::copy_file(d.glb, fs::path(keep) / (male ? "male.glb" : "female.glb"), fs::copy_options::overwrite_existing);
+    out.push_back(std::move(d));
+  }
+  return out;
+}
+
+TEST(OutfitLods, LevelsFitTheirBudgetsCarryWeightsAndDeformWithTheFullBody) {
+  const std::vector<DressedLods>& pair = dressed_pair();
+  if (pair.empty()) GTEST_SKIP() << "makehuman/assets not found";
+  std::string validate_files;
+  for (const DressedLods& d : pair) {
+    const DressedCharacterResult& r = d.r;
+    const CharacterRigFile& ch = d.ch;
+    const std::vector<BoneTransforms>& frames = d.frames;
+    const bool male = r.drawn.male;
+    const fs::path dir = d.glb.parent_path();
+    ASSERT_EQ(r.lods.size(), 2u);
+    const int t0 = triangle_count(r.parts), t1 = triangle_count(r.lods[0]), t2 = triangle_count(r.lods[1]);
+    std::string items;
+    for (const DrawnItem& it : r.drawn.items) items += " " + it.asset;
+    std::printf("%s:%s; triangles LOD0 %d, LOD1 %d, LOD2 %d; glb %.2f MB with %d frames (%.2f MB without LODs)\n",
+                male ? "male" : "female", items.c_str(), t0, t1, t2, r.glb_bytes / 1e6, static_cast<int>(frames.size()),
+                d.full_only_bytes / 1e6);
+    EXPECT_LE(t2, 2000);
+    EXPECT_LE(t1, d.lod1_budget);
+    EXPECT_GT(t1, t2);
+    EXPECT_GT(t0, t1);
+    EXPECT_LE(r.glb_bytes, 4u << 20);
+    EXPECT_EQ(r.lods[0][0].name, "body");   // the proxy stands in for the body, in its colour
+    EXPECT_EQ(r.lods[1][0].colour, r.parts[0].colour);
+
+    // Weights: every vertex of every level sums to one, with at most 4 influences.
+    for (const auto* level : {&r.parts, &r.lods[0], &r.lods[1]})
+      for (const DressedPart& p : *level) {
+        ASSERT_EQ(p.weights.rows(), p.V.rows()) << p.name;
+        for (int v = 0; v < p.weights.outerSize(); ++v) {
+          double sum = 0;
+          int n = 0;
+          for (SkinWeights::InnerIterator it(p.weights, v); it; ++it) sum += it.value(), n += it.value() > 0;
+          ASSERT_NEAR(sum, 1.0, 1e-9) << p.name << " vertex " << v;
+          ASSERT_LE(n, 4) << p.name << " vertex " << v;
+        }
+      }
+
+    // Consistency: each level's vertices against the full level's surface, at rest and posed.
+    for (size_t k = 0; k < 2; ++k) {
+      double worst_p95 = 0, worst_max = 0, rest_p95 = 0;
+      for (size_t f = 0; f < frames.size(); ++f) {
+        Eigen::MatrixX3d V0, Vk;
+        Eigen::MatrixX3i F0, Fk;
+        posed_level(r.parts, frames[f], V0, F0);
+        posed_level(r.lods[k], frames[f], Vk, Fk);
+        std::vector<double> d;
+        for (const SurfaceLocation& l : locate_on_surface(Vk, V0, F0)) d.push_back(l.distance);
+        const double p95 = quantile(d, 0.95), mx = quantile(d, 1.0);
+        if (f == 0) rest_p95 = p95;
+        worst_p95 = std::max(worst_p95, p95), worst_max = std::max(worst_max, mx);
+      }
+      std::printf("  LOD%zu vertices to the LOD0 surface: p95 %.2f mm at rest, worst frame p95 %.2f mm, max %.2f mm\n",
+                  k + 1, rest_p95, worst_p95, worst_max);
+      {  // per part at rest (diagnostics)
+        Eigen::MatrixX3d V0, Vk;
+        Eigen::MatrixX3i F0, Fk;
+        posed_level(r.parts, frames[0], V0, F0);
+        for (const DressedPart& p : r.lods[k]) {
+          std::vector<double> d;
+          const auto loc = locate_on_surface(p.V, V0, F0);
+          Eigen::Index worst = 0;
+          for (size_t i = 0; i < loc.size(); ++i) {
+            d.push_back(loc[i].distance);
+            if (loc[i].distance > loc[worst].distance) worst = static_cast<Eigen::Index>(i);
+          }
+          std::printf("    %s: %d tri, p95 %.2f max %.2f at (%.0f %.0f %.0f)\n", p.name.c_str(), int(p.F.rows()),
+                      quantile(d, 0.95), quantile(d, 1.0), p.V(worst, 0), p.V(worst, 1), p.V(worst, 2));
+        }
+      }
+      EXPECT_LT(worst_p95, 10.0) << "LOD" << k + 1;
+      EXPECT_LT(worst_p95 - rest_p95, 1.0) << "LOD" << k + 1 << " drifts from the full level in motion";
+      EXPECT_LT(worst_max, 40.0) << "LOD" << k + 1;
+    }
+
+    // The glb: one mesh node per level sharing one skin; the stored weights sum to one.
+    const std::string bytes = read_text_file(dir / "dressed.glb");
+    tinygltf::Model m;
+    tinygltf::TinyGLTF loader;
+    std::string err, warn;
+    ASSERT_TRUE(loader.LoadBinaryFromMemory(&m, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
+                                            static_cast<unsigned>(bytes.size())))
+        << err;
+    ASSERT_EQ(m.meshes.size(), 3u);
+    ASSERT_EQ(m.skins.size(), 1u);
+    EXPECT_EQ(m.animations.size(), 1u);
+    EXPECT_EQ(m.materials.size(), r.parts.size());   // shared by the levels
+    const int B = ch.skeleton.bone_count();
+    for (int k = 0; k < 3; ++k) {
+      const tinygltf::Node& node = m.nodes.at(static_cast<size_t>(B + k));
+      EXPECT_EQ(node.name, "dressed_LOD" + std::to_string(k));
+      EXPECT_EQ(node.mesh, k);
+      EXPECT_EQ(node.skin, 0);
+      EXPECT_EQ(node.extras.Get("lod").GetNumberAsInt(), k);
+      size_t triangles = 0;
+      for (const tinygltf::Primitive& p : m.meshes[static_cast<size_t>(k)].primitives) {
+        triangles += m.accessors.at(static_cast<size_t>(p.indices)).count / 3;
+        const tinygltf::Accessor& a = m.accessors.at(static_cast<size_t>(p.attributes.at("WEIGHTS_0")));
+        const tinygltf::BufferView& bv = m.bufferViews.at(static_cast<size_t>(a.bufferView));
+        const float* w = reinterpret_cast<const float*>(m.buffers[0].data.data() + bv.byteOffset + a.byteOffset);
+        for (size_t v = 0; v < a.count; ++v) ASSERT_NEAR(w[4 * v] + w[4 * v + 1] + w[4 * v + 2] + w[4 * v + 3], 1.0, 1e-6);
+      }
+      EXPECT_EQ(static_cast<int>(triangles), k == 0 ? t0 : k == 1 ? t1 : t2);
+    }
+    validate_files += " " + (dir / "dressed.glb").string();
+  }
+
+  const std::string env = validator_env();
+  if (env.empty()) {
+    std::printf("gltf-validator not installed: the glb files were not validated\n");
+    return;
+  }
+  const fs::path script = fs::path(__FILE__).parent_path().parent_path() / "skinning" / "gltf_validate.js";
+  const fs::path log = pair[0].glb.parent_path().parent_path() / "validator.txt";
+  const int rc = std::system((env + "node " + script.string() + validate_files + " > " + log.string() + " 2>&1").c_str());
+  const std::string text = read_text_file(log);
+  std::printf("%s", text.c_str());
+  EXPECT_EQ(rc, 0) << text;
+  EXPECT_NE(text.find("female/dressed.glb: errors 0 "), std::string::npos) << text;
+  EXPECT_NE(text.find(pair[1].glb.string() + ": errors 0 "), std::string::npos) << text;
+}
+
+// three.js (0.160, scripts/setup.sh) in headless Chromium loads the woman's glb, finds the three
+// levels by their node extras, picks them by distance with THREE.LOD, and draws each alone (posed
+// by the clip, GPU skinning): each level covers about the same pixels as the full one. Skipped,
+// saying why, without chromium or three.js (BODYMODEL_THREE names a three package folder).
+TEST(OutfitLods, ThreeJsLoadsThePicksAndDrawsEveryLevel) {
+  const std::string chromium = std::getenv("BODYMODEL_CHROMIUM") ? std::getenv("BODYMODEL_CHROMIUM") : "/usr/bin/chromium";
+  if (!fs::exists(chromium)) GTEST_SKIP() << chromium << " not found (Debian package chromium)";
+  const fs::path three = std::getenv("BODYMODEL_THREE") ? fs::path(std::getenv("BODYMODEL_THREE"))
+                                                        : fs::absolute("npm/node_modules/three");
+  if (!fs::exists(three / "examples/jsm/loaders/GLTFLoader.js"))
+    GTEST_SKIP() << three << " has no three.js (scripts/setup.sh; or set BODYMODEL_THREE)";
+  const std::vector<DressedLods>& pair = dressed_pair();
+  if (pair.empty()) GTEST_SKIP() << "makehuman/assets not found";
+  fixtures::TempDir tmp;
+  fs::copy_file(pair[0].glb, tmp / "dressed.glb");
+  fs::copy_file(fs::path(__FILE__).parent_path() / "lod_browser.html", tmp / "index.html");
+  fs::create_directory_symlink(three, tmp / "three");
+  const std::string cmd = "'" + chromium +
+                          "' --headless=new --no-sandbox --disable-gpu --use-angle=swiftshader "
+                          "--enable-unsafe-swiftshader --allow-file-access-from-files --virtual-time-budget=30000 "
+                          "--dump-dom 'file://" + (tmp / "index.html").string() + "' 2>/dev/null";
+  std::string dom;
+  if (FILE* p = popen(cmd.c_str(), "r")) {
+    char buf[4096];
+    size_t n;
+    while ((n = fread(buf, 1, sizeof buf, p)) > 0) dom.append(buf, n);
+    pclose(p);
+  }
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(dom, m, std::regex("<title>([^<]*)</title>"))) << dom.substr(0, 500);
+  const std::string title = m[1];
+  std::printf("%s\n", title.c_str());
+  ASSERT_TRUE(std::regex_search(title, m, std::regex("ok levels=(\\d+) skinned=(\\d+) animations=(\\d+) "
+                                                     "picked=(-?\\d+),(-?\\d+),(-?\\d+) drawn=(\\d+),(\\d+),(\\d+)")))
+      << title;
+  EXPECT_EQ(std::stoi(m[1]), 3);
+  size_t primitives = 0;
+  for (const auto* level : {&pair[0].r.parts, &pair[0].r.lods[0], &pair[0].r.lods[1]}) primitives += level->size();
+  EXPECT_EQ(std::stoul(m[2]), primitives);   // one skinned primitive per part and level
+  EXPECT_EQ(std::stoi(m[3]), 1);
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(std::stoi(m[4 + k]), k) << "the level THREE.LOD picks at distance " << k;
+  const double d0 = std::stod(m[7]);
+  EXPECT_GT(d0, 5000);   // of 150 000 pixels: a person, not an empty frame
+  for (int k = 1; k < 3; ++k) EXPECT_NEAR(std::stod(m[7 + k]) / d0, 1.0, 0.1) << "LOD" << k;
+}
+
+// A bad --lods is refused before anything is read or written (exit 2, one line naming it).
+TEST(OutfitLods, BadLodsValueExitsTwoAndWritesNothing) {
+  if (!fs::exists(BODYMODEL_EXE)) GTEST_SKIP() << "bodymodel not built";
+  fixtures::TempDir tmp;
+  for (const std::string verb : {"crowd missing.npz --bvh missing.bvh", "character missing.npz"}) {
+    const auto r = fixtures::run_cli(verb + " --outfits default --lods 2 --out " + (tmp / "out").string());
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find("--lods: expected 'default' or 'none', found '2'"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(tmp / "out")) << verb;
+  }
+}
+
+// The crowd viewer (tools/viewer/crowd.html) in headless Chromium with three.js: 1000 animated
+// instances of the two dressed characters, LOD by distance, at a fixed frame: every instance has
+// its three levels, THREE.LOD uses each, every character's body, garments and hair colours are
+// drawn (unlit pass), and the seconds per frame for 1000 and for one are measured (software GL:
+// printed for docs/viewer.md, not bounded). Skipped as the browser tests are.
+TEST(OutfitLods, CrowdViewerDrawsAThousandAnimatedCharacters) {
+  const std::string chromium = std::getenv("BODYMODEL_CHROMIUM") ? std::getenv("BODYMODEL_CHROMIUM") : "/usr/bin/chromium";
+  if (!fs::exists(chromium)) GTEST_SKIP() << chromium << " not found (Debian package chromium)";
+  const fs::path three = std::getenv("BODYMODEL_THREE") ? fs::path(std::getenv("BODYMODEL_THREE"))
+                                                        : fs::absolute("npm/node_modules/three");
+  if (!fs::exists(three / "examples/jsm/utils/SkeletonUtils.js"))
+    GTEST_SKIP() << three << " has no three.js (scripts/setup.sh; or set BODYMODEL_THREE)";
+  const std::vector<DressedLods>& pair = dressed_pair();
+  if (pair.empty()) GTEST_SKIP() << "makehuman/assets not found";
+  fixtures::TempDir tmp;
+  fs::copy_file(pair[0].glb, tmp / "a.glb");
+  fs::copy_file(pair[1].glb, tmp / "b.glb");
+  // Written as `crowd --outfits` writes it: the page with its files, the modules under three/.
+  const fs::path page = fs::path(__FILE__).parent_path().parent_path().parent_path() / "tools" / "viewer" / "crowd.html";
+  ASSERT_TRUE(write_crowd_viewer(tmp.path, read_text_file(page), {"a.glb", "b.glb"}, three));
+  EXPECT_TRUE(fs::is_regular_file(tmp / "three/examples/jsm/utils/BufferGeometryUtils.js"));
+  fs::create_directories(tmp / "no_three");
+  EXPECT_FALSE(write_crowd_viewer(tmp / "no_three", read_text_file(page), {"a.glb"}, tmp / "nowhere"));
+  EXPECT_TRUE(fs::is_regular_file(tmp / "no_three/crowd.html"));
+  EXPECT_THROW(write_crowd_viewer(tmp / "none", read_text_file(page), {}, three), InputError);
+  // No --virtual-time-budget: the page finishes before its load event (synchronous reads) and
+  // times its frames with a clock that runs.
+  const std::string cmd = "'" + chromium +
+                          "' --headless=new --no-sandbox --disable-gpu --use-angle=swiftshader "
+                          "--enable-unsafe-swiftshader --allow-file-access-from-files "
+                          "--dump-dom 'file://" + (tmp / "crowd.html").string() +
+                          "?count=1000&w=960&h=540&time=1.3&measure=2&check=1' 2>/dev/null";   // files: the page's own
+  std::string dom;
+  if (FILE* p = popen(cmd.c_str(), "r")) {
+    char buf[4096];
+    size_t n;
+    while ((n = fread(buf, 1, sizeof buf, p)) > 0) dom.append(buf, n);
+    pclose(p);
+  }
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(dom, m, std::regex("<pre id=\"result\"[^>]*>([^<]*)</pre>"))) << dom.substr(0, 800);
+  const nlohmann::json r = nlohmann::json::parse(std::string(m[1]));
+  ASSERT_TRUE(r.value("ok", false)) << r.dump();
+  EXPECT_EQ(r["count"], 1000);
+  EXPECT_EQ(r["distinct"], 2);   // both files of window.CROWD_FILES
+  ASSERT_EQ(r["levels"].size(), 1000u);
+  for (const auto& l : r["levels"]) ASSERT_EQ(l, 3);
+  int picked = 0;
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_GT(r["picked"][k].get<int>(), 0) << "no instance at LOD" << k;
+    picked += r["picked"][k].get<int>();
+  }
+  EXPECT_EQ(picked, 1000);
+  // Unlit colours: each character's skin, garments and hair on screen.
+  auto pixels = [&](const DressedPart& p) {
+    for (const auto& [key, n] : r["colours"].items())
+      if (key.rfind(p.name + "#", 0) == 0) {
+        const Eigen::Vector3d c = p.colour.cwiseMin(1.0);
+        // The key's sRGB bytes must be this character's colour (two characters may share a name).
+        const auto byte = [](double v) {
+          return static_cast<int>(std::lround(255 * (v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055)));
+        };
+        const std::string hex = fmt::format("{:02x}{:02x}{:02x}", byte(c[0]), byte(c[1]), byte(c[2]));
+        if (key == p.name + "#" + hex) return n.get<int>();
+      }
+    return -1;
+  };
+  for (const DressedLods& d : pair)
+    for (const DressedPart& p : d.r.parts)
+      if (p.kind == "body" || p.garment || p.kind == "hair")
+        EXPECT_GT(pixels(p), 2000) << p.name << " of the " << (d.r.drawn.male ? "man" : "woman");
+  const double many = r["seconds_per_frame"], one = r["seconds_per_frame_one"], anim = r["seconds_per_frame_animation"];
+  std::printf("1000 characters (2 distinct), LOD0/1/2 %d/%d/%d: %.3f s a frame (%.2f frames/s; animation %.3f s); "
+              "one character %.4f s (%.1f frames/s): %.0f times slower\n",
+              r["picked"][0].get<int>(), r["picked"][1].get<int>(), r["picked"][2].get<int>(), many, 1 / many, anim, one,
+              1 / one, many / one);
+  EXPECT_GT(many, 0);
+  EXPECT_GT(one, 0);
+}
+
+}  // namespace
+}  // namespace bodymodel
