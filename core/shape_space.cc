@@ -83,11 +83,13 @@ std::vector<std::string> shape_space_parameter_names(const MakeHuman& mh) {
 
 void ShapeSpace::validate(const MakeHuman& mh, const std::string& what) const {
   const int P = static_cast<int>(parameters.size());
-  if (P == 0 || mean.size() != P || basis.rows() != P || basis.cols() != sd.size() || sd.size() == 0)
+  if (P == 0 || mean.size() != P || basis.rows() != P || basis.cols() != sd.size() || sd.size() == 0 ||
+      (has_sex() && sex_direction.size() != P))
     throw InputError(what + ": shape space sizes disagree (" + std::to_string(P) + " parameters, mean " +
                      std::to_string(mean.size()) + ", basis " + std::to_string(basis.rows()) + " by " +
                      std::to_string(basis.cols()) + ", " + std::to_string(sd.size()) + " sd)");
-  if (!mean.allFinite() || !basis.allFinite() || !sd.allFinite() || (sd.array() <= 0).any())
+  if (!mean.allFinite() || !basis.allFinite() || !sd.allFinite() || !sex_direction.allFinite() ||
+      (sd.array() <= 0).any())
     throw InputError(what + ": shape space has a non-finite value or an sd that is not positive");
   for (const auto& p : parameters)
     if (slot_of(mh, p).kind < 0)
@@ -97,12 +99,11 @@ void ShapeSpace::validate(const MakeHuman& mh, const std::string& what) const {
 
 ShapeParameters shape_space_parameters(const MakeHuman& mh, const ShapeSpace& s, const Eigen::VectorXd& c) {
   Eigen::VectorXd p = s.mean;
-  if (c.size() > 0) {
-    if (c.size() != s.components())
-      throw InputError("shape space: " + std::to_string(c.size()) + " coefficients for " +
-                       std::to_string(s.components()) + " components");
-    p += s.basis * s.sd.cwiseProduct(c);
-  }
+  if (c.size() > 0 && c.size() != s.dimension())
+    throw InputError("shape space: " + std::to_string(c.size()) + " coefficients for " +
+                     std::to_string(s.components()) + " components" + (s.has_sex() ? " and the sex" : ""));
+  if (c.size() > 0) p += s.basis * s.sd.cwiseProduct(c.head(s.components()));
+  if (s.has_sex()) p += std::clamp(c.size() > 0 ? c[s.components()] : 0.5, 0.0, 1.0) * s.sex_direction;
   ShapeParameters out;
   out.measure = Eigen::VectorXd::Zero(mh.measure_modifier_names().size());
   out.shape = Eigen::VectorXd::Zero(mh.shape_modifiers().size());
@@ -134,7 +135,7 @@ MakeHuman::Body shape_space_body(const MakeHuman& mh, const ShapeSpace& s, const
 }
 
 ShapeSpace learn_shape_space(const std::vector<std::string>& parameters, const Eigen::MatrixXd& X, int components,
-                             const std::string& source) {
+                             const std::string& source, const std::vector<int>& male) {
   if (X.rows() < 2) throw InputError("shape space: needs at least 2 bodies, found " + std::to_string(X.rows()));
   if (X.cols() != static_cast<Eigen::Index>(parameters.size()))
     throw InputError("shape space: " + std::to_string(X.cols()) + " values per body for " +
@@ -144,9 +145,24 @@ ShapeSpace learn_shape_space(const std::vector<std::string>& parameters, const E
   s.parameters = parameters;
   s.people = static_cast<int>(X.rows());
   s.source = source;
-  s.mean = X.colwise().mean().transpose();
-  const Eigen::MatrixXd D = X.rowwise() - s.mean.transpose();
-  const Eigen::MatrixXd C = D.transpose() * D / double(X.rows() - 1);
+  if (!male.empty() && male.size() != size_t(X.rows()))
+    throw InputError("shape space: " + std::to_string(male.size()) + " sex labels for " + std::to_string(X.rows()) + " bodies");
+  const int men = static_cast<int>(std::count(male.begin(), male.end(), 1));
+  const bool two = !male.empty() && men > 0 && men < static_cast<int>(male.size());
+  Eigen::MatrixXd D(X.rows(), X.cols());
+  if (two) {
+    Eigen::VectorXd m[2] = {Eigen::VectorXd::Zero(X.cols()), Eigen::VectorXd::Zero(X.cols())};
+    for (Eigen::Index i = 0; i < X.rows(); ++i) m[male[i] == 1] += X.row(i).transpose();
+    m[0] /= double(X.rows() - men);
+    m[1] /= double(men);
+    s.mean = m[0];
+    s.sex_direction = m[1] - m[0];
+    for (Eigen::Index i = 0; i < X.rows(); ++i) D.row(i) = X.row(i) - m[male[i] == 1].transpose();
+  } else {
+    s.mean = X.colwise().mean().transpose();
+    D = X.rowwise() - s.mean.transpose();
+  }
+  const Eigen::MatrixXd C = D.transpose() * D / double(X.rows() - (two ? 2 : 1));
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(C);
   const Eigen::VectorXd lambda = eig.eigenvalues().reverse();  // descending
   const double total = std::max(lambda.sum(), 1e-300);

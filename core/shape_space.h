@@ -5,8 +5,12 @@
 // prior, instead of inside MakeHuman's six macro sliders, whose proportions are MakeHuman's guess.
 //
 // A parameter vector is p = mean + basis·(sd ∘ c): c in standard deviations of the people, so the
-// Gaussian prior is ½‖c‖². The body of p is MakeHuman's build with the macros clamped to their
-// range (weight up to 1.25, as the proportion fit extrapolates it) and the modifiers to ±1.5.
+// Gaussian prior is ½‖c‖². A space learned from both sexes keeps them apart: p = mean +
+// g·sex_direction + basis·(sd ∘ c), mean the women's mean, sex_direction the men's mean minus it,
+// g ∈ [0, 1] (the gender slider) and the components learned within each sex — a pooled PCA would
+// couple gender with breasts and belly and let a man's fit slide into an in-between body with
+// both. The body of p is MakeHuman's build with the macros clamped to their range (weight up to
+// 1.25, as the proportion fit extrapolates it) and the modifiers to ±1.5.
 #pragma once
 
 #include <Eigen/Core>
@@ -30,17 +34,21 @@ struct ShapeSpace {
   Eigen::VectorXd mean;      // per parameter
   Eigen::MatrixXd basis;     // parameters by components, orthonormal columns
   Eigen::VectorXd sd;        // per component: the people's standard deviation along it
+  Eigen::VectorXd sex_direction;  // per parameter: men's mean − women's (empty: one population)
   double explained = 0;      // fraction of the people's variance the components keep
   int people = 0;            // bodies it was learned from
   std::string source;        // what they were (free text, e.g. the files)
 
   int components() const { return static_cast<int>(sd.size()); }
+  bool has_sex() const { return sex_direction.size() > 0; }
+  // Coefficients of a body: the components' (sd units), then g when has_sex().
+  int dimension() const { return components() + (has_sex() ? 1 : 0); }
   // InputError naming `what` when the sizes disagree, a value is not finite, an sd is not
   // positive, or a parameter is unknown to `makehuman`.
   void validate(const MakeHuman& makehuman, const std::string& what) const;
 };
 
-// The MakeHuman parameters of coefficients c (components() values, in sd units; empty = the mean).
+// The MakeHuman parameters of coefficients c (dimension() values; empty = the mean, g = 0.5).
 struct ShapeParameters {
   MacroSettings macros;
   Eigen::VectorXd measure;   // per MakeHuman::measure_modifier_names()
@@ -58,9 +66,10 @@ MakeHuman::Body shape_space_body(const MakeHuman& makehuman, const ShapeSpace& s
 std::vector<std::string> shape_space_parameter_names(const MakeHuman& makehuman);
 
 // PCA of the rows of X (people by parameters, named `parameters`): the first `components`
-// principal directions (fewer when the rows span fewer). InputError for fewer than 2 rows or a
-// width that disagrees with the names.
+// principal directions (fewer when the rows span fewer). With `male` (1/0 per row, both present)
+// the sexes' means are kept apart (sex_direction) and the components learned within each sex.
+// InputError for fewer than 2 rows or a width that disagrees with the names.
 ShapeSpace learn_shape_space(const std::vector<std::string>& parameters, const Eigen::MatrixXd& X,
-                             int components, const std::string& source);
+                             int components, const std::string& source, const std::vector<int>& male = {});
 
 }  // namespace bodymodel

@@ -44,6 +44,7 @@ ShapeSpaceFitRun ansur_shape_space(const MakeHuman& mh, const std::vector<AnsurT
   Eigen::MatrixXd X(total, names.size());
   ShapeSpaceFitRun run;
   std::string source;
+  std::vector<int> male;
   int done = 0;
   for (size_t t = 0; t < tables.size(); ++t) {
     AnsurFitOptions fo;
@@ -53,14 +54,18 @@ ShapeSpaceFitRun ansur_shape_space(const MakeHuman& mh, const std::vector<AnsurT
     const int before = done;
     if (o.progress) fo.progress = [&](int d, int) { o.progress(before + d, total); };
     const AnsurFitRun r = fit_ansur_rows(fitter, set, tables[t], tables[t], fo, false);
-    for (const AnsurFitRow& p : r.people) X.row(done++) = shape_space_row(mh, p.fit).transpose();
+    for (const AnsurFitRow& p : r.people) {
+      male.push_back(tables[t].male[p.row]);
+      X.row(done++) = shape_space_row(mh, p.fit).transpose();
+    }
     run.flipped_people += r.flipped_people;
     source += (source.empty() ? "" : ", ") + std::to_string(r.people.size()) + " of " +
               tables[t].source.filename().string();
   }
   run.space = learn_shape_space(names, X.topRows(done), o.components,
                                 "ANSUR II soldiers fitted to " + std::to_string(default_ansur_columns().size()) +
-                                    " measurements: " + source);
+                                    " measurements: " + source,
+                                male);
   run.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return run;
 }

@@ -114,7 +114,10 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
     MacroSettings settings = tpl.shape_start;
     so.space = tpl.learned_space.get();
     Eigen::VectorXd coefficients = tpl.learned_start;
-    if (so.space && coefficients.size() == 0) coefficients = Eigen::VectorXd::Zero(so.space->components());
+    if (so.space && coefficients.size() == 0) {
+      coefficients = Eigen::VectorXd::Zero(so.space->dimension());
+      if (so.space->has_sex()) coefficients[so.space->components()] = 0.5;
+    }
     // "Moved" in slider units; a learned space's sd units are scaled to compare with the same bar.
     const double unit = so.space ? options.shape_convergence / options.learned_space_convergence : 1.0;
     double moved_last = 0;

@@ -32,19 +32,23 @@ class Problem {
   Problem(const MakeHuman& mh, const MacroSettings& start, const Eigen::VectorXd& start_c, double scale,
           const Pose& pose, const ShapeFitOptions& o)
       : mh_(mh), start_(start), pose_(pose), o_(o), space_(o.space) {
-    L_.sliders = space_ ? space_->components() : int(o.sliders.size());
+    L_.sliders = space_ ? space_->dimension() : int(o.sliders.size());
     L_.count = L_.sliders;
     if (o.fit_translation) L_.translation = L_.count, L_.count += 3;
     if (o.fit_scale) L_.scale = L_.count, L_.count += 1;
     theta0_.resize(L_.count);
     if (space_) {
-      theta0_.head(L_.sliders) = start_c.size() > 0 ? start_c : Eigen::VectorXd::Zero(L_.sliders);
+      theta0_.head(L_.sliders) = Eigen::VectorXd::Zero(L_.sliders);
+      if (space_->has_sex()) theta0_[space_->components()] = 0.5;
+      if (start_c.size() > 0) theta0_.head(L_.sliders) = start_c;
       prior_centre_ = Eigen::VectorXd::Zero(L_.sliders);  // the people's mean
-      prior_sqrt_ = std::sqrt(o.space_prior_weight);
+      // The components have the people's Gaussian; the sex slider g none (the data decide).
+      prior_sqrt_ = Eigen::VectorXd::Constant(L_.sliders, std::sqrt(o.space_prior_weight));
+      if (space_->has_sex()) prior_sqrt_[space_->components()] = 0.0;
     } else {
       for (int k = 0; k < L_.sliders; ++k) theta0_[k] = macro_slider(start, o.sliders[k]);
       prior_centre_ = theta0_.head(L_.sliders);
-      prior_sqrt_ = std::sqrt(o.prior_weight);
+      prior_sqrt_ = Eigen::VectorXd::Constant(L_.sliders, std::sqrt(o.prior_weight));
     }
     const MakeHuman::Body b0 = body(theta0_);
     anchor_ = b0.skeleton.heads.row(0).transpose() + pose.root_translation;
@@ -56,11 +60,13 @@ class Problem {
   const Layout& layout() const { return L_; }
   const Eigen::VectorXd& theta0() const { return theta0_; }
   const Eigen::VectorXd& prior_centre() const { return prior_centre_; }
-  double prior_sqrt() const { return prior_sqrt_; }
+  const Eigen::VectorXd& prior_sqrt() const { return prior_sqrt_; }
   // Bounds, finite-difference step and convergence of the shape parameters.
-  double lower() const { return space_ ? -o_.space_limit : 0.0; }
-  double upper() const { return space_ ? o_.space_limit : 1.0; }
-  double fd_step() const { return space_ ? o_.space_fd_step : o_.fd_step; }
+  // (A learned space's sex slider g, its last parameter, is a slider: [0, 1], the slider step.)
+  bool is_slider(int k) const { return !space_ || (space_->has_sex() && k == space_->components()); }
+  double lower(int k) const { return is_slider(k) ? 0.0 : -o_.space_limit; }
+  double upper(int k) const { return is_slider(k) ? 1.0 : o_.space_limit; }
+  double fd_step(int k) const { return is_slider(k) ? o_.fd_step : o_.space_fd_step; }
   double convergence() const { return space_ ? o_.space_convergence : o_.convergence; }
   bool in_space() const { return space_ != nullptr; }
   int builds = 0;
@@ -98,8 +104,7 @@ class Problem {
   const ShapeSpace* space_;
   Layout L_;
   Eigen::Vector3d anchor_;
-  Eigen::VectorXd theta0_, prior_centre_;
-  double prior_sqrt_ = 1.0;
+  Eigen::VectorXd theta0_, prior_centre_, prior_sqrt_;
   double scale_ = 1.0;
 };
 
@@ -151,7 +156,7 @@ struct Residuals {
   const std::vector<Landmark>& landmarks;
   const Layout& L;
   const Eigen::VectorXd& prior_centre;
-  double prior_sqrt;
+  const Eigen::VectorXd& prior_sqrt;
   const ShapeFitOptions& o;
   double ptp;   // √(point-to-point weight)
 
@@ -172,7 +177,7 @@ struct Residuals {
           wl * (Vp.row(landmarks[k].vertex).transpose() - landmarks[k].target);
     const int base = 4 * np + 3 * nl;
     for (int k = 0; k < L.sliders; ++k)
-      r[base + k] = prior_sqrt * (th[k] - prior_centre[k]);
+      r[base + k] = prior_sqrt[k] * (th[k] - prior_centre[k]);
     if (L.scale >= 0) r[base + L.sliders] = std::sqrt(o.scale_prior) * (th[L.scale] - 1.0);
     return r;
   }
@@ -255,8 +260,8 @@ void solve_for_pairs(Problem& prob, const Residuals& residuals, const ShapeFitOp
         continue;
       }
       Eigen::VectorXd th = st.theta;
-      double h = k < L.sliders ? prob.fd_step() : o.fd_step;
-      if (k < L.sliders && th[k] + h > prob.upper()) h = -h;
+      double h = k < L.sliders ? prob.fd_step(k) : o.fd_step;
+      if (k < L.sliders && th[k] + h > prob.upper(k)) h = -h;
       th[k] += h;
       J.col(k) = (residuals(prob.posed(th), th) - r) / h;
     }
@@ -267,7 +272,7 @@ void solve_for_pairs(Problem& prob, const Residuals& residuals, const ShapeFitOp
       Eigen::MatrixXd A = JtJ;
       A.diagonal() += mu * JtJ.diagonal() + Eigen::VectorXd::Constant(L.count, 1e-9);
       Eigen::VectorXd th = st.theta - A.ldlt().solve(g);
-      for (int k = 0; k < L.sliders; ++k) th[k] = std::clamp(th[k], prob.lower(), prob.upper());
+      for (int k = 0; k < L.sliders; ++k) th[k] = std::clamp(th[k], prob.lower(k), prob.upper(k));
       if (L.scale >= 0) th[L.scale] = std::clamp(th[L.scale], 0.5, 2.0);
       if (!th.allFinite()) {
         mu *= 10;
@@ -373,9 +378,9 @@ ShapeFitResult fit_shape_in_space(const MakeHuman& mh, const Eigen::VectorXd& st
                                   const std::vector<Landmark>& landmarks, const ShapeFitOptions& o,
                                   ShapeFitSummary* summary) {
   if (!o.space) throw InputError("shape fit: fit_shape_in_space needs a shape space (ShapeFitOptions::space)");
-  if (start.size() != 0 && (start.size() != o.space->components() || !start.allFinite()))
+  if (start.size() != 0 && (start.size() != o.space->dimension() || !start.allFinite()))
     throw InputError("shape fit: " + std::to_string(start.size()) + " start coefficients for a space of " +
-                     std::to_string(o.space->components()) + " components, or not finite");
+                     std::to_string(o.space->dimension()) + " coefficients, or not finite");
   ShapeFitOptions so = o;
   so.sliders.clear();
   check_shape_inputs(MacroSettings{}, scale, scan, so);

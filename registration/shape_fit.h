@@ -62,9 +62,10 @@ struct ShapeFitOptions {
   std::vector<std::string> excluded_below = {"wrist.L", "wrist.R"};
   double convergence = 0.002;  // stop when no slider moves more than this in an ICP iteration
   // A shape space learned from real bodies (core/shape_space.h; not owned). With it the fit
-  // moves the space's coefficients (in the people's standard deviations) instead of `sliders`,
-  // with the Gaussian prior space_prior_weight·‖c‖² (same units as prior_weight): the people's
-  // variances decide how far each direction moves for a given gain in the data term.
+  // moves the space's coefficients (in the people's standard deviations, and its sex slider g
+  // when it has one) instead of `sliders`, with the Gaussian prior space_prior_weight·‖c‖² (same
+  // units as prior_weight; none on g): the people's variances decide how far each direction
+  // moves for a given gain in the data term.
   const ShapeSpace* space = nullptr;
   double space_prior_weight = 1.0;
   double space_fd_step = 0.05;       // sd
@@ -99,8 +100,9 @@ ShapeFitResult fit_shape(const MakeHuman& mh, const MacroSettings& start, double
                          const Pose& pose, const PointCloud& scan,
                          const std::vector<Landmark>& landmarks,
                          const ShapeFitOptions& options = {}, ShapeFitSummary* summary = nullptr);
-// The same in the learned space options.space (required): `start` are its coefficients (sd units,
-// empty = its mean body), also where the fit starts; the prior's centre is the people's mean.
+// The same in the learned space options.space (required): `start` are its coefficients
+// (dimension() values; empty = its mean body, g = 0.5), also where the fit starts; the prior's
+// centre is the people's mean.
 ShapeFitResult fit_shape_in_space(const MakeHuman& mh, const Eigen::VectorXd& start, double scale,
                                   const Pose& pose, const PointCloud& scan,
                                   const std::vector<Landmark>& landmarks,

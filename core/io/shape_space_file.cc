@@ -32,6 +32,8 @@ std::string shape_space_json(const ShapeSpace& s) {
   j["parameters"] = s.parameters;
   j["mean"] = std::vector<double>(s.mean.data(), s.mean.data() + s.mean.size());
   j["sd"] = std::vector<double>(s.sd.data(), s.sd.data() + s.sd.size());
+  if (s.has_sex())
+    j["sex_direction"] = std::vector<double>(s.sex_direction.data(), s.sex_direction.data() + s.sex_direction.size());
   nlohmann::json rows = nlohmann::json::array();
   for (Eigen::Index r = 0; r < s.basis.rows(); ++r) {
     std::vector<double> row(s.basis.cols());
@@ -55,6 +57,11 @@ ShapeSpace shape_space_of(const nlohmann::json& j, const std::string& what) {
   }
   s.mean = vector_of(j, "mean", what);
   s.sd = vector_of(j, "sd", what);
+  if (j.contains("sex_direction")) {
+    s.sex_direction = vector_of(j, "sex_direction", what);
+    if (s.sex_direction.size() != static_cast<Eigen::Index>(s.parameters.size()))
+      throw InputError(what + ": 'sex_direction' needs one value per parameter");
+  }
   if (!j.contains("basis") || !j["basis"].is_array() || j["basis"].size() != s.parameters.size())
     throw InputError(what + ": 'basis' needs one row per parameter (" + std::to_string(s.parameters.size()) + ")");
   s.basis.resize(s.parameters.size(), s.sd.size());
@@ -71,7 +78,8 @@ ShapeSpace shape_space_of(const nlohmann::json& j, const std::string& what) {
   s.people = j.value("people", 0);
   s.source = j.value("source", std::string());
   if (s.mean.size() != s.basis.rows()) throw InputError(what + ": 'mean' needs one value per parameter");
-  if (!s.mean.allFinite() || !s.sd.allFinite() || !s.basis.allFinite() || (s.sd.array() <= 0).any())
+  if (!s.mean.allFinite() || !s.sd.allFinite() || !s.basis.allFinite() || !s.sex_direction.allFinite() ||
+      (s.sd.array() <= 0).any())
     throw InputError(what + ": a non-finite value or an sd that is not positive");
   return s;
 }

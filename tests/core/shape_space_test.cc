@@ -44,6 +44,35 @@ TEST(ShapeSpace, LearnsKnownDirectionsAndSpreads) {
   EXPECT_THROW(learn_shape_space({"a"}, X, 2, "x"), InputError);
 }
 
+// Two populations whose means differ and whose spread is along one direction within each: the
+// sex direction is the difference of the means and the one component is the within-sex
+// direction, which a pooled PCA would have mixed with the difference.
+TEST(ShapeSpace, KeepsTheSexesApart) {
+  const int N = 2000;
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> g(0, 1);
+  Eigen::Vector3d mf(0, 0.2, 0.4), mm(1, 0.6, 0.4), within(0, 0, 1);
+  Eigen::MatrixXd X(N, 3);
+  std::vector<int> male(N);
+  for (int i = 0; i < N; ++i) {
+    male[i] = i % 2;
+    X.row(i) = ((male[i] ? mm : mf) + 0.5 * g(rng) * within).transpose();
+  }
+  const ShapeSpace s = learn_shape_space({"macro/gender", "macro/height", "macro/weight"}, X, 2, "test", male);
+  ASSERT_TRUE(s.has_sex());
+  EXPECT_LT((s.mean - mf).norm(), 0.05);
+  EXPECT_LT((s.sex_direction - (mm - mf)).norm(), 0.05);
+  ASSERT_EQ(s.components(), 1);  // within each sex the bodies vary along one direction only
+  EXPECT_NEAR(std::abs(s.basis.col(0).dot(within)), 1.0, 1e-6);
+  EXPECT_NEAR(s.sd[0], 0.5, 0.03);
+  EXPECT_EQ(s.dimension(), 2);
+  const MakeHuman& mh = shared_makehuman();
+  const ShapeParameters man = shape_space_parameters(mh, s, Eigen::Vector2d(0.0, 1.0));
+  EXPECT_NEAR(man.macros.gender, 1.0, 0.05);
+  EXPECT_NEAR(man.macros.height, 0.6, 0.05);
+  EXPECT_THROW(learn_shape_space({"a", "b", "c"}, X, 2, "test", std::vector<int>(3, 1)), InputError);
+}
+
 // The file keeps every number; a file of another kind is refused naming the file.
 TEST(ShapeSpace, FileRoundTripAndBadFiles) {
   ShapeSpace s;

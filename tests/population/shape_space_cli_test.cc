@@ -14,8 +14,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Twelve soldiers of each sex: a space of 5 components with falling spreads that carries the
-// difference between the sexes (the gender slider is 0 or 1 by sex).
+// Twelve soldiers of each sex: a space of 5 components with falling spreads, the sexes apart.
 TEST(ShapeSpaceCli, LearnsASpaceFromSoldiers) {
   const fs::path men = data_root() / "anthropometry" / "ansur2" / "ansur2_male.csv";
   if (!fs::exists(men)) GTEST_SKIP() << men << " not found";
@@ -31,11 +30,13 @@ TEST(ShapeSpaceCli, LearnsASpaceFromSoldiers) {
   for (int k = 1; k < 5; ++k) EXPECT_LE(s.sd[k], s.sd[k - 1]);
   EXPECT_GT(s.explained, 0.5);
   ASSERT_EQ(s.parameters.front(), "macro/gender");
-  EXPECT_NEAR(s.mean[0], 0.5, 1e-9);  // as many women (0) as men (1)
-  // The sexes differ along the kept components: they keep most of the gender slider's variance
-  // (0.25 for as many women as men).
-  const double gender_variance = (s.basis.row(0).transpose().cwiseProduct(s.sd)).squaredNorm();
-  EXPECT_GT(gender_variance, 0.5 * 0.25 * 23.0 / 24.0);
+  // The sexes are kept apart: the women's mean (gender 0), the men's one sex_direction away
+  // (gender 1), and components learned within each sex, which do not move the gender slider.
+  ASSERT_TRUE(s.has_sex());
+  EXPECT_NEAR(s.mean[0], 0.0, 1e-9);
+  EXPECT_NEAR(s.sex_direction[0], 1.0, 1e-9);
+  EXPECT_LT(s.basis.row(0).norm(), 1e-6);
+  EXPECT_EQ(s.dimension(), 6);
 
   // A file that is not a shape space: one line naming it, exit 2, before any registration.
   write_text_file(dir / "bad.json", "{\"format\": \"other\"}");

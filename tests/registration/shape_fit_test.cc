@@ -89,23 +89,25 @@ TEST(ShapeFit, RecoversMacroSlidersOfAPosedBody) {
   EXPECT_LT((V - r.V).cwiseAbs().maxCoeff(), 1e-9);
 }
 
-// A learned space of three directions (taller, heavier, longer forearms) around a female body:
-// a body at known coefficients, posed and sampled, is found again from the space's mean, with
-// the vertex error far below the mean body's, and the coefficients within a few tenths of an sd.
+// A learned space of three directions (taller, heavier, longer forearms) and the sex slider: a
+// body at known coefficients, posed and sampled, is found again from the space's mean (g = 0.5),
+// with the vertex error far below the mean body's, the coefficients within a few tenths of an sd
+// and the gender within 0.1.
 TEST(ShapeFit, RecoversCoefficientsInALearnedSpace) {
   MakeHuman mh = MakeHuman::load();
   ShapeSpace space;
   space.parameters = {"macro/gender", "macro/height", "macro/weight", "shape/armslegs/l-lowerarm-scale-vert-decr|incr",
                       "shape/armslegs/r-lowerarm-scale-vert-decr|incr"};
   ASSERT_GE(mh.shape_modifier_index("armslegs/l-lowerarm-scale-vert-decr|incr"), 0);
-  space.mean = (Eigen::VectorXd(5) << 0.2, 0.5, 0.5, 0.0, 0.0).finished();
+  space.mean = (Eigen::VectorXd(5) << 0.0, 0.5, 0.5, 0.0, 0.0).finished();
+  space.sex_direction = (Eigen::VectorXd(5) << 1.0, 0.0, 0.0, 0.0, 0.0).finished();
   space.basis = Eigen::MatrixXd::Zero(5, 3);
   space.basis(1, 0) = 1;
   space.basis(2, 1) = 1;
   space.basis(3, 2) = space.basis(4, 2) = std::sqrt(0.5);
   space.sd = (Eigen::VectorXd(3) << 0.15, 0.15, 1.0).finished();
   space.validate(mh, "test space");
-  const Eigen::Vector3d c_true(1.5, -1.0, 0.9);
+  const Eigen::Vector4d c_true(1.5, -1.0, 0.9, 0.2);
   const MakeHuman::Body truth = shape_space_body(mh, space, c_true);
   const Skeleton& sk = truth.skeleton;
   Pose pose = Pose::rest(sk.bone_count());
@@ -128,9 +130,12 @@ TEST(ShapeFit, RecoversCoefficientsInALearnedSpace) {
   ShapeFitSummary sum;
   const ShapeFitResult r = fit_shape_in_space(mh, Eigen::VectorXd(), 1.0, start_pose, scan, landmarks, o, &sum);
   const double e0 = mean_distance(V0, posed.V), e1 = mean_distance(r.V, posed.V);
-  std::printf("space fit: %d ICP iterations, %d builds; vertex error %.2f -> %.2f mm; c = %.2f %.2f %.2f\n",
-              sum.icp_iterations, sum.builds, e0, e1, r.coefficients[0], r.coefficients[1], r.coefficients[2]);
-  ASSERT_EQ(r.coefficients.size(), 3);
+  std::printf("space fit: %d ICP iterations, %d builds; vertex error %.2f -> %.2f mm; c = %.2f %.2f %.2f, g %.2f\n",
+              sum.icp_iterations, sum.builds, e0, e1, r.coefficients[0], r.coefficients[1], r.coefficients[2],
+              r.coefficients[3]);
+  ASSERT_EQ(r.coefficients.size(), 4);
+  EXPECT_NEAR(r.coefficients[3], c_true[3], 0.1);
+  EXPECT_NEAR(r.settings.gender, c_true[3], 0.1);
   EXPECT_GT(e0, 10.0);
   EXPECT_LT(e1, 0.2 * e0);
   EXPECT_NEAR(r.coefficients[0], c_true[0], 0.3);
