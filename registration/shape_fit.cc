@@ -63,6 +63,7 @@ class Problem {
   const Eigen::VectorXd& prior_sqrt() const { return prior_sqrt_; }
   // Bounds, finite-difference step and convergence of the shape parameters.
   // (A learned space's sex slider g, its last parameter, is a slider: [0, 1], the slider step.)
+  int sex_index() const { return space_ && space_->has_sex() ? space_->components() : -1; }
   bool is_slider(int k) const { return !space_ || (space_->has_sex() && k == space_->components()); }
   double lower(int k) const { return is_slider(k) ? 0.0 : -o_.space_limit; }
   double upper(int k) const { return is_slider(k) ? 1.0 : o_.space_limit; }
@@ -159,6 +160,7 @@ struct Residuals {
   const Eigen::VectorXd& prior_sqrt;
   const ShapeFitOptions& o;
   double ptp;   // √(point-to-point weight)
+  int sex_index;  // a learned space's sex slider g (−1: none): its prior favours either sex
 
   Eigen::VectorXd operator()(const Eigen::MatrixX3d& Vp, const Eigen::VectorXd& th) const {
     const int np = int(pairs.size()), nl = int(landmarks.size());
@@ -178,6 +180,9 @@ struct Residuals {
     const int base = 4 * np + 3 * nl;
     for (int k = 0; k < L.sliders; ++k)
       r[base + k] = prior_sqrt[k] * (th[k] - prior_centre[k]);
+    // The people are women (g = 0) or men (g = 1): an in-between body costs up to the weight.
+    if (sex_index >= 0)
+      r[base + sex_index] = std::sqrt(o.space_sex_prior_weight) * 2 * std::min(th[sex_index], 1 - th[sex_index]);
     if (L.scale >= 0) r[base + L.sliders] = std::sqrt(o.scale_prior) * (th[L.scale] - 1.0);
     return r;
   }
@@ -324,7 +329,7 @@ ShapeFitResult run_shape_fit(Problem& prob, const MakeHuman& mh, const PointClou
   // Residuals for the pairs, landmarks and prior at posed vertices V and parameters th.
   std::vector<Pair> pairs;
   const Residuals residuals{pairs, landmarks, L, prob.prior_centre(), prob.prior_sqrt(), o,
-                            std::sqrt(o.point_to_point_weight)};
+                            std::sqrt(o.point_to_point_weight), prob.sex_index()};
 
   ShapeFitSummary sum;
   double max_dist = o.initial_max_distance;

@@ -68,6 +68,9 @@ struct ShapeFitOptions {
   // moves for a given gain in the data term.
   const ShapeSpace* space = nullptr;
   double space_prior_weight = 1.0;
+  // The sex slider's prior: 2·min(g, 1 − g) squared times this (a body halfway between the sexes
+  // costs the weight; the people are one or the other).
+  double space_sex_prior_weight = 10.0;
   double space_fd_step = 0.05;       // sd
   double space_limit = 5.0;          // |c| bound, sd
   double space_convergence = 0.01;   // sd
