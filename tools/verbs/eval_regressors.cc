@@ -396,12 +396,10 @@ void run_eval_regressors(EvalRegressorsArgs& a) {
   if (a.synthetic <= 0 && a.model.empty() && a.table.empty())
     throw InputError("no model file given (expected model.npz, --synthetic N to build one in-process, or --table FILE)");
   const LabelNoiseSpec noise = parse_label_noise(a.label_noise);
+  if (!a.inputs.empty() && a.synthetic > 0) throw InputError("--inputs: with a model file or --table, not --synthetic");
   StudyInput in = a.synthetic > 0 ? synthetic_input(a) : !a.table.empty() ? table_input(a) : model_input(a);
   const bool label_features = !a.inputs.empty() && a.table.empty();
-  if (label_features) {
-    if (a.synthetic > 0) throw InputError("--inputs: with a model file or --table, not --synthetic");
-    use_label_features(in, a.inputs);
-  }
+  if (label_features) use_label_features(in, a.inputs);
   const Eigen::MatrixXd& X = in.X;
   const std::vector<int>& groups = in.groups;
   SelectedLabels chosen = select_labels(in, a.labels);
