@@ -51,7 +51,7 @@ std::vector<std::string> lines_of(const std::string& text) {
 }
 
 // Missing, renamed, in kilograms, out of range: one line naming the column (and the row where a
-// row is wrong), exit 2, no output folder, from fit-measurements and synth-db alike.
+// row is wrong), exit 2, no output folder, from fit-measurements, synth-db and eval-regressors alike.
 TEST(AnsurCli, BadFilesAreRefusedWithOneLineBeforeAnythingIsWritten) {
   fixtures::TempDir d;
   struct Case {
@@ -93,7 +93,8 @@ TEST(AnsurCli, BadFilesAreRefusedWithOneLineBeforeAnythingIsWritten) {
   for (const auto& c : cases) {
     const fs::path file = d / (c.name + ".csv");
     write_text_file(file, c.text);
-    for (const std::string& verb : {"fit-measurements --people", "synth-db --subjects 2 --population"}) {
+    for (const std::string& verb : {"fit-measurements --people", "synth-db --subjects 2 --population",
+                                    "eval-regressors --labels chestcircumference,span --folds 2 --table"}) {
       const fs::path out = d / (c.name + "_out");
       const fixtures::CliResult r = fixtures::run_cli(verb + " '" + file.string() + "' --out '" + out.string() + "'");
       EXPECT_EQ(r.exit_code, 2) << c.name << " " << verb << ": " << r.output;

@@ -225,6 +225,9 @@ StudyInput table_input(const EvalRegressorsArgs& a) {
   std::vector<std::string> required;
   for (const auto& c : inputs)
     if (c != "male") required.push_back(c);
+  // The labels too: a missing or renamed label column is then refused as the reader words it.
+  for (const auto& c : cli::split_commas(a.labels))
+    if (std::find(required.begin(), required.end(), c) == required.end()) required.push_back(c);
   const AnsurTable t = read_ansur(a.table, required);
   StudyInput in;
   in.source = a.table;
