@@ -82,6 +82,35 @@ int count_flipped_triangles(const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V
 
 namespace {
 
+// FoldRepairOptions::smoothing_steps on the flipped faces `bad` (updated); marks moved vertices.
+void smooth_remaining_folds(Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const std::vector<std::vector<int>>& nbr,
+                            const FoldRepairOptions& o, const std::function<bool(const Eigen::MatrixX3d&, Eigen::Index)>& flipped,
+                            std::vector<int>& bad, std::vector<char>& moved, FoldRepairSummary& summary) {
+  for (int step = 0; step < o.smoothing_steps && !bad.empty(); ++step) {
+    std::vector<int> verts;
+    for (int f : bad)
+      for (int c = 0; c < 3; ++c) verts.push_back(F(f, c));
+    std::sort(verts.begin(), verts.end());
+    verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
+    Eigen::MatrixX3d W = V;
+    for (int i : verts) {
+      if (nbr[i].empty()) continue;
+      Eigen::RowVector3d mean = Eigen::RowVector3d::Zero();
+      for (int j : nbr[i]) mean += V.row(j);
+      const Eigen::RowVector3d target = 0.5 * V.row(i) + 0.5 * mean / double(nbr[i].size());
+      if ((target - V.row(i)).norm() <= o.max_displacement) W.row(i) = target;
+    }
+    std::vector<int> now;
+    for (Eigen::Index f = 0; f < F.rows(); ++f)
+      if (flipped(W, f)) now.push_back(int(f));
+    if (now.size() >= bad.size()) break;  // only steps that lower the count are kept
+    V.swap(W);
+    bad.swap(now);
+    for (int i : verts) moved[i] = 1;
+    ++summary.smoothing_steps;
+  }
+}
+
 // The repair of repair_folds with the flip test `is_flipped(V, f)` as a parameter.
 FoldRepairSummary repair_folds_impl(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_ref, const Eigen::MatrixX3i& F,
                                     const FoldRepairOptions& o,
@@ -215,6 +244,7 @@ FoldRepairSummary repair_folds_impl(Eigen::MatrixX3d& V, const Eigen::MatrixX3d&
     for (Eigen::Index f = 0; f < F.rows(); ++f)
       if (flipped(V, V_ref, F, f)) bad.push_back(int(f));
   }
+  smooth_remaining_folds(V, F, nbr, o, flipped_in, bad, moved, summary);
   summary.flipped_after = int(bad.size());
   summary.vertices_moved = int(std::count(moved.begin(), moved.end(), 1));
   return summary;

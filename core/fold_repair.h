@@ -41,6 +41,12 @@ struct FoldRepairOptions {
   // infinity = no limit): a solve that removes a fold by dragging a limb's surface away is worse
   // than the fold.
   double max_displacement = std::numeric_limits<double>::infinity();
+  // After the passes: up to this many umbrella-smoothing steps on the folds that remain (each
+  // vertex of a flipped triangle moved half-way to the mean of its neighbours, no vertex farther
+  // than max_displacement in one step), kept while the count falls. For one-triangle-wide creases
+  // (a heavy body's crotch, the sternum between strong pectorals) where the Laplacian solve from
+  // the reference either leaves the crease or moves the surface tens of mm. 0 = none.
+  int smoothing_steps = 0;
 };
 
 struct FoldRepairSummary {
@@ -48,7 +54,8 @@ struct FoldRepairSummary {
   int flipped_after = 0;    // ... and after
   int regions_solved = 0;   // region solves tried over all passes
   int regions_kept = 0;     // ... and kept (fewer flipped triangles among those they touch)
-  int vertices_moved = 0;   // distinct vertices changed by kept solves
+  int vertices_moved = 0;   // distinct vertices changed by kept solves (and smoothing steps)
+  int smoothing_steps = 0;  // smoothing steps kept (FoldRepairOptions::smoothing_steps)
   int passes = 0;           // passes run
 };
 

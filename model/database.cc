@@ -99,7 +99,8 @@ SubjectTable read_subject_table(const fs::path& path) {
   int sex_col = -1;
   for (size_t c = 0; c < h.size(); ++c) {
     if (static_cast<int>(c) == id_col) continue;
-    if (h[c] == "seqn") continue;  // a population subject's person id (synth-db --population), not a label
+    // A population subject's person id (synth-db --population: NHANES seqn, ANSUR subjectid), not a label.
+    if (h[c] == "seqn" || h[c] == "subjectid") continue;
     if (h[c] == "sex") {
       sex_col = static_cast<int>(c);
       continue;

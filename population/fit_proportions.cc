@@ -450,6 +450,7 @@ ProportionFit fit_once(const ProportionFitter::Impl& m, Sex sex, double age_year
   FoldRepairOptions repair;
   repair.passes = m.o.fold_repair_passes;
   repair.max_displacement = m.o.fold_repair_max_mm;
+  repair.smoothing_steps = m.o.fold_smoothing_steps;
   const FoldRepairSummary folds = repair_folds(V, reference, m.mh.body_faces(), repair);
   fit.flipped_before_repair = folds.flipped_before;
   fit.flipped_triangles = folds.flipped_after;

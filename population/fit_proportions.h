@@ -80,6 +80,8 @@ struct ProportionFitOptions {
   // The fold repair after the fit moves no vertex further than this (mm).
   double fold_repair_max_mm = 30;
   int fold_repair_passes = 6;
+  // Umbrella-smoothing steps on the folds the passes leave (core/fold_repair.h smoothing_steps).
+  int fold_smoothing_steps = 10;
   // Fits again with the modifiers' prior scales halved (quartered, ...) while the repaired body
   // still has a flipped triangle or more self-intersections than the template; the body with
   // the fewest is kept.

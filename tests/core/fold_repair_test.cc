@@ -96,6 +96,44 @@ TEST(FoldRepair, NeverIncreasesTheFlipCountAndLeavesFoldFreeMeshesAlone) {
   }
 }
 
+// The smoothing fallback alone (every Laplacian region refused by max_region_vertices = 0): a
+// vertex slid along the sphere past its neighbours is pulled back toward them until no triangle
+// is flipped, only the vertices of flipped triangles move, and by less than the slide; without
+// smoothing steps the fold stays.
+TEST(FoldRepair, SmoothingStepsUnfoldACreaseTheSolveLeaves) {
+  const Mesh ref = fixtures::uv_sphere(50.0, 24, 48);
+  Eigen::MatrixX3d V = ref.V;
+  const int a = 12 * 48 + 7, b = 6 * 48 + 30;
+  fold(V, a, b, 50.0, Eigen::RowVector3d::Zero());
+  const int before = count_flipped_triangles(V, ref.V, ref.F);
+  ASSERT_GE(before, 4);
+  FoldRepairOptions o;
+  o.max_region_vertices = 0;
+  Eigen::MatrixX3d kept = V;
+  EXPECT_EQ(repair_folds(kept, ref.V, ref.F, o).flipped_after, before);
+  EXPECT_TRUE(kept == V);
+  o.smoothing_steps = 10;
+  Eigen::MatrixX3d W = V;
+  const FoldRepairSummary s = repair_folds(W, ref.V, ref.F, o);
+  EXPECT_EQ(s.flipped_before, before);
+  EXPECT_EQ(s.flipped_after, 0);
+  EXPECT_EQ(count_flipped_triangles(W, ref.V, ref.F), 0);
+  EXPECT_GE(s.smoothing_steps, 1);
+  EXPECT_LE(s.smoothing_steps, 10);
+  // Only vertices of flipped triangles (the slid ones and their one-ring) move, each by less
+  // than the 15 mm slide.
+  const Eigen::VectorXd moved = (W - V).rowwise().norm();
+  EXPECT_LT(moved.maxCoeff(), 15.0);
+  int moved_count = 0;
+  for (Eigen::Index i = 0; i < moved.size(); ++i) moved_count += moved(i) > 0;
+  EXPECT_EQ(moved_count, s.vertices_moved);
+  EXPECT_LE(moved_count, 2 * 7);  // two slid vertices and their one-rings (6 neighbours each)
+  // max_displacement bounds the smoothing too: 0.01 mm per step cannot unfold it.
+  o.max_displacement = 0.01;
+  Eigen::MatrixX3d bounded = V;
+  EXPECT_EQ(repair_folds(bounded, ref.V, ref.F, o).flipped_after, before);
+}
+
 TEST(FoldRepair, BadInputIsAnInputError) {
   const Mesh ref = fixtures::uv_sphere(1.0, 6, 12);
   Eigen::MatrixX3d V = ref.V.topRows(ref.V.rows() - 1);

@@ -128,6 +128,50 @@ TEST_F(EvalRegressorsCli, BadInputGivesOneClearLine) {
   EXPECT_FALSE(fs::exists(dir_ / "r1" / "regressors.csv"));
 }
 
+// --inputs with a model: the named labels are the features instead of the coefficients (the
+// (sex, age, stature, weight) baseline of the ANSUR study). A label that is an exact linear function
+// of two other labels and unrelated to the coefficients is recovered exactly from those labels and
+// not from the coefficients; an ANSUR label without a unit is in mm.
+TEST_F(EvalRegressorsCli, LabelFeaturesReplaceTheCoefficients) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n(0, 1);
+  const int N = 60;
+  Eigen::MatrixXd X(N, 5), Y(N, 3);
+  for (int i = 0; i < N; ++i) {
+    for (int j = 0; j < 5; ++j) X(i, j) = n(rng);
+    Y(i, 0) = 1700 + 80 * n(rng);                             // ansur2_stature
+    Y(i, 1) = 80 + 12 * n(rng);                               // ansur2_weightkg
+    Y(i, 2) = 300 + 1.0 * Y(i, 0) + 4 * Y(i, 1);              // ansur2_span
+  }
+  Npz z;
+  z.put("shape_coefficients", X);
+  z.put("labels", Y);
+  z.put_text("label_names", R"(["ansur2_stature","ansur2_weightkg","ansur2_span"])");
+  z.put_text("label_units", R"(["","",""])");
+  const fs::path model = dir_ / "ansur_model.npz";
+  z.save(model);
+  const auto span_rmse = [&](const std::string& extra, const std::string& out) {
+    const CliRun r = run("eval-regressors " + model.string() + " --folds 5 --labels ansur2_span --regressors "
+                         "simple_linear --no-directions " + extra + " --out " + (dir_ / out).string());
+    EXPECT_EQ(r.code, 0) << r.output;
+    const std::string csv = read_file(dir_ / out / "regressors.csv");
+    const std::string key = "simple_linear,ansur2_span,mm,";
+    const auto at = csv.find(key);
+    EXPECT_NE(at, std::string::npos) << csv;
+    return at == std::string::npos ? -1.0 : std::stod(csv.substr(at + key.size()));
+  };
+  const double from_labels = span_rmse("--inputs ansur2_stature,ansur2_weightkg", "labels");
+  const double from_coefficients = span_rmse("", "coefficients");
+  EXPECT_GE(from_labels, 0);
+  EXPECT_LT(from_labels, 1e-6);
+  EXPECT_GT(from_coefficients, 50);  // sd of the span ≈ √(80² + 48²) ≈ 93 mm
+  const CliRun bad = run("eval-regressors " + model.string() + " --labels ansur2_span --inputs sex,ansur2_stature --out " +
+                         (dir_ / "bad").string());
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.output.find("--inputs: 'sex' is not a label"), std::string::npos) << bad.output;
+  EXPECT_FALSE(fs::exists(dir_ / "bad" / "regressors.csv"));
+}
+
 TEST_F(EvalRegressorsCli, PoseLabelsOfTheFullModelInDegreesWithScansGroupedBySubject) {
   // 20 subjects × 3 scans; a joint angle (radians) = 0.2·x0 + N(0, 0.1) → RMSE ≈ 0.1 rad ≈ 5.7°.
   std::mt19937 rng(9);

@@ -597,6 +597,13 @@ std::vector<SyntheticSubject> ansur_subjects(const MakeHuman& mh, const Syntheti
     if (k >= order[t].size()) throw InputError(fmt::format("'{}' has only {} soldiers", tables[t].source.string(), order[t].size()));
     picked[t].push_back(order[t][k]);
   }
+  // The recorded columns carried as labels: the set's columns every file has.
+  std::vector<std::string> recorded;
+  for (const auto& name : set.names)
+    if (std::all_of(tables.begin(), tables.end(), [&](const AnsurTable& tb) {
+          return std::find(tb.columns.begin(), tb.columns.end(), name) != tb.columns.end();
+        }))
+      recorded.push_back(name);
   int done_before = 0;
   for (size_t t = 0; t < tables.size(); ++t) {
     AnsurFitOptions fo;
@@ -614,6 +621,8 @@ std::vector<SyntheticSubject> ansur_subjects(const MakeHuman& mh, const Syntheti
       subj.sex = male ? "male" : "female";
       subj.age_years = tables[t].values(run.people[i].row, tables[t].column("Age"));
       subj.person_id = run.people[i].id;
+      for (const auto& name : recorded)
+        subj.ansur_recorded.emplace_back(name, tables[t].values(run.people[i].row, tables[t].column(name)));
       subj.sliders = f.sliders;
       subj.modifiers = f.measure_modifiers;
       subj.shape_modifiers = f.shape_modifiers;
@@ -634,8 +643,8 @@ std::vector<SyntheticSubject> ansur_subjects(const MakeHuman& mh, const Syntheti
 std::string csv_value(double v, int decimals) { return std::isfinite(v) ? fmt_double(v, decimals) : std::string(); }
 
 // subjects.csv: the labels measured on the standard-pose truth mesh and the sliders; for a
-// population, the person (seqn, not a label), the recorded values (nhanes_*), the modifiers
-// and whether the fit reached the person.
+// population, the person (seqn / subjectid, not a label), the recorded values (nhanes_* /
+// ansur2_*), the modifiers and whether the fit reached the person.
 std::string subjects_csv(const std::vector<SyntheticSubject>& subjects, const MakeHuman& mh, bool population) {
   std::string csv =
       "subject_id,sex,age_years,height_cm,weight_kg,body_fat_pct,muscle,waist_cm,hips_cm,"
@@ -646,6 +655,7 @@ std::string subjects_csv(const std::vector<SyntheticSubject>& subjects, const Ma
   if (ansur) {
     csv += ",subjectid";
     for (const auto& [name, value] : subjects[0].ansur_measured) csv += "," + name;
+    for (const auto& [name, value] : subjects[0].ansur_recorded) csv += ",ansur2_" + name;
     csv += ",fit_reached,fit_extrapolated,fit_reason";
   } else if (population) {
     csv += ",seqn";
@@ -668,6 +678,7 @@ std::string subjects_csv(const std::vector<SyntheticSubject>& subjects, const Ma
     if (ansur) {
       csv += "," + csv_field(s.person_id);
       for (const auto& [name, value] : s.ansur_measured) csv += "," + csv_value(value, name == "weightkg" ? 2 : 1);
+      for (const auto& [name, value] : s.ansur_recorded) csv += "," + csv_value(value, name == "weightkg" ? 2 : 1);
       csv += std::string(",") + (s.fit_reached ? "yes" : "no") + "," + (s.extrapolated ? "yes" : "no") + "," +
              csv_field(s.fit_reason);
     } else if (population) {

@@ -89,6 +89,9 @@ struct SyntheticSubject {
   // ANSUR subjects: the survey's columns measured on the standard-pose truth mesh (labels named
   // as the survey names them, population/ansur_fit.h ansur_measurement_set()).
   std::vector<std::pair<std::string, double>> ansur_measured;
+  // ANSUR subjects: the soldier's own recorded values of those columns (weightkg in kg), written to
+  // subjects.csv as ansur2_<column>: labels a model study can regress against the real person.
+  std::vector<std::pair<std::string, double>> ansur_recorded;
   bool extrapolated = false;  // sliders or modifiers beyond MakeHuman's range (extended space)
   std::string sex;  // "female" | "male" (gender slider < 0.5 | ≥ 0.5)
   double age_years = 0;

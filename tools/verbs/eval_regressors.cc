@@ -17,6 +17,7 @@
 #include <random>
 
 #include "core/random_subject.h"
+#include "core/ansur_measure.h"
 #include "core/error.h"
 #include "core/io/atomic_write.h"
 #include "core/io/csv.h"
@@ -51,7 +52,9 @@ struct EvalRegressorsArgs {
   std::string save_model;       // with --synthetic: also write the built model here
   std::string label_noise;      // LabelNoiseSpec text (regression/label_noise.h)
   std::string table;            // an ANSUR II file: features are --inputs columns, labels the others
-  std::string inputs = "male,Age,stature,weightkg";
+  // --table: the feature columns (empty = male,Age,stature,weightkg); with a model: label columns
+  // used as the features instead of the coefficients (empty = the coefficients).
+  std::string inputs;
 };
 
 // What the study runs on: features, all labels, their names/units, and the subject of each row.
@@ -83,6 +86,11 @@ std::string default_unit(const std::string& label) {
       {"age_years", "years"}};
   auto it = units.find(label);
   if (it != units.end()) return it->second;
+  // ANSUR columns (synth-db on ANSUR files: measured on the body, and ansur2_* as recorded).
+  const std::string ansur = label.rfind("ansur2_", 0) == 0 ? label.substr(7) : label;
+  const auto& names = AnsurMeasurer::names();
+  if (ansur == "Age") return "years";
+  if (std::find(names.begin(), names.end(), ansur) != names.end()) return ansur == "weightkg" ? "kg" : "mm";
   const auto u = label.rfind('_');
   return u == std::string::npos ? "" : label.substr(u + 1);
 }
@@ -212,11 +220,14 @@ StudyInput synthetic_input(const EvalRegressorsArgs& a) {
 // A table of measured people (ANSUR II): the --inputs columns ("male": 1 for men) are the
 // features, every numeric column a label; one row a person.
 StudyInput table_input(const EvalRegressorsArgs& a) {
-  const std::vector<std::string> inputs = cli::split_commas(a.inputs);
+  const std::vector<std::string> inputs = cli::split_commas(a.inputs.empty() ? "male,Age,stature,weightkg" : a.inputs);
   if (inputs.empty()) throw InputError("--inputs: no column given");
   std::vector<std::string> required;
   for (const auto& c : inputs)
     if (c != "male") required.push_back(c);
+  // The labels too: a missing or renamed label column is then refused as the reader words it.
+  for (const auto& c : cli::split_commas(a.labels))
+    if (std::find(required.begin(), required.end(), c) == required.end()) required.push_back(c);
   const AnsurTable t = read_ansur(a.table, required);
   StudyInput in;
   in.source = a.table;
@@ -232,6 +243,29 @@ StudyInput table_input(const EvalRegressorsArgs& a) {
   return in;
 }
 
+// A model's --inputs labels (e.g. sex,age_years,ansur2_stature,ansur2_weightkg) as the features in
+// place of its coefficients: the baseline a body's coefficients are compared with, on the same rows
+// and folds. Each feature is divided by its standard deviation over every row (unsupervised, no
+// label seen): the kernel regressors' one global scale would otherwise be stature's, in mm, and
+// ignore sex; the linear regressors are unchanged by it.
+void use_label_features(StudyInput& in, const std::string& inputs) {
+  const std::vector<std::string> cols = cli::split_commas(inputs);
+  if (cols.empty()) throw InputError("--inputs: no label given");
+  Eigen::MatrixXd X(in.Y.rows(), Eigen::Index(cols.size()));
+  for (size_t k = 0; k < cols.size(); ++k) {
+    const auto it = std::find(in.names.begin(), in.names.end(), cols[k]);
+    if (it == in.names.end()) throw InputError("--inputs: '" + cols[k] + "' is not a label of '" + in.source + "'");
+    const Eigen::VectorXd c = in.Y.col(it - in.names.begin());
+    for (Eigen::Index r = 0; r < c.size(); ++r)
+      if (!std::isfinite(c(r)))
+        throw InputError(fmt::format("--inputs: label '{}' of '{}' has no value on row {}", cols[k], in.source, r + 1));
+    const double sd = std::sqrt((c.array() - c.mean()).square().mean());
+    X.col(Eigen::Index(k)) = c / (sd > 0 ? sd : 1.0);
+  }
+  in.X = X;
+  in.source += " (features: " + inputs + ")";
+}
+
 }  // namespace
 
 namespace {
@@ -245,7 +279,10 @@ void add_eval_regressors_options(CLI::App* cmd, EvalRegressorsArgs& a) {
   cmd->add_option("--table", a.table,
                   "Instead of a model: an ANSUR II file (anthropometry/ansur2/ansur2_male.csv); the features\n"
                   "are the --inputs columns, the labels any other numeric columns (mm; weightkg in kg)");
-  cmd->add_option("--inputs", a.inputs, "With --table: the feature columns ('male' = 1 for men)")->capture_default_str();
+  cmd->add_option("--inputs", a.inputs,
+                  "With --table: the feature columns ('male' = 1 for men; default male,Age,stature,weightkg).\n"
+                  "With a model: labels used as the features instead of its coefficients (e.g.\n"
+                  "sex,age_years,ansur2_stature,ansur2_weightkg), each divided by its standard deviation");
   cmd->add_option("--synthetic-seed", a.synthetic_seed, "Seed of the synthetic subjects")->capture_default_str();
   cmd->add_option("--save-model", a.save_model, "With --synthetic: also write the built model (.npz)");
   cmd->add_option("--label-noise", a.label_noise,
@@ -362,7 +399,10 @@ void run_eval_regressors(EvalRegressorsArgs& a) {
   if (a.synthetic <= 0 && a.model.empty() && a.table.empty())
     throw InputError("no model file given (expected model.npz, --synthetic N to build one in-process, or --table FILE)");
   const LabelNoiseSpec noise = parse_label_noise(a.label_noise);
-  const StudyInput in = a.synthetic > 0 ? synthetic_input(a) : !a.table.empty() ? table_input(a) : model_input(a);
+  if (!a.inputs.empty() && a.synthetic > 0) throw InputError("--inputs: with a model file or --table, not --synthetic");
+  StudyInput in = a.synthetic > 0 ? synthetic_input(a) : !a.table.empty() ? table_input(a) : model_input(a);
+  const bool label_features = !a.inputs.empty() && a.table.empty();
+  if (label_features) use_label_features(in, a.inputs);
   const Eigen::MatrixXd& X = in.X;
   const std::vector<int>& groups = in.groups;
   SelectedLabels chosen = select_labels(in, a.labels);
@@ -384,7 +424,7 @@ void run_eval_regressors(EvalRegressorsArgs& a) {
   o.cross_validation.folds = a.folds;
   o.cross_validation.seed = a.seed;
   o.jobs = a.jobs;
-  o.directions = !a.no_directions && a.table.empty();  // morph directions: of a model's coefficients only
+  o.directions = !a.no_directions && a.table.empty() && !label_features;  // of a model's coefficients only
   cli::info(fmt::format("{}: {} rows ({} subjects), {} components, {} labels, {} regressors, {}-fold",
                         in.source, X.rows(), groups.empty() ? X.rows() : static_cast<Eigen::Index>(*std::max_element(groups.begin(), groups.end()) + 1),
                         X.cols(), wanted.size(), o.regressors.size(), a.folds));
