@@ -499,6 +499,49 @@ int undo_disagreeing(const MarkerData& c, const Surface& s, const CleanOptions& 
   return undone;
 }
 
+// Our addition, after the rounds of step 4: the pieces left are matched by the neighbourhood models
+// alone. A candidate is a marker missing over the whole piece, within one spacing of it at its first
+// frame (filled trajectory) and not refused by it; the piece goes to the one whose models place it
+// nearest, within model_tolerance · spacing, when no other's models are within `ambiguity` times
+// that. Where the rigid prediction is off (near hands and hips) the models still know where the
+// marker sits among its neighbours.
+int model_round(const MarkerData& c, const Surface& s, const CleanOptions& o, const Neighbourhoods& nb, const Eigen::MatrixXd& Y,
+                Pieces& ps, Eigen::MatrixXd& X, CleanReport& r) {
+  std::vector<int> choice(ps.list.size(), -1);
+  std::vector<double> dist(ps.list.size(), 0);
+  tbb::parallel_for(size_t(0), ps.list.size(), [&](size_t k) {
+    if (ps.done[k]) return;
+    const Piece& p = ps.list[k];
+    double best = 1e300, second = 1e300;
+    int bi = -1;
+    for (int i = 0; i < s.size(); ++i) {
+      if ((at(Y, p.frames[0], i) - c.at(p.frames[0], p.column)).norm() > s.spacing(i)) continue;
+      if (std::find(p.refused.begin(), p.refused.end(), i) != p.refused.end()) continue;
+      bool missing = true;
+      for (int t : p.frames) missing = missing && !present(X, t, i);
+      if (!missing) continue;
+      const double d = model_distance(nb, c, X, i, p);
+      if (d < 0) continue;
+      if (d < best) second = best, best = d, bi = i;
+      else second = std::min(second, d);
+    }
+    if (bi >= 0 && best <= o.model_tolerance * s.spacing(bi) && second >= o.ambiguity * best) choice[k] = bi, dist[k] = best;
+  });
+  int merged = 0;
+  for (size_t k = 0; k < ps.list.size(); ++k) {
+    const int i = choice[k];
+    if (i < 0) continue;
+    const Piece& p = ps.list[k];
+    bool missing = true;
+    for (int t : p.frames) missing = missing && !present(X, t, i);
+    if (!missing) continue;
+    for (int t : p.frames) X.block<1, 3>(t, 3 * i) = c.xyz.block<1, 3>(t, 3 * p.column);
+    ps.done[k] = 1, ps.marker[k] = i, ++merged;
+    r.merges.push_back({c.labels[p.column], c.labels[s.columns[i]], p.frames.front(), p.frames.back(), dist[k]});
+  }
+  return merged;
+}
+
 // The neighbourhood models of the merged trajectories, after taking out the merges they disagree with.
 Neighbourhoods checked_neighbourhoods(const MarkerData& c, const Surface& s, const CleanOptions& o, Pieces& ps,
                                       std::vector<char>& checked, Eigen::MatrixXd& X, CleanReport& r) {
@@ -545,7 +588,8 @@ CleanResult clean_markers(const MarkerData& capture, const CleanOptions& o, cons
   const Predictor rigid = [&](int i, int t, Eigen::Vector3d& e) { return anchored_estimate(s, X, i, t, e); };
   for (int pass = 0; pass < 2; ++pass) merge_round(capture, s, o, rigid, ps, X, r);
   std::vector<char> checked;
-  Eigen::MatrixXd Y = fill_holes(s, checked_neighbourhoods(capture, s, o, ps, checked, X, r), X, r);
+  Neighbourhoods nb = checked_neighbourhoods(capture, s, o, ps, checked, X, r);
+  Eigen::MatrixXd Y = fill_holes(s, nb, X, r);
   // The filled trajectories predict better than a rigid fit of the neighbours where the body
   // deforms: the pieces left are matched against them, and the holes filled again.
   const Predictor filled = [&](int i, int t, Eigen::Vector3d& e) {
@@ -555,7 +599,13 @@ CleanResult clean_markers(const MarkerData& capture, const CleanOptions& o, cons
   for (int round = 0; round < o.rounds; ++round) {
     if (progress) progress(0.2 + 0.6 * (round + 1) / (o.rounds + 1));
     if (merge_round(capture, s, o, filled, ps, X, r) == 0) break;
-    Y = fill_holes(s, checked_neighbourhoods(capture, s, o, ps, checked, X, r), X, r);
+    nb = checked_neighbourhoods(capture, s, o, ps, checked, X, r);
+    Y = fill_holes(s, nb, X, r);
+  }
+  for (int round = 0; round < o.model_rounds; ++round) {
+    if (model_round(capture, s, o, nb, Y, ps, X, r) == 0) break;  // nb: the models of the current X
+    nb = fit_neighbourhoods(s, o, X);
+    Y = fill_holes(s, nb, X, r);
   }
   for (size_t k = 0; k < ps.list.size(); ++k)
     if (!ps.done[k]) r.unmerged.push_back(capture.labels[ps.list[k].column]);

@@ -9,7 +9,8 @@
 // where the marker was seen); the trajectories are smoothed in the local frame. Pieces left are
 // matched again against the filled trajectories (`rounds`), and the holes filled again. A merged
 // piece the marker's neighbourhood models (fitted on the merged data, the piece's own sample left
-// out of each estimate) put farther than model_tolerance · spacing is taken out again.
+// out of each estimate) put farther than model_tolerance · spacing is taken out again. The pieces
+// still left are then matched by those models alone (`model_rounds`).
 // Approximations: the marker surface's one-ring is the k nearest markers in the reference frame
 // (the paper built it by hand); frames with fewer than 3 visible neighbours, after a second pass
 // that lets filled neighbours count, are filled by linear interpolation in time (reported apart).
@@ -34,6 +35,7 @@ struct CleanOptions {
   int min_piece = 1;                  // shorter pieces are left unmerged (too short to tell whose they are)
   int rounds = 2;                     // merges against the filled trajectories (then filled again)
   double model_tolerance = 0.35;      // a merge its neighbourhood models put farther than this · spacing is undone (0 = never)
+  int model_rounds = 1;               // then pieces left are matched by the neighbourhood models alone (0 = none)
   double pca_energy = 0.99;           // variance kept by each neighbourhood's model
   int smooth_iterations = 2;          // passes of the local-frame smoothing (0 = none)
   double smooth_lambda = 0.25;

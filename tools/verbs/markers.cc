@@ -151,6 +151,8 @@ void add_clean(CLI::App* group) {
                   "Undo a merge the neighbourhood models put farther than this · mean neighbour distance, when another "
                   "marker's models explain the piece better (0 = never)")
       ->capture_default_str();
+  cmd->add_option("--model-rounds", a->o.model_rounds, "Rounds matching the pieces left by the neighbourhood models (0 = none)")
+      ->capture_default_str();
   cmd->add_option("--smooth", a->o.smooth_iterations, "Smoothing passes in the local frame (0 = none)")->capture_default_str();
   cmd->callback([a] { run_clean(*a); });
 }
