@@ -148,6 +148,7 @@ bool anchored_estimate(const Surface& s, const Eigen::MatrixXd& X, int i, int t,
 struct Piece {
   int column;
   std::vector<int> frames;
+  std::vector<int> refused;  // markers its merge into was undone (the neighbourhood models disagreed)
 };
 
 // Where marker i should be at frame t (false: no prediction).
@@ -192,6 +193,7 @@ int match_piece(const Surface& s, const CleanOptions& o, const MarkerData& c, co
   double runner_up = 1e300;
   for (const auto& [i, close] : contenders) {
     double mean = 0, worst = 0;
+    if (std::find(p.refused.begin(), p.refused.end(), i) != p.refused.end()) continue;
     if (!piece_distance(c, X, p, i, predict, o.piece_tolerance * s.spacing(i), mean, worst)) continue;
     if (close && worst <= 1 && mean < best_mean) {
       if (best >= 0) runner_up = std::min(runner_up, best_mean);
@@ -207,19 +209,21 @@ int match_piece(const Surface& s, const CleanOptions& o, const MarkerData& c, co
 struct Pieces {
   std::vector<Piece> list;  // in order of their first frame
   std::vector<char> done;
+  std::vector<int> marker;  // the marker each merged piece went to (-1: not merged)
 };
 
 Pieces collect_pieces(const MarkerData& c) {
   Pieces ps;
   for (int m = 0; m < c.marker_count(); ++m) {
     if (!is_piece(c.labels[m])) continue;
-    Piece p{m, {}};
+    Piece p{m, {}, {}};
     for (int t = 0; t < c.frame_count(); ++t)
       if (c.present(t, m)) p.frames.push_back(t);
     if (!p.frames.empty()) ps.list.push_back(std::move(p));
   }
   std::stable_sort(ps.list.begin(), ps.list.end(), [](const Piece& a, const Piece& b) { return a.frames[0] < b.frames[0]; });
   ps.done.assign(ps.list.size(), 0);
+  ps.marker.assign(ps.list.size(), -1);
   return ps;
 }
 
@@ -236,6 +240,7 @@ int merge_round(const MarkerData& c, const Surface& s, const CleanOptions& o, co
     if (i < 0) continue;
     for (int t : p.frames) X.block<1, 3>(t, 3 * i) = c.xyz.block<1, 3>(t, 3 * p.column);
     ps.done[k] = 1;
+    ps.marker[k] = i;
     ++merged;
     r.merges.push_back({c.labels[p.column], c.labels[s.columns[i]], p.frames.front(), p.frames.back(), mean});
   }
@@ -359,6 +364,53 @@ long fill_from_models(const Surface& s, const std::vector<Model>& models, const 
   return filled;
 }
 
+struct Neighbourhoods {
+  std::vector<Model> models;                              // one per marker
+  std::vector<std::vector<std::pair<int, int>>> holders;  // (model, member) holding marker i
+};
+
+Neighbourhoods fit_neighbourhoods(const Surface& s, const CleanOptions& o, const Eigen::MatrixXd& X) {
+  const int L = s.size();
+  Neighbourhoods nb{std::vector<Model>(L), std::vector<std::vector<std::pair<int, int>>>(L)};
+  tbb::parallel_for(0, L, [&](int i) { nb.models[i] = fit_model(s, X, i, o.pca_energy); });
+  for (int j = 0; j < L; ++j)
+    for (size_t k = 0; k < nb.models[j].group.size(); ++k) nb.holders[nb.models[j].group[k]].emplace_back(j, static_cast<int>(k));
+  return nb;
+}
+
+// The mean distance of piece p's samples to marker i's neighbourhood models' estimates from the
+// other members (marker i's own sample is not used), over at most 16 of the piece's frames evenly
+// spread (enough for a mean; all of them made the check slower than the cleaning); -1: none reached.
+double model_distance(const Neighbourhoods& nb, const MarkerData& c, const Eigen::MatrixXd& X, int i, const Piece& p) {
+  double sum = 0;
+  int n = 0;
+  const size_t step = std::max<size_t>(1, p.frames.size() / 16);
+  for (size_t f = 0; f < p.frames.size(); f += step) {
+    const int t = p.frames[f];
+    Eigen::Vector3d acc = Eigen::Vector3d::Zero(), e;
+    int k = 0;
+    for (const auto& [model, member] : nb.holders[i])
+      if (reconstruct(nb.models[model], X, t, member, e)) acc += e, ++k;
+    if (k > 0) sum += (acc / k - c.at(t, p.column)).norm(), ++n;
+  }
+  return n ? sum / n : -1;
+}
+
+// Whether another marker near i, missing over the whole piece and not refused by it, has models that
+// place the piece closer than `d` (a better explanation than marker i's).
+bool better_explained(const Surface& s, const Neighbourhoods& nb, const MarkerData& c, const Eigen::MatrixXd& X, int i,
+                      const Piece& p, double d) {
+  for (int j : s.wide[i]) {
+    if (std::find(p.refused.begin(), p.refused.end(), j) != p.refused.end()) continue;
+    bool missing = true;
+    for (int t : p.frames) missing = missing && !present(X, t, j);
+    if (!missing) continue;
+    const double dj = model_distance(nb, c, X, j, p);
+    if (dj >= 0 && dj < d) return true;
+  }
+  return false;
+}
+
 // Linear interpolation in time between the nearest known samples (held at the ends).
 void interpolate_rest(Eigen::MatrixXd& Y, int i, const std::vector<int>& todo) {
   const int T = static_cast<int>(Y.rows());
@@ -383,17 +435,14 @@ int count_gaps(const Eigen::MatrixXd& X, int L) {
 
 // Section 4.3, with the neighbours' models averaged in; then filled neighbours may count (second
 // pass); then linear interpolation for what no model reaches.
-Eigen::MatrixXd fill_holes(const Surface& s, const CleanOptions& o, const Eigen::MatrixXd& X, CleanReport& r) {
+Eigen::MatrixXd fill_holes(const Surface& s, const Neighbourhoods& nb, const Eigen::MatrixXd& X, CleanReport& r) {
   const int L = s.size();
   r.gaps_after_merge = count_gaps(X, L);
   r.samples_missing = r.filled_from_neighbours = r.filled_by_interpolation = 0;
   for (int i = 0; i < L; ++i)
     for (int t = 0; t < X.rows(); ++t) r.samples_missing += !present(X, t, i);
-  std::vector<Model> models(L);
-  tbb::parallel_for(0, L, [&](int i) { models[i] = fit_model(s, X, i, o.pca_energy); });
-  std::vector<std::vector<std::pair<int, int>>> holders(L);  // (model, member) holding marker i
-  for (int j = 0; j < L; ++j)
-    for (size_t k = 0; k < models[j].group.size(); ++k) holders[models[j].group[k]].emplace_back(j, static_cast<int>(k));
+  const auto& models = nb.models;
+  const auto& holders = nb.holders;
   std::vector<std::vector<int>> todo(L);
   for (int i = 0; i < L; ++i)
     for (int t = 0; t < X.rows(); ++t)
@@ -411,6 +460,94 @@ Eigen::MatrixXd fill_holes(const Surface& s, const CleanOptions& o, const Eigen:
   r.gaps_left = count_gaps(Y, L);
   r.gaps_filled = r.gaps_after_merge - r.gaps_left;
   return Y;
+}
+
+// Our addition to section 4.2: a merged piece its marker's neighbourhood models place farther than
+// model_tolerance · spacing (on average over the piece), and that another marker's models place
+// closer, is taken out again and not offered to that marker again. The rigid prediction it was merged on can be tens of millimetres off near hands and
+// hips, where a neighbour's piece is then as close as the marker's own; the models (section 4.3)
+// know how the marker moves against its neighbours. Pieces checked once, after the round that
+// merged them. Returns the number taken out.
+int undo_disagreeing(const MarkerData& c, const Surface& s, const CleanOptions& o, const Neighbourhoods& nb, Pieces& ps,
+                     std::vector<char>& checked, Eigen::MatrixXd& X, CleanReport& r) {
+  if (o.model_tolerance <= 0) return 0;
+  checked.resize(ps.list.size(), 0);
+  std::vector<double> d(ps.list.size(), -1);
+  tbb::parallel_for(size_t(0), ps.list.size(), [&](size_t k) {
+    if (ps.marker[k] < 0 || checked[k]) return;
+    const int i = ps.marker[k];
+    const double dk = model_distance(nb, c, X, i, ps.list[k]);
+    if (dk > o.model_tolerance * s.spacing(i) && better_explained(s, nb, c, X, i, ps.list[k], dk)) d[k] = dk;
+  });
+  int undone = 0;
+  for (size_t k = 0; k < ps.list.size(); ++k) {
+    if (ps.marker[k] < 0 || checked[k]) continue;
+    const int i = ps.marker[k];
+    if (d[k] < 0) {
+      checked[k] = 1;
+      continue;
+    }
+    Piece& p = ps.list[k];
+    for (int t : p.frames) X.block<1, 3>(t, 3 * i).setConstant(kNaN);
+    p.refused.push_back(i);
+    ps.done[k] = 0, ps.marker[k] = -1;
+    const std::string& label = c.labels[p.column];
+    r.merges.erase(std::remove_if(r.merges.begin(), r.merges.end(), [&](const MergeRecord& m) { return m.piece == label; }), r.merges.end());
+    r.undone.push_back({label, c.labels[s.columns[i]], p.frames.front(), p.frames.back(), d[k]});
+    ++undone;
+  }
+  return undone;
+}
+
+// Our addition, after the rounds of step 4: the pieces left are matched by the neighbourhood models
+// alone. A candidate is a marker missing over the whole piece, within one spacing of it at its first
+// frame (filled trajectory) and not refused by it; the piece goes to the one whose models place it
+// nearest, within model_tolerance · spacing, when no other's models are within `ambiguity` times
+// that. Where the rigid prediction is off (near hands and hips) the models still know where the
+// marker sits among its neighbours.
+int model_round(const MarkerData& c, const Surface& s, const CleanOptions& o, const Neighbourhoods& nb, const Eigen::MatrixXd& Y,
+                Pieces& ps, Eigen::MatrixXd& X, CleanReport& r) {
+  std::vector<int> choice(ps.list.size(), -1);
+  std::vector<double> dist(ps.list.size(), 0);
+  tbb::parallel_for(size_t(0), ps.list.size(), [&](size_t k) {
+    if (ps.done[k]) return;
+    const Piece& p = ps.list[k];
+    double best = 1e300, second = 1e300;
+    int bi = -1;
+    for (int i = 0; i < s.size(); ++i) {
+      if ((at(Y, p.frames[0], i) - c.at(p.frames[0], p.column)).norm() > s.spacing(i)) continue;
+      if (std::find(p.refused.begin(), p.refused.end(), i) != p.refused.end()) continue;
+      bool missing = true;
+      for (int t : p.frames) missing = missing && !present(X, t, i);
+      if (!missing) continue;
+      const double d = model_distance(nb, c, X, i, p);
+      if (d < 0) continue;
+      if (d < best) second = best, best = d, bi = i;
+      else second = std::min(second, d);
+    }
+    if (bi >= 0 && best <= o.model_tolerance * s.spacing(bi) && second >= o.ambiguity * best) choice[k] = bi, dist[k] = best;
+  });
+  int merged = 0;
+  for (size_t k = 0; k < ps.list.size(); ++k) {
+    const int i = choice[k];
+    if (i < 0) continue;
+    const Piece& p = ps.list[k];
+    bool missing = true;
+    for (int t : p.frames) missing = missing && !present(X, t, i);
+    if (!missing) continue;
+    for (int t : p.frames) X.block<1, 3>(t, 3 * i) = c.xyz.block<1, 3>(t, 3 * p.column);
+    ps.done[k] = 1, ps.marker[k] = i, ++merged;
+    r.merges.push_back({c.labels[p.column], c.labels[s.columns[i]], p.frames.front(), p.frames.back(), dist[k]});
+  }
+  return merged;
+}
+
+// The neighbourhood models of the merged trajectories, after taking out the merges they disagree with.
+Neighbourhoods checked_neighbourhoods(const MarkerData& c, const Surface& s, const CleanOptions& o, Pieces& ps,
+                                      std::vector<char>& checked, Eigen::MatrixXd& X, CleanReport& r) {
+  Neighbourhoods nb = fit_neighbourhoods(s, o, X);
+  if (undo_disagreeing(c, s, o, nb, ps, checked, X, r) > 0) nb = fit_neighbourhoods(s, o, X);
+  return nb;
 }
 
 // Section 4.4: each trajectory smoothed in its local frame (the rigid motion of its neighbours
@@ -450,7 +587,9 @@ CleanResult clean_markers(const MarkerData& capture, const CleanOptions& o, cons
   r.pieces = static_cast<int>(ps.list.size());
   const Predictor rigid = [&](int i, int t, Eigen::Vector3d& e) { return anchored_estimate(s, X, i, t, e); };
   for (int pass = 0; pass < 2; ++pass) merge_round(capture, s, o, rigid, ps, X, r);
-  Eigen::MatrixXd Y = fill_holes(s, o, X, r);
+  std::vector<char> checked;
+  Neighbourhoods nb = checked_neighbourhoods(capture, s, o, ps, checked, X, r);
+  Eigen::MatrixXd Y = fill_holes(s, nb, X, r);
   // The filled trajectories predict better than a rigid fit of the neighbours where the body
   // deforms: the pieces left are matched against them, and the holes filled again.
   const Predictor filled = [&](int i, int t, Eigen::Vector3d& e) {
@@ -460,7 +599,13 @@ CleanResult clean_markers(const MarkerData& capture, const CleanOptions& o, cons
   for (int round = 0; round < o.rounds; ++round) {
     if (progress) progress(0.2 + 0.6 * (round + 1) / (o.rounds + 1));
     if (merge_round(capture, s, o, filled, ps, X, r) == 0) break;
-    Y = fill_holes(s, o, X, r);
+    nb = checked_neighbourhoods(capture, s, o, ps, checked, X, r);
+    Y = fill_holes(s, nb, X, r);
+  }
+  for (int round = 0; round < o.model_rounds; ++round) {
+    if (model_round(capture, s, o, nb, Y, ps, X, r) == 0) break;  // nb: the models of the current X
+    nb = fit_neighbourhoods(s, o, X);
+    Y = fill_holes(s, nb, X, r);
   }
   for (size_t k = 0; k < ps.list.size(); ++k)
     if (!ps.done[k]) r.unmerged.push_back(capture.labels[ps.list[k].column]);
@@ -483,15 +628,20 @@ nlohmann::json clean_report_json(const CleanReport& r) {
   for (const auto& m : r.merges)
     merges.push_back({{"piece", m.piece}, {"marker", m.marker}, {"first_frame", m.first}, {"last_frame", m.last},
                       {"mean_distance_mm", m.mean_distance_mm}});
+  nlohmann::json undone = nlohmann::json::array();
+  for (const auto& m : r.undone)
+    undone.push_back({{"piece", m.piece}, {"marker", m.marker}, {"first_frame", m.first}, {"last_frame", m.last},
+                      {"model_distance_mm", m.mean_distance_mm}});
   return {{"markers", r.markers}, {"pieces", r.pieces}, {"merged", r.merged}, {"unmerged", r.unmerged},
-          {"merges", merges}, {"gaps_before_merge", r.gaps_before}, {"gaps_found", r.gaps_after_merge},
+          {"merges", merges}, {"merges_undone", undone}, {"gaps_before_merge", r.gaps_before}, {"gaps_found", r.gaps_after_merge},
           {"gaps_filled", r.gaps_filled}, {"gaps_left", r.gaps_left}, {"samples_missing", r.samples_missing},
           {"filled_from_neighbours", r.filled_from_neighbours}, {"filled_by_interpolation", r.filled_by_interpolation}};
 }
 
 std::string clean_summary_line(const CleanReport& r) {
   return std::to_string(r.markers) + " markers; " + std::to_string(r.merged) + " of " + std::to_string(r.pieces) +
-         " pieces merged (" + std::to_string(r.unmerged.size()) + " left); " + std::to_string(r.gaps_after_merge) +
+         " pieces merged (" + std::to_string(r.unmerged.size()) + " left, " +
+         std::to_string(r.undone.size()) + " merges undone); " + std::to_string(r.gaps_after_merge) +
          " gaps found (" + std::to_string(r.gaps_before) + " before merging), " + std::to_string(r.gaps_filled) + " filled, " +
          std::to_string(r.gaps_left) + " left; " + std::to_string(r.filled_from_neighbours) + " samples from neighbours, " +
          std::to_string(r.filled_by_interpolation) + " by interpolation";

@@ -7,7 +7,10 @@
 // neighbourhood in its local frame, fitted to the neighbours present (averaged over the models
 // of the marker and of its neighbours, and with the neighbours' rigid motion from the nearest frames
 // where the marker was seen); the trajectories are smoothed in the local frame. Pieces left are
-// matched again against the filled trajectories (`rounds`), and the holes filled again.
+// matched again against the filled trajectories (`rounds`), and the holes filled again. A merged
+// piece the marker's neighbourhood models (fitted on the merged data, the piece's own sample left
+// out of each estimate) put farther than model_tolerance · spacing is taken out again. The pieces
+// still left are then matched by those models alone (`model_rounds`).
 // Approximations: the marker surface's one-ring is the k nearest markers in the reference frame
 // (the paper built it by hand); frames with fewer than 3 visible neighbours, after a second pass
 // that lets filled neighbours count, are filled by linear interpolation in time (reported apart).
@@ -31,6 +34,8 @@ struct CleanOptions {
   double rigidity = 0.1;              // a neighbour's distance may vary by this fraction of itself (std over time)
   int min_piece = 1;                  // shorter pieces are left unmerged (too short to tell whose they are)
   int rounds = 2;                     // merges against the filled trajectories (then filled again)
+  double model_tolerance = 0.35;      // a merge its neighbourhood models put farther than this · spacing is undone (0 = never)
+  int model_rounds = 1;               // then pieces left are matched by the neighbourhood models alone (0 = none)
   double pca_energy = 0.99;           // variance kept by each neighbourhood's model
   int smooth_iterations = 2;          // passes of the local-frame smoothing (0 = none)
   double smooth_lambda = 0.25;
@@ -46,6 +51,7 @@ struct CleanReport {
   int markers = 0, pieces = 0, merged = 0;
   std::vector<MergeRecord> merges;
   std::vector<std::string> unmerged;  // pieces left (ghosts, or pieces no marker explained)
+  std::vector<MergeRecord> undone;    // merges taken out again (mean_distance_mm: from the neighbourhood models)
   int gaps_before = 0, gaps_after_merge = 0, gaps_filled = 0, gaps_left = 0;
   long samples_missing = 0, filled_from_neighbours = 0, filled_by_interpolation = 0;
 };

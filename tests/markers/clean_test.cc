@@ -131,6 +131,91 @@ TEST(MarkerClean, LeavesGhostsAndRefusesAnIncompleteReferenceFrame) {
   }
 }
 
+// A known answer for the neighbourhood-model check: markers A and B are both missing over frames
+// 100–129 and one piece carries B's samples there. A's samples just before and after the gap were
+// swapped onto B's place (a confusion), so A's rigid prediction follows B exactly; B's own samples
+// there are 40 mm off (a glitch), so B's prediction misses the piece by more than a1. The rigid test
+// gives the piece to A (checked with the check off), A's models, which learnt where A sits among its
+// neighbours, disagree by a spacing and B's models agree: the merge into A is undone.
+TEST(MarkerClean, UndoesAMergeTheNeighbourhoodModelsDisagreeWith) {
+  std::mt19937 rng(11);
+  const MarkerData truth = moving_body(250, rng);
+  const int a = 5;
+  int b = -1;
+  for (int m = 0; m < 60; ++m)
+    if (m != a && (b < 0 || (truth.at(0, m) - truth.at(0, a)).norm() < (truth.at(0, b) - truth.at(0, a)).norm())) b = m;
+  MarkerData capture = truth;
+  std::normal_distribution<double> noise(0, 1);
+  for (int t = 0; t < capture.frame_count(); ++t)
+    for (int m = 0; m < capture.marker_count(); ++m)
+      capture.set(t, m, truth.at(t, m) + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+  const int M = truth.marker_count();
+  capture.labels.push_back("*1");
+  capture.xyz.conservativeResize(Eigen::NoChange, 3 * (M + 1));
+  for (int t = 0; t < capture.frame_count(); ++t) capture.clear(t, M);
+  for (int t = 100; t < 130; ++t) {
+    capture.set(t, M, capture.at(t, b));
+    capture.clear(t, a), capture.clear(t, b);
+  }
+  for (int t : {99, 130}) {
+    const Eigen::Vector3d away = (truth.at(t, b) - truth.at(t, a)).normalized();
+    capture.set(t, a, truth.at(t, b));
+    capture.set(t, b, truth.at(t, b) + 40 * away);
+  }
+  const std::string A = truth.labels[a], B = truth.labels[b];
+  auto went_to = [](const CleanReport& r, const std::string& marker) {
+    return std::any_of(r.merges.begin(), r.merges.end(), [&](const MergeRecord& m) { return m.piece == "*1" && m.marker == marker; });
+  };
+  CleanOptions o;
+  o.ambiguity = 0;  // the ambiguity test would leave the piece alone: the model check is what is tested
+  o.model_tolerance = 0;
+  const CleanResult unchecked = clean_markers(capture, o);
+  ASSERT_TRUE(went_to(unchecked.report, A)) << "the setup must fool the rigid prediction";
+  EXPECT_EQ(evaluate_cleaning(capture, unchecked, truth).wrong_merges, 1);
+  o.model_tolerance = CleanOptions{}.model_tolerance;
+  const CleanResult r = clean_markers(capture, o);
+  EXPECT_FALSE(went_to(r.report, A));
+  ASSERT_EQ(r.report.undone.size(), 1u);
+  EXPECT_EQ(r.report.undone[0].piece, "*1");
+  EXPECT_EQ(r.report.undone[0].marker, A);
+  EXPECT_GT(r.report.undone[0].mean_distance_mm, 40) << "the models put A where it was, a spacing from B";
+  EXPECT_EQ(evaluate_cleaning(capture, r, truth).wrong_merges, 0);
+}
+
+// A known answer for the matching by the neighbourhood models: marker B is missing over frames
+// 100–129 and one piece carries its samples there, but B's samples just before and after the gap
+// are 50 mm off (a glitch), so B's rigid prediction misses the piece by more than a1 and nothing
+// takes it (checked with the model rounds off; the rounds against the filled trajectories are off
+// too, to test the model rounds alone). B's models, fitted on the frames where B and its neighbours
+// are all seen, place the piece within noise: it goes to B.
+TEST(MarkerClean, NeighbourhoodModelsMergeAPieceTheRigidPredictionMisses) {
+  std::mt19937 rng(12);
+  const MarkerData truth = moving_body(250, rng);
+  const int b = 17, M = truth.marker_count();
+  MarkerData capture = truth;
+  std::normal_distribution<double> noise(0, 1);
+  for (int t = 0; t < capture.frame_count(); ++t)
+    for (int m = 0; m < M; ++m) capture.set(t, m, truth.at(t, m) + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+  capture.labels.push_back("*1");
+  capture.xyz.conservativeResize(Eigen::NoChange, 3 * (M + 1));
+  for (int t = 0; t < capture.frame_count(); ++t) capture.clear(t, M);
+  for (int t = 100; t < 130; ++t) capture.set(t, M, capture.at(t, b)), capture.clear(t, b);
+  for (int t : {99, 130}) capture.set(t, b, truth.at(t, b) + Eigen::Vector3d(0, 50, 0));
+  CleanOptions o;
+  o.rounds = 0;
+  o.model_rounds = 0;
+  const CleanResult unmatched = clean_markers(capture, o);
+  ASSERT_EQ(unmatched.report.unmerged, std::vector<std::string>{"*1"}) << "the setup must defeat the rigid prediction";
+  o.model_rounds = 1;
+  const CleanResult r = clean_markers(capture, o);
+  ASSERT_EQ(r.report.merges.size(), 1u);
+  EXPECT_EQ(r.report.merges[0].marker, truth.labels[b]);
+  EXPECT_LT(r.report.merges[0].mean_distance_mm, 5) << "the models place the piece within noise";
+  const CleanEvaluation e = evaluate_cleaning(capture, r, truth);
+  EXPECT_EQ(e.wrong_merges, 0);
+  EXPECT_EQ(e.missed_pieces, 0);
+}
+
 // ---- the Vlasic "jumping" capture (long tests) ---------------------------------------------------
 
 struct Jumping {
@@ -188,20 +273,20 @@ TEST(MarkersJumping, SimulatedCaptureIsRealisticAndItsPiecesAreTheirMarkers) {
 
 // The issue's figures on the development capture (crane is measured once, in docs/markers.md).
 // Reached: holes of 5–60 frames filled within a median 5 mm and under half the spline's error.
-// Not reached yet (asserted at what the method does, so a regression fails): the issue asks for 0
-// wrong merges (here up to 2, short pieces near the hands) and every piece merged.
+// Reached on this capture: no wrong merges. Not reached yet (asserted at what the method does, so a
+// regression fails): every piece merged, and every hole's median within 5 mm.
 TEST(MarkersJumping, CleaningMergesAndFillsHolesOfFiveToSixtyFramesWithinFiveMillimetres) {
   const SimulatedCapture& s = jumping_capture();
   const CleanResult r = clean_markers(s.capture);
   const CleanEvaluation e = evaluate_cleaning(s.capture, r, s.truth);
-  EXPECT_LE(e.wrong_merges, 2);
-  EXPECT_LE(e.missed_pieces, r.report.pieces / 8);
+  EXPECT_EQ(e.wrong_merges, 0);
+  EXPECT_LE(e.missed_pieces, r.report.pieces / 12);
   EXPECT_GE(r.report.merged, r.report.pieces * 8 / 10);
   EXPECT_GE(double(r.report.samples_missing) / (350.0 * s.truth.frame_count()), 0.15);
   EXPECT_GT(e.gap_5_60, 5000);
   EXPECT_LE(e.median_5_60_mm, 5.0);
   EXPECT_LT(e.ratio_5_60, 0.5);
-  EXPECT_LE(e.median_fill_mm, 10.0) << "every hole, including those running to the end of the capture";
+  EXPECT_LE(e.median_fill_mm, 8.0) << "every hole, including those running to the end of the capture";
   EXPECT_EQ(r.report.gaps_left, 0);
   ASSERT_TRUE(r.cleaned.xyz.allFinite());
   std::cout << clean_summary_line(r.report) << "\n" << evaluation_json(e).dump() << "\n";

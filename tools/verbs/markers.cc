@@ -147,6 +147,12 @@ void add_clean(CLI::App* group) {
   cmd->add_option("--neighbours", a->o.neighbours, "Neighbours of a marker (its one-ring)")->capture_default_str();
   cmd->add_option("--merge-tolerance", a->o.merge_tolerance, "a1: merge radius / mean neighbour distance")->capture_default_str();
   cmd->add_option("--piece-tolerance", a->o.piece_tolerance, "a2: whole-piece radius / mean neighbour distance")->capture_default_str();
+  cmd->add_option("--model-tolerance", a->o.model_tolerance,
+                  "Undo a merge the neighbourhood models put farther than this · mean neighbour distance, when another "
+                  "marker's models explain the piece better (0 = never)")
+      ->capture_default_str();
+  cmd->add_option("--model-rounds", a->o.model_rounds, "Rounds matching the pieces left by the neighbourhood models (0 = none)")
+      ->capture_default_str();
   cmd->add_option("--smooth", a->o.smooth_iterations, "Smoothing passes in the local frame (0 = none)")->capture_default_str();
   cmd->callback([a] { run_clean(*a); });
 }
