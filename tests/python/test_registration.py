@@ -51,8 +51,8 @@ def test_register_scan_matches_the_cli(db, tmp_path, cli):
 
 def test_register_scan_bad_input(db):
     _, P, N, lm = scan_of(db)
-    with pytest.raises(bodymodel.InputError, match="landmarks: unknown landmark name 'nose_tip'"):
-        bodymodel.register_scan(P, N, landmarks={"nose_tip": [0, 0, 0]}, **KW)
+    with pytest.raises(bodymodel.InputError, match="landmarks: unknown landmark name 'nose_bridge'"):
+        bodymodel.register_scan(P, N, landmarks={"nose_bridge": [0, 0, 0]}, **KW)
     bad = P.copy()
     bad[3, 2] = np.nan
     with pytest.raises(bodymodel.InputError, match="points: NaN at row 3"):
@@ -63,6 +63,14 @@ def test_register_scan_bad_input(db):
         bodymodel.register_scan(P, N, landmarks=lm, fast_steps=0)
     with pytest.raises(bodymodel.Cancelled):
         bodymodel.register_scan(P, N, landmarks=lm, progress=lambda f, w: False, **KW)
+
+
+def test_register_scan_shape_space_file_is_checked(db, tmp_path):
+    _, P, N, lm = scan_of(db)
+    bad = tmp_path / "space.json"
+    bad.write_text('{"format": "something-else"}')
+    with pytest.raises(bodymodel.InputError, match="space.json: not a shape-space file"):
+        bodymodel.register_scan(P, N, landmarks=lm, shape_space=str(bad), **KW)
 
 
 def test_register_scan_template(db):
