@@ -80,11 +80,11 @@ TEST(DressedPictures, LineupLodsAndCloseUpShowTheDrawnOutfits) {
     ch.skeleton = mh.skeleton(full);
     ch.F = mh.body_faces();
     ch.lbs = lbs_rig_from_weights(full.topRows(nb), Eigen::MatrixXd(mh.weights().topRows(nb)), 4);
-    const fs::path dir = tmp / ("char_00" + std::to_string(i)) / "anim";
+    const fs::path dir = tmp / "crowd" / ("char_00" + std::to_string(i)) / "anim";
     fs::create_directories(dir);
     dressed.push_back(write_dressed_character(kit, ch, i == 1, 1000003ull + i, {}, 0.1, dir));
   }
-  const DressedCrowdPictures p = dressed_crowd_pictures(tmp.path, 3);   // char_002 absent: skipped
+  const DressedCrowdPictures p = dressed_crowd_pictures(tmp / "crowd", 3);   // char_002 absent: skipped
   ASSERT_EQ(p.lineup.width, 2 * 150);
   ASSERT_EQ(p.lods.width, 3 * 220);
 
@@ -143,11 +143,24 @@ TEST(DressedPictures, LineupLodsAndCloseUpShowTheDrawnOutfits) {
   std::printf("featured char_%03d; levels %d / %d / %d triangles; close-up drawn %.0f %%, skin %.0f %% of it\n",
               p.featured, p.level_triangles[0], p.level_triangles[1], p.level_triangles[2],
               100.0 * front.drawn / front.pixels, 100.0 * front.matching / front.drawn);
-  if (const char* keep = std::getenv("BODYMODEL_KEEP_PICTURES"); keep && *keep) {
-    p.lineup.save_png(fs::path(keep) / "crowd_dressed.png");
-    p.lods.save_png(fs::path(keep) / "crowd_lods.png");
-    p.closeup.save_png(fs::path(keep) / "crowd_closeup.png");
+  if (const char* keep = std::getenv("BODYMODEL_KEEP_PICTURES"); keep && *keep) save_dressed_crowd_pictures(p, keep);
+
+  // The report's part (tmp as the demo's OUT): the three pictures, and the crowd viewer's link with
+  // the http note only when the page and its three.js modules are there.
+  fs::create_directories(tmp / "pictures");
+  save_dressed_crowd_pictures(p, tmp / "pictures");
+  std::string html = dressed_crowd_html(tmp.path, p);
+  for (const char* f : {"crowd_dressed.png", "crowd_lods.png", "crowd_closeup.png"}) {
+    EXPECT_NE(html.find(std::string("<img src=\"pictures/") + f + "\""), std::string::npos) << f;
+    EXPECT_GT(fs::file_size(tmp / "pictures" / f), 10000u) << f;
   }
+  EXPECT_EQ(html.find("missing picture"), std::string::npos);
+  EXPECT_EQ(html.find("crowd/crowd.html"), std::string::npos);
+  std::ofstream(tmp / "crowd" / "crowd.html") << "<!doctype html>";
+  fs::create_directories(tmp / "crowd" / "three");
+  html = dressed_crowd_html(tmp.path, p);
+  EXPECT_NE(html.find("<a href=\"crowd/crowd.html\">"), std::string::npos);
+  EXPECT_NE(html.find("served over http"), std::string::npos);
 }
 
 TEST(DressedPictures, RefusesAFolderWithoutDressedCharacters) {

@@ -14,6 +14,7 @@
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "tools/report/html.h"
 
 namespace bodymodel {
 
@@ -191,6 +192,39 @@ DressedCrowdPictures dressed_crowd_pictures(const fs::path& crowd_dir, int count
   r.lods = render_row(flat_levels, 220, 520);
   r.closeup = head_closeup(levels.front(), 320);
   return r;
+}
+
+void save_dressed_crowd_pictures(const DressedCrowdPictures& p, const fs::path& dir) {
+  p.lineup.save_png(dir / "crowd_dressed.png");
+  p.lods.save_png(dir / "crowd_lods.png");
+  p.closeup.save_png(dir / "crowd_closeup.png");
+}
+
+std::string dressed_crowd_html(const fs::path& out, const DressedCrowdPictures& p) {
+  std::string b = html_figure(out / "pictures" / "crowd_dressed.png", "pictures/crowd_dressed.png",
+                              "The crowd dressed by the default outfits (<code>crowd --outfits default</code>), as "
+                              "exported in each <code>char_NNN/anim/dressed.glb</code> (level 0, rest pose).");
+  std::string tri;
+  for (int t : p.level_triangles) tri += (tri.empty() ? "" : " / ") + std::to_string(t);
+  b += "<div class=\"pair\">\n";
+  b += html_figure(out / "pictures" / "crowd_lods.png", "pictures/crowd_lods.png",
+                   fmt::format("Levels of detail of char_{:03d} in its glb: {} triangles (flat-shaded so the "
+                               "triangles show).", p.featured, tri));
+  b += html_figure(out / "pictures" / "crowd_closeup.png", "pictures/crowd_closeup.png",
+                   fmt::format("char_{:03d}'s head: eyes, brows, lashes and hair fitted to its body.", p.featured));
+  b += "</div>\n";
+  b += html_table_from_csv(out / "crowd" / "outfits.csv", "crowd/outfits.csv");
+  b += "<p>Per character: the outfit drawn (asset:colour), the frames where the body pokes through a garment "
+       "(over 2 mm on more than 1 % of its vertices) and the glb's size. Each character's <code>anim/dressed.glb"
+       "</code> holds it dressed, its three levels of detail and the clip.</p>\n";
+  std::error_code ec;
+  // crowd writes the page without the three.js modules it imports when they are not installed.
+  if (fs::is_regular_file(out / "crowd" / "crowd.html", ec) && fs::is_directory(out / "crowd" / "three", ec))
+    b += "<p><b><a href=\"crowd/crowd.html\">Crowd viewer</a></b>: 1000 animated instances of these characters "
+         "with levels of detail by distance (three.js). It must be served over http, not opened from the file "
+         "system: <code>cd crowd &amp;&amp; python3 -m http.server</code>, then open "
+         "<code>http://localhost:8000/crowd.html</code>.</p>\n";
+  return b;
 }
 
 }  // namespace bodymodel

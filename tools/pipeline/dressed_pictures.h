@@ -31,4 +31,13 @@ struct DressedCrowdPictures {
 // InputError when there is no dressed.glb.
 DressedCrowdPictures dressed_crowd_pictures(const std::filesystem::path& crowd_dir, int count);
 
+// The pictures as DIR/crowd_dressed.png, crowd_lods.png and crowd_closeup.png (atomic writes).
+void save_dressed_crowd_pictures(const DressedCrowdPictures& pictures, const std::filesystem::path& dir);
+
+// The report's part on a dressed crowd (the demo's report: the crowd in OUT/crowd, the pictures
+// saved in OUT/pictures, links relative to OUT): the three figures, OUT/crowd/outfits.csv as a
+// table, and a link to the crowd viewer OUT/crowd/crowd.html, with the note that it must be served
+// over http, when the page and the three.js modules it imports (OUT/crowd/three/) are there.
+std::string dressed_crowd_html(const std::filesystem::path& out, const DressedCrowdPictures& pictures);
+
 }  // namespace bodymodel

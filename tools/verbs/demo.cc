@@ -280,9 +280,7 @@ std::vector<StageResult> run_stages(const std::vector<Stage>& stages, const fs::
 std::optional<DressedCrowdPictures> dressed_pictures(const fs::path& out, int crowd) {
   try {
     DressedCrowdPictures d = dressed_crowd_pictures(out / "crowd", crowd);
-    d.lineup.save_png(out / "pictures" / "crowd_dressed.png");
-    d.lods.save_png(out / "pictures" / "crowd_lods.png");
-    d.closeup.save_png(out / "pictures" / "crowd_closeup.png");
+    save_dressed_crowd_pictures(d, out / "pictures");
     return d;
   } catch (const std::exception& e) {
     cli::warn(std::string("dressed crowd pictures: ") + e.what());
@@ -352,32 +350,9 @@ std::string crowd_section(const fs::path& out, const std::optional<DressedCrowdP
   std::string b = "<h2>4. A crowd of rigged, animated, dressed characters</h2>\n";
   b += html_figure(out / "crowd" / "crowd.png", "crowd/crowd.png", "The generated crowd's bodies (rest pose).");
   b += html_table_from_csv(out / "crowd" / "crowd.csv", "crowd/crowd.csv");
-  if (dressed) {
-    b += html_figure(out / "pictures" / "crowd_dressed.png", "pictures/crowd_dressed.png",
-                     "The crowd dressed by the default outfits (<code>crowd --outfits default</code>), as exported in "
-                     "each <code>char_NNN/anim/dressed.glb</code> (level 0, rest pose).");
-    std::string tri;
-    for (int t : dressed->level_triangles) tri += (tri.empty() ? "" : " / ") + std::to_string(t);
-    b += "<div class=\"pair\">\n";
-    b += html_figure(out / "pictures" / "crowd_lods.png", "pictures/crowd_lods.png",
-                     fmt::format("Levels of detail of char_{:03d} in its glb: {} triangles (flat-shaded so the "
-                                 "triangles show).", dressed->featured, tri));
-    b += html_figure(out / "pictures" / "crowd_closeup.png", "pictures/crowd_closeup.png",
-                     fmt::format("char_{:03d}'s head: eyes, brows, lashes and hair fitted to its body.", dressed->featured));
-    b += "</div>\n";
-  }
-  b += html_table_from_csv(out / "crowd" / "outfits.csv", "crowd/outfits.csv");
-  b += "<p>Per character: the outfit drawn (asset:colour), the frames where the body pokes through a garment "
-       "(over 2 mm on more than 1 % of its vertices) and the glb's size. Each character folder holds "
-       "<code>character.glb</code> (SSD rig), <code>anim/animated.glb</code> (with the clip) and "
-       "<code>anim/dressed.glb</code> (dressed, its three levels of detail, the clip).</p>\n";
-  std::error_code ec;
-  // crowd writes the page without the three.js modules it imports when they are not installed.
-  if (fs::is_regular_file(out / "crowd" / "crowd.html", ec) && fs::is_directory(out / "crowd" / "three", ec))
-    b += "<p><b><a href=\"crowd/crowd.html\">Crowd viewer</a></b>: 1000 animated instances of these characters "
-         "with levels of detail by distance (three.js). It must be served over http, not opened from the file "
-         "system: <code>cd crowd &amp;&amp; python3 -m http.server</code>, then open "
-         "<code>http://localhost:8000/crowd.html</code>.</p>\n";
+  b += "<p>Each character folder holds <code>character.glb</code> (SSD rig) and <code>anim/animated.glb</code> "
+       "(with the clip), viewable in any glTF viewer.</p>\n";
+  if (dressed) b += dressed_crowd_html(out, *dressed);
   return b;
 }
 
