@@ -159,25 +159,31 @@ Image render_points(const Eigen::MatrixX3d& P, const Eigen::MatrixX3d& N, int wi
 Image render_row(const std::vector<Eigen::MatrixX3d>& meshes, const Eigen::MatrixX3i& F,
                  const std::vector<Eigen::MatrixX3d>& colors, int cell_width, int height,
                  const Camera& camera) {
+  std::vector<ColouredMesh> cm;
+  for (size_t i = 0; i < meshes.size(); ++i) cm.push_back({meshes[i], F, i < colors.size() ? colors[i] : Eigen::MatrixX3d()});
+  return render_row(cm, cell_width, height, camera);
+}
+
+Image render_row(const std::vector<ColouredMesh>& meshes, int cell_width, int height, const Camera& camera) {
   Image row(cell_width * static_cast<int>(meshes.size()), height);
   if (meshes.empty()) return row;
   // Common frame: the union of all bounding boxes, centred on each mesh horizontally.
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
-  for (auto& V : meshes) {
+  for (auto& m : meshes) {
+    const auto& V = m.V;
     Eigen::Vector3d c = 0.5 * (V.colwise().minCoeff() + V.colwise().maxCoeff()).transpose();
     Eigen::MatrixX3d centred = V.rowwise() - Eigen::RowVector3d(c.x(), 0, c.z());
     lo = lo.cwiseMin(centred.colwise().minCoeff().transpose());
     hi = hi.cwiseMax(centred.colwise().maxCoeff().transpose());
   }
   for (size_t i = 0; i < meshes.size(); ++i) {
-    const auto& V = meshes[i];
+    const auto& V = meshes[i].V;
     Eigen::Vector3d c = 0.5 * (V.colwise().minCoeff() + V.colwise().maxCoeff()).transpose();
     Eigen::MatrixX3d centred = V.rowwise() - Eigen::RowVector3d(c.x(), 0, c.z());
     Camera cam = camera;
     cam.frame_min = lo;
     cam.frame_max = hi;
-    row.paste(render_mesh(centred, F, i < colors.size() ? colors[i] : Eigen::MatrixX3d(), cell_width,
-                          height, cam),
+    row.paste(render_mesh(centred, meshes[i].F, meshes[i].colors, cell_width, height, cam),
               static_cast<int>(i) * cell_width, 0);
   }
   return row;

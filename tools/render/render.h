@@ -42,6 +42,16 @@ Image render_row(const std::vector<Eigen::MatrixX3d>& meshes, const Eigen::Matri
                  const std::vector<Eigen::MatrixX3d>& colors, int cell_width, int height,
                  const Camera& camera = {});
 
+// A mesh with its own triangles and per-vertex colours (e.g. a dressed character, its parts
+// concatenated); colors #V by 3 in [0, 1] or empty (light grey).
+struct ColouredMesh {
+  Eigen::MatrixX3d V;
+  Eigen::MatrixX3i F;
+  Eigen::MatrixX3d colors;
+};
+// render_row for meshes with different triangles (one scale and floor for all).
+Image render_row(const std::vector<ColouredMesh>& meshes, int cell_width, int height, const Camera& camera = {});
+
 // Colour map for errors and other scalars: values mapped linearly from [vmin, vmax] through
 // blue → cyan → green → yellow → red (clamped). Returns #values by 3 in [0, 1].
 Eigen::MatrixX3d heat_colors(const Eigen::VectorXd& values, double vmin, double vmax);

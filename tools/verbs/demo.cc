@@ -13,6 +13,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <thread>
 
 #include "core/data_path.h"
@@ -21,6 +22,7 @@
 #include "core/io/csv.h"
 #include "core/io/mesh_io.h"
 #include "tools/console.h"
+#include "tools/pipeline/dressed_pictures.h"
 #include "tools/pipeline/output_folder.h"
 #include "tools/render/render.h"
 #include "tools/report/html.h"
@@ -165,6 +167,11 @@ const std::vector<std::string> kClips = {"02_02", "03_03", "12_03"};
 // from 155 to 195 cm.
 const std::vector<int> kHeights = {155, 165, 175, 185, 195};
 const std::vector<int> kWeights = {50, 70, 90, 110, 130};
+// The crowd's clip frames: a short clip keeps the dressed crowd's cost small (the penetration is
+// measured on every frame; docs/results.md#demo-tests-and-ci).
+const int kCrowdFrames = 60;
+
+std::string crowd_stage_name(int crowd) { return fmt::format("crowd of {} dressed characters", crowd); }
 
 struct Stage {
   std::string name;
@@ -186,7 +193,7 @@ Stage viewer_stage(const std::function<std::string(const fs::path&)>& p, const f
   args.insert(args.end(), {"--no-check", "--out", p("viewer"), "--force"});
   return {"interactive viewer", args,
           {"character (MWE rig)", "register scan " + kRegIds[0], "height sweep 155 cm", "height sweep 195 cm",
-           "weight sweep 50 kg", "weight sweep 130 kg", fmt::format("crowd of {} characters", crowd)}};
+           "weight sweep 50 kg", "weight sweep 130 kg", crowd_stage_name(crowd)}};
 }
 
 std::vector<Stage> demo_stages(const fs::path& out, int crowd, bool viewer) {
@@ -227,9 +234,11 @@ std::vector<Stage> demo_stages(const fs::path& out, int crowd, bool viewer) {
                        "--set", fmt::format("weight_kg={}", w), "--closest", "--out",
                        p(fmt::format("sweeps/weight_{}.obj", w))},
                       {"build model"}});
-  stages.push_back({fmt::format("crowd of {} characters", crowd),
+  // Dressed by the default outfits with levels of detail: crowd.html, the crowd viewer, beside them.
+  stages.push_back({crowd_stage_name(crowd),
                     {"crowd", p("model.npz"), "--count", std::to_string(crowd), "--quick", "--bvh",
-                     (cmu / "12_03.bvh").string(), "--max-frames", "90", "--seed", "5", "--out", p("crowd")},
+                     (cmu / "12_03.bvh").string(), "--max-frames", std::to_string(kCrowdFrames), "--seed", "5",
+                     "--outfits", "default", "--lods", "default", "--out", p("crowd")},
                     {"build model"}});
   stages.push_back({"character (MWE rig)", {"character", p("model.npz"), "--where", "sex=male", "--where",
                                            "height_cm=185", "--seed", "3", "--out", p("character")},
@@ -265,6 +274,18 @@ std::vector<StageResult> run_stages(const std::vector<Stage>& stages, const fs::
     results.push_back(r);
   }
   return results;
+}
+
+// The dressed crowd's pictures (line-up, levels of detail, close-up); nothing when it failed.
+std::optional<DressedCrowdPictures> dressed_pictures(const fs::path& out, int crowd) {
+  try {
+    DressedCrowdPictures d = dressed_crowd_pictures(out / "crowd", crowd);
+    save_dressed_crowd_pictures(d, out / "pictures");
+    return d;
+  } catch (const std::exception& e) {
+    cli::warn(std::string("dressed crowd pictures: ") + e.what());
+    return std::nullopt;
+  }
 }
 
 void demo_pictures(const fs::path& out) {
@@ -324,7 +345,19 @@ std::string timings_table(const std::vector<StageResult>& results, const fs::pat
   return tim;
 }
 
-std::string report_body(const fs::path& out, double total_seconds, bool viewer_ok) {
+// Section 4: the crowd, bare and dressed, and the link to its viewer.
+std::string crowd_section(const fs::path& out, const std::optional<DressedCrowdPictures>& dressed) {
+  std::string b = "<h2>4. A crowd of rigged, animated, dressed characters</h2>\n";
+  b += html_figure(out / "crowd" / "crowd.png", "crowd/crowd.png", "The generated crowd's bodies (rest pose).");
+  b += html_table_from_csv(out / "crowd" / "crowd.csv", "crowd/crowd.csv");
+  b += "<p>Each character folder holds <code>character.glb</code> (SSD rig) and <code>anim/animated.glb</code> "
+       "(with the clip), viewable in any glTF viewer.</p>\n";
+  if (dressed) b += dressed_crowd_html(out, *dressed);
+  return b;
+}
+
+std::string report_body(const fs::path& out, double total_seconds, bool viewer_ok,
+                        const std::optional<DressedCrowdPictures>& dressed) {
   const fs::path pic = out / "pictures";
   std::string b;
   b += "<p>The whole pipeline on the bundled MakeHuman data, made by <code>bodymodel demo</code> in " +
@@ -346,11 +379,7 @@ std::string report_body(const fs::path& out, double total_seconds, bool viewer_o
   b += "</div>\n";
   b += "<h2>3. Regressors (cross-validated RMSE)</h2>\n";
   b += html_table_from_csv(out / "regressors" / "regressors.csv", "regressors/regressors.csv");
-  b += "<h2>4. A crowd of rigged, animated characters</h2>\n";
-  b += html_figure(out / "crowd" / "crowd.png", "crowd/crowd.png", "The generated crowd (rest pose).");
-  b += html_table_from_csv(out / "crowd" / "crowd.csv", "crowd/crowd.csv");
-  b += "<p>Each character folder holds <code>character.glb</code> (SSD rig) and <code>anim/animated.glb</code> "
-       "(with the clip), viewable in any glTF viewer.</p>\n";
+  b += crowd_section(out, dressed);
   b += "<h2>5. Skinning: SSD vs Animation Space vs MWE on the character</h2>\n";
   b += html_figure(out / "character" / "skinning_error.png", "character/skinning_error.png",
                    "Held-out pose with the largest SSD error: the model's pose morph (grey), then SSD, Animation "
@@ -412,12 +441,14 @@ void run_demo(DemoArgs& a) {
   const int total = static_cast<int>(stages.size()) + 1;
   fmt::print(stderr, "[{:2d}/{}] {:<34} ...\n", total, total, "pictures and report");
   demo_pictures(out);
+  const std::optional<DressedCrowdPictures> dressed =
+      status[crowd_stage_name(a.crowd)] == 0 ? dressed_pictures(out, a.crowd) : std::nullopt;
   write_text_file(out / "animation.csv", animation_table(out));
   const double report_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
   const double total_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   int failed = 0;
   write_text_file(out / "timings.csv", timings_table(results, out, report_seconds, total_seconds, failed));
-  const std::string body = report_body(out, total_seconds, viewer && status["interactive viewer"] == 0);
+  const std::string body = report_body(out, total_seconds, viewer && status["interactive viewer"] == 0, dressed);
   write_text_file(out / "report.html", html_page("bodymodel: scans to animated characters", body));
   print_demo_summary(results, out, total_seconds);
   if (failed) throw InputError(fmt::format("demo: {} stages failed or were skipped (see {})", failed,
@@ -432,7 +463,7 @@ BODYMODEL_VERB(add_demo_verb) {
       "demo",
       "The whole pipeline on the bundled data: synthetic scan database → registration of two scans\n"
       "+ evaluation → model → regressor table → height and weight sweeps → a crowd of rigged,\n"
-      "animated characters → one character animated with every CMU clip → OUT/report.html.\n"
+      "animated, dressed characters → one character animated with every CMU clip → OUT/report.html.\n"
       "Each stage runs as a subprocess (log in OUT/logs/); a failed stage is reported and the\n"
       "stages that need its output are skipped.");
   add_demo_options(cmd, *a);
