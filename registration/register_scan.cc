@@ -1,7 +1,6 @@
 #include "registration/register_scan.h"
 
 #include <chrono>
-#include <cmath>
 
 #include "core/error.h"
 
@@ -15,34 +14,6 @@ ShapeFitResult shape_step(const MakeHuman& mh, const ShapeFitOptions& so, const 
                           const std::vector<Landmark>& landmarks, ShapeFitSummary* ss) {
   return so.space ? fit_shape_in_space(mh, coefficients, pose.scale, pose.pose, scan, landmarks, so, ss)
                   : fit_shape(mh, settings, pose.scale, pose.pose, scan, landmarks, so, ss);
-}
-
-// The first shape fit in a space with the sexes apart: as a woman and as a man, the closer kept
-// (its sex then held by the caller).
-ShapeFitResult shape_step_choosing_sex(const MakeHuman& mh, const ShapeFitOptions& so, const Eigen::VectorXd& coefficients,
-                                       const PoseFitResult& pose, const PointCloud& scan,
-                                       const std::vector<Landmark>& landmarks, ShapeFitSummary* ss) {
-  ShapeFitResult best;
-  double best_rms = 0;
-  for (double g : {0.0, 1.0}) {
-    ShapeFitOptions sg = so;
-    sg.space_fixed_sex = g;
-    Eigen::VectorXd c = coefficients;
-    c[so.space->components()] = g;
-    ShapeFitSummary s;
-    ShapeFitResult r = fit_shape_in_space(mh, c, pose.scale, pose.pose, scan, landmarks, sg, &s);
-    const double rms = std::hypot(s.rms_after, s.landmark_rms);
-    if (g == 0.0 || rms < best_rms) best = std::move(r), best_rms = rms, *ss = s;
-  }
-  return best;
-}
-
-// Where a learned space's fit starts: the template's coefficients, else the mean (g = 0.5).
-Eigen::VectorXd start_coefficients(const RegistrationTemplate& tpl) {
-  if (!tpl.learned_space || tpl.learned_start.size() > 0) return tpl.learned_start;
-  Eigen::VectorXd c = Eigen::VectorXd::Zero(tpl.learned_space->dimension());
-  if (tpl.learned_space->has_sex()) c[tpl.learned_space->components()] = 0.5;
-  return c;
 }
 
 // How far a shape fit moved the shape, in slider units (a learned space's sd times `unit`).
@@ -142,17 +113,18 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
     so.unsigned_normals = po.unsigned_normals;
     MacroSettings settings = tpl.shape_start;
     so.space = tpl.learned_space.get();
-    Eigen::VectorXd coefficients = start_coefficients(tpl);
+    Eigen::VectorXd coefficients = tpl.learned_start;
+    if (so.space && coefficients.size() == 0) {
+      coefficients = Eigen::VectorXd::Zero(so.space->dimension());
+      if (so.space->has_sex()) coefficients[so.space->components()] = 0.5;
+    }
     // "Moved" in slider units; a learned space's sd units are scaled to compare with the same bar.
     const double unit = so.space ? options.shape_convergence / options.learned_space_convergence : 1.0;
     double moved_last = 0;
     for (int round = 0; round < rounds; ++round) {
       if (!given_start) fit_poses(round);
       ShapeFitSummary ss;
-      const bool choose_sex = so.space && so.space->has_sex() && options.learned_space_choose_sex && so.space_fixed_sex < 0;
-      ShapeFitResult sr = choose_sex ? shape_step_choosing_sex(mh, so, coefficients, r.pose, scan, landmarks, &ss)
-                                     : shape_step(mh, so, settings, coefficients, r.pose, scan, landmarks, &ss);
-      if (choose_sex) so.space_fixed_sex = sr.coefficients[so.space->components()];
+      ShapeFitResult sr = shape_step(mh, so, settings, coefficients, r.pose, scan, landmarks, &ss);
       const double moved = shape_moved(so, sr, settings, coefficients, unit);
       if (so.space) coefficients = sr.coefficients;
       settings = sr.settings;

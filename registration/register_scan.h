@@ -61,10 +61,6 @@ struct RegistrationOptions {
   int shape_rounds = 3;
   double shape_convergence = 0.01;
   double learned_space_convergence = 0.05;  // the same for a learned space's coefficients (sd)
-  // A learned space that keeps the sexes apart: the first shape fit is run as a woman and as a
-  // man (the sex slider held at 0 and at 1), the closer kept and held for the later rounds,
-  // instead of fitting the slider, which lands between the sexes.
-  bool learned_space_choose_sex = true;
   bool proportions_with_shape = false;
   // When the alternation stops unconverged (the last shape fit moved a slider), one more pose
   // fit on the last shape, so the pose and the shape handed to the non-rigid fit belong together

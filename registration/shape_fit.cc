@@ -41,7 +41,6 @@ class Problem {
       theta0_.head(L_.sliders) = Eigen::VectorXd::Zero(L_.sliders);
       if (space_->has_sex()) theta0_[space_->components()] = 0.5;
       if (start_c.size() > 0) theta0_.head(L_.sliders) = start_c;
-      if (space_->has_sex() && o.space_fixed_sex >= 0) theta0_[space_->components()] = std::min(1.0, o.space_fixed_sex);
       prior_centre_ = Eigen::VectorXd::Zero(L_.sliders);  // the people's mean
       // The components have the people's Gaussian; the sex slider g none (the data decide).
       prior_sqrt_ = Eigen::VectorXd::Constant(L_.sliders, std::sqrt(o.space_prior_weight));
@@ -66,9 +65,8 @@ class Problem {
   // (A learned space's sex slider g, its last parameter, is a slider: [0, 1], the slider step.)
   int sex_index() const { return space_ && space_->has_sex() ? space_->components() : -1; }
   bool is_slider(int k) const { return !space_ || (space_->has_sex() && k == space_->components()); }
-  bool sex_fixed(int k) const { return k == sex_index() && o_.space_fixed_sex >= 0; }
-  double lower(int k) const { return sex_fixed(k) ? o_.space_fixed_sex : is_slider(k) ? 0.0 : -o_.space_limit; }
-  double upper(int k) const { return sex_fixed(k) ? o_.space_fixed_sex : is_slider(k) ? 1.0 : o_.space_limit; }
+  double lower(int k) const { return is_slider(k) ? 0.0 : -o_.space_limit; }
+  double upper(int k) const { return is_slider(k) ? 1.0 : o_.space_limit; }
   double fd_step(int k) const { return is_slider(k) ? o_.fd_step : o_.space_fd_step; }
   double convergence() const { return space_ ? o_.space_convergence : o_.convergence; }
   bool in_space() const { return space_ != nullptr; }

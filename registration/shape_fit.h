@@ -71,8 +71,6 @@ struct ShapeFitOptions {
   // The sex slider's prior: 2·min(g, 1 − g) squared times this (a body halfway between the sexes
   // costs the weight; the people are one or the other).
   double space_sex_prior_weight = 10.0;
-  // ≥ 0: the sex slider g is held at this value (e.g. 0 or 1), not fitted.
-  double space_fixed_sex = -1.0;
   double space_fd_step = 0.05;       // sd
   double space_limit = 5.0;          // |c| bound, sd
   double space_convergence = 0.01;   // sd
