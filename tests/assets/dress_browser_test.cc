@@ -13,6 +13,7 @@
 
 #include "core/data_path.h"
 #include "support/fixtures.h"
+#include "support/browser.h"
 #include "support/run_cli.h"
 
 namespace bodymodel {
@@ -21,16 +22,11 @@ namespace {
 namespace fs = std::filesystem;
 using fixtures::run_cli;
 
-fs::path three_dir() {
-  if (const char* t = std::getenv("BODYMODEL_THREE"); t && *t) return t;
-  return fs::absolute("npm/node_modules/three");  // the build folder's (tests run from it)
-}
-
 TEST(DressBrowser, ThreeJsLoadsPosesAndDrawsTheDressedGlb) {
-  const std::string chromium = std::getenv("BODYMODEL_CHROMIUM") ? std::getenv("BODYMODEL_CHROMIUM") : "/usr/bin/chromium";
+  const std::string chromium = fixtures::chromium_path();
   if (!fs::exists(chromium)) GTEST_SKIP() << chromium << " not found (Debian package chromium)";
-  if (!fs::exists(three_dir() / "examples/jsm/loaders/GLTFLoader.js"))
-    GTEST_SKIP() << three_dir() << " has no three.js (scripts/setup.sh; or set BODYMODEL_THREE)";
+  if (!fs::exists(fixtures::three_dir() / "examples/jsm/loaders/GLTFLoader.js"))
+    GTEST_SKIP() << fixtures::three_dir() << " has no three.js (scripts/setup.sh; or set BODYMODEL_THREE)";
   if (!fs::exists(BODYMODEL_EXE)) GTEST_SKIP() << "bodymodel not built";
   try {
     if (!fs::is_directory(data_root() / "makehuman" / "assets")) GTEST_SKIP() << "makehuman/assets not found";
@@ -42,18 +38,8 @@ TEST(DressBrowser, ThreeJsLoadsPosesAndDrawsTheDressedGlb) {
                          (tmp / "dressed.glb").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   fs::copy_file(fs::path(__FILE__).parent_path() / "dress_browser.html", tmp / "index.html");
-  fs::create_directory_symlink(three_dir(), tmp / "three");
-  const std::string cmd = "'" + chromium +
-                          "' --headless=new --no-sandbox --disable-gpu --use-angle=swiftshader "
-                          "--enable-unsafe-swiftshader --allow-file-access-from-files --virtual-time-budget=30000 "
-                          "--dump-dom 'file://" + (tmp / "index.html").string() + "' 2>/dev/null";
-  std::string dom;
-  if (FILE* p = popen(cmd.c_str(), "r")) {
-    char buf[4096];
-    size_t n;
-    while ((n = fread(buf, 1, sizeof buf, p)) > 0) dom.append(buf, n);
-    pclose(p);
-  }
+  fs::create_directory_symlink(fixtures::three_dir(), tmp / "three");
+  const std::string dom = fixtures::headless_dom("file://" + (tmp / "index.html").string());
   std::smatch m;
   ASSERT_TRUE(std::regex_search(dom, m, std::regex("<title>([^<]*)</title>"))) << dom.substr(0, 500);
   const std::string title = m[1];

@@ -32,6 +32,7 @@
 #include "registration/correspondence.h"
 #include "skinning/skinning_rig.h"
 #include "support/fixtures.h"
+#include "support/browser.h"
 #include "support/run_cli.h"
 #include "tools/pipeline/crowd_viewer.h"
 #include "tools/pipeline/outfit_job.h"
@@ -250,10 +251,9 @@ TEST(OutfitLods, LevelsFitTheirBudgetsCarryWeightsAndDeformWithTheFullBody) {
 // by the clip, GPU skinning): each level covers about the same pixels as the full one. Skipped,
 // saying why, without chromium or three.js (BODYMODEL_THREE names a three package folder).
 TEST(OutfitLods, ThreeJsLoadsThePicksAndDrawsEveryLevel) {
-  const std::string chromium = std::getenv("BODYMODEL_CHROMIUM") ? std::getenv("BODYMODEL_CHROMIUM") : "/usr/bin/chromium";
+  const std::string chromium = fixtures::chromium_path();
   if (!fs::exists(chromium)) GTEST_SKIP() << chromium << " not found (Debian package chromium)";
-  const fs::path three = std::getenv("BODYMODEL_THREE") ? fs::path(std::getenv("BODYMODEL_THREE"))
-                                                        : fs::absolute("npm/node_modules/three");
+  const fs::path three = fixtures::three_dir();
   if (!fs::exists(three / "examples/jsm/loaders/GLTFLoader.js"))
     GTEST_SKIP() << three << " has no three.js (scripts/setup.sh; or set BODYMODEL_THREE)";
   const std::vector<DressedLods>& pair = dressed_pair();
@@ -262,17 +262,7 @@ TEST(OutfitLods, ThreeJsLoadsThePicksAndDrawsEveryLevel) {
   fs::copy_file(pair[0].glb, tmp / "dressed.glb");
   fs::copy_file(fs::path(__FILE__).parent_path() / "lod_browser.html", tmp / "index.html");
   fs::create_directory_symlink(three, tmp / "three");
-  const std::string cmd = "'" + chromium +
-                          "' --headless=new --no-sandbox --disable-gpu --use-angle=swiftshader "
-                          "--enable-unsafe-swiftshader --allow-file-access-from-files --virtual-time-budget=30000 "
-                          "--dump-dom 'file://" + (tmp / "index.html").string() + "' 2>/dev/null";
-  std::string dom;
-  if (FILE* p = popen(cmd.c_str(), "r")) {
-    char buf[4096];
-    size_t n;
-    while ((n = fread(buf, 1, sizeof buf, p)) > 0) dom.append(buf, n);
-    pclose(p);
-  }
+  const std::string dom = fixtures::headless_dom("file://" + (tmp / "index.html").string());
   std::smatch m;
   ASSERT_TRUE(std::regex_search(dom, m, std::regex("<title>([^<]*)</title>"))) << dom.substr(0, 500);
   const std::string title = m[1];
@@ -309,10 +299,9 @@ TEST(OutfitLods, BadLodsValueExitsTwoAndWritesNothing) {
 // drawn (unlit pass), and the seconds per frame for 1000 and for one are measured (software GL:
 // printed for docs/viewer.md, not bounded). Skipped as the browser tests are.
 TEST(OutfitLods, CrowdViewerDrawsAThousandAnimatedCharacters) {
-  const std::string chromium = std::getenv("BODYMODEL_CHROMIUM") ? std::getenv("BODYMODEL_CHROMIUM") : "/usr/bin/chromium";
+  const std::string chromium = fixtures::chromium_path();
   if (!fs::exists(chromium)) GTEST_SKIP() << chromium << " not found (Debian package chromium)";
-  const fs::path three = std::getenv("BODYMODEL_THREE") ? fs::path(std::getenv("BODYMODEL_THREE"))
-                                                        : fs::absolute("npm/node_modules/three");
+  const fs::path three = fixtures::three_dir();
   if (!fs::exists(three / "examples/jsm/utils/SkeletonUtils.js"))
     GTEST_SKIP() << three << " has no three.js (scripts/setup.sh; or set BODYMODEL_THREE)";
   const std::vector<DressedLods>& pair = dressed_pair();
@@ -330,18 +319,8 @@ TEST(OutfitLods, CrowdViewerDrawsAThousandAnimatedCharacters) {
   EXPECT_THROW(write_crowd_viewer(tmp / "none", read_text_file(page), {}, three), InputError);
   // No --virtual-time-budget: the page finishes before its load event (synchronous reads) and
   // times its frames with a clock that runs.
-  const std::string cmd = "'" + chromium +
-                          "' --headless=new --no-sandbox --disable-gpu --use-angle=swiftshader "
-                          "--enable-unsafe-swiftshader --allow-file-access-from-files "
-                          "--dump-dom 'file://" + (tmp / "crowd.html").string() +
-                          "?count=1000&w=960&h=540&time=1.3&measure=2&check=1' 2>/dev/null";   // files: the page's own
-  std::string dom;
-  if (FILE* p = popen(cmd.c_str(), "r")) {
-    char buf[4096];
-    size_t n;
-    while ((n = fread(buf, 1, sizeof buf, p)) > 0) dom.append(buf, n);
-    pclose(p);
-  }
+  const std::string dom = fixtures::headless_dom(
+      "file://" + (tmp / "crowd.html").string() + "?count=1000&w=960&h=540&time=1.3&measure=2&check=1", 0);
   std::smatch m;
   ASSERT_TRUE(std::regex_search(dom, m, std::regex("<pre id=\"result\"[^>]*>([^<]*)</pre>"))) << dom.substr(0, 800);
   const nlohmann::json r = nlohmann::json::parse(std::string(m[1]));
