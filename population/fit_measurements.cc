@@ -9,6 +9,7 @@
 #include <set>
 
 #include "core/error.h"
+#include "population/bounded_lm.h"
 
 namespace bodymodel {
 
@@ -303,24 +304,12 @@ int descend(MeasurementProblem& p, FitPoint& s) {
       if (x(j) > p.range_hi(j) || x(j) < p.range_lo(j)) J(T + P + j, j) = 1.0 / p.s_ext(j);
     const Eigen::VectorXd g = J.transpose() * r;
     // Active set: sliders at a bound that the gradient pushes further out stay there.
-    std::vector<int> free;
-    for (int j = 0; j < P; ++j) {
-      const bool at_lo = x(j) <= lo(j) + 1e-12 && g(j) > 0, at_hi = x(j) >= hi(j) - 1e-12 && g(j) < 0;
-      if (!at_lo && !at_hi) free.push_back(j);
-    }
+    const std::vector<int> free = free_parameters(x, lo, hi, g);
     if (free.empty()) break;
-    Eigen::MatrixXd Jf(T + 2 * P, free.size());
-    for (size_t c = 0; c < free.size(); ++c) Jf.col(c) = J.col(free[c]);
-    const Eigen::MatrixXd JtJ = Jf.transpose() * Jf;
-    const Eigen::VectorXd gf = Jf.transpose() * r;
+    const FreeSystem system = free_system(J, r, free);
     bool accepted = false, converged = false;
     for (int attempt = 0; attempt < (fresh ? 10 : 3) && !accepted; ++attempt) {
-      Eigen::MatrixXd A = JtJ;
-      A.diagonal() += lambda * JtJ.diagonal() + Eigen::VectorXd::Constant(free.size(), 1e-9);
-      const Eigen::VectorXd d = -A.ldlt().solve(gf);
-      Eigen::VectorXd xn = x;
-      for (size_t c = 0; c < free.size(); ++c) xn(free[c]) += d(c);
-      xn = xn.cwiseMax(lo).cwiseMin(hi);
+      const Eigen::VectorXd xn = damped_step(x, lo, hi, system, lambda);
       const Eigen::VectorXd vn = p.measured(xn);
       const Eigen::VectorXd rn = p.residual(xn, vn);
       const double cn = rn.squaredNorm();

@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "core/fold_repair.h"
 #include "core/plausibility.h"
+#include "population/bounded_lm.h"
 #include "population/fit_measurements.h"
 
 namespace bodymodel {
@@ -371,22 +372,12 @@ int descend(ProportionProblem& p, Eigen::VectorXd& x, Eigen::MatrixX3d& V, Eigen
     J.topRows(T) = inv_sigma.asDiagonal() * D;
     J.bottomRows(P) = scale.cwiseInverse().asDiagonal();
     const Eigen::VectorXd g = J.transpose() * r;
-    std::vector<int> free;
-    for (int j = 0; j < P; ++j)
-      if (!((x(j) <= lo(j) + 1e-12 && g(j) > 0) || (x(j) >= hi(j) - 1e-12 && g(j) < 0))) free.push_back(j);
+    const std::vector<int> free = free_parameters(x, lo, hi, g);
     if (free.empty()) break;
-    Eigen::MatrixXd Jf(T + P, free.size());
-    for (size_t c = 0; c < free.size(); ++c) Jf.col(c) = J.col(free[c]);
-    const Eigen::MatrixXd JtJ = Jf.transpose() * Jf;
-    const Eigen::VectorXd gf = Jf.transpose() * r;
+    const FreeSystem system = free_system(J, r, free);
     bool accepted = false, converged = false;
     for (int attempt = 0; attempt < (fresh ? 8 : 3) && !accepted; ++attempt) {
-      Eigen::MatrixXd A = JtJ;
-      A.diagonal() += lambda * JtJ.diagonal() + Eigen::VectorXd::Constant(free.size(), 1e-9);
-      const Eigen::VectorXd d = -A.ldlt().solve(gf);
-      Eigen::VectorXd xn = x;
-      for (size_t c = 0; c < free.size(); ++c) xn(free[c]) += d(c);
-      xn = xn.cwiseMax(lo).cwiseMin(hi);
+      const Eigen::VectorXd xn = damped_step(x, lo, hi, system, lambda);
       Eigen::MatrixX3d Vn = p.body_of(xn);
       const Eigen::VectorXd vn = p.measure(Vn);
       const Eigen::VectorXd rn = p.residual(xn, vn);
