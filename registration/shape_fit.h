@@ -72,7 +72,7 @@ struct ShapeFitOptions {
   // costs the weight; the people are one or the other).
   double space_sex_prior_weight = 10.0;
   double space_fd_step = 0.05;       // sd
-  double space_limit = 5.0;          // |c| bound, sd
+  double space_limit = 3.0;          // |c| bound, sd
   double space_convergence = 0.01;   // sd
 };
 

@@ -48,7 +48,7 @@ TEST(FaustRegistration, HeldOutLandmarksSurfaceAndFoldsWithinBounds) {
   const auto t0 = std::chrono::steady_clock::now();
   MakeHuman mh = MakeHuman::load();
   MakeHuman::Body body = mh.body(MacroSettings{});
-  const RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, mh, MacroSettings{}};
+  const RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, mh, MacroSettings{}, {}, {}};
   Mesh mesh = read_mesh(path);
   ASSERT_EQ(mesh.V.rows(), 6890);
   mesh.V *= 1000.0;

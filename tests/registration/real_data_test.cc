@@ -48,7 +48,7 @@ TEST_P(VlasicRegistration, MeetsTheDistanceBoundWithoutFolds) {
   MakeHuman mh = MakeHuman::load();
   MakeHuman::Body body = mh.body(MacroSettings{});
   // With the shape space, as register-mesh (macro sliders fitted in the pose stage).
-  const RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, mh, MacroSettings{}};
+  const RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, mh, MacroSettings{}, {}, {}};
 
   Mesh mesh = read_mesh(frame);
   mesh.V *= 1000.0;  // metres → mm

@@ -115,7 +115,7 @@ EndToEnd register_known_subject(const MakeHuman& mh, const RegistrationTemplate&
 TEST(RegisterScan, EndToEndSubjectInKnownPose) {
   MakeHuman mh = MakeHuman::load();
   const MakeHuman::Body tb = mh.body(MacroSettings{});
-  const RegistrationTemplate tpl{tb.mesh, tb.skeleton, tb.weights, {}, {}};
+  const RegistrationTemplate tpl{tb.mesh, tb.skeleton, tb.weights, {}, {}, {}, {}};
   const EndToEnd t = register_known_subject(mh, tpl);
   const RegistrationErrors& e = t.e;
   // Bounds a little above what the pipeline reaches here: 7.10 mm, p95 21.2 mm, surface
@@ -139,7 +139,7 @@ TEST(RegisterScan, EndToEndSubjectInKnownPose) {
 TEST(RegisterScan, EndToEndWithShapeFit) {
   MakeHuman mh = MakeHuman::load();
   const MakeHuman::Body tb = mh.body(MacroSettings{});
-  RegistrationTemplate tpl{tb.mesh, tb.skeleton, tb.weights, mh, MacroSettings{}};
+  RegistrationTemplate tpl{tb.mesh, tb.skeleton, tb.weights, mh, MacroSettings{}, {}, {}};
   const EndToEnd t = register_known_subject(mh, tpl);
   const RegistrationErrors& e = t.e;
   ASSERT_TRUE(t.r.shape.has_value());
@@ -170,7 +170,7 @@ TEST(RegisterScan, EndToEndWithShapeFit) {
 TEST(RegisterScan, FinalPoseFitOnTheLastShape) {
   MakeHuman mh = MakeHuman::load();
   const MakeHuman::Body tb = mh.body(MacroSettings{});
-  RegistrationTemplate tpl{tb.mesh, tb.skeleton, tb.weights, mh, MacroSettings{}};
+  RegistrationTemplate tpl{tb.mesh, tb.skeleton, tb.weights, mh, MacroSettings{}, {}, {}};
   RegistrationOptions o;
   o.skip_nonrigid = true;
   o.shape_rounds = 1;
