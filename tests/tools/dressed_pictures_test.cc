@@ -21,6 +21,7 @@
 #include "core/makehuman.h"
 #include "skinning/skinning_rig.h"
 #include "support/fixtures.h"
+#include "support/makehuman_assets.h"
 #include "tools/pipeline/dressed_pictures.h"
 #include "tools/pipeline/outfit_job.h"
 
@@ -60,12 +61,8 @@ Coverage coverage(const Image& img, int x0, int x1, const Eigen::Vector3d& c) {
 }
 
 TEST(DressedPictures, LineupLodsAndCloseUpShowTheDrawnOutfits) {
-  fs::path mh_dir;
-  try {
-    mh_dir = data_root() / "makehuman";
-  } catch (const std::exception&) {
-  }
-  if (mh_dir.empty() || !fs::is_directory(mh_dir / "assets")) GTEST_SKIP() << "makehuman/assets not found";
+  const fs::path mh_dir = fixtures::makehuman_with_assets();
+  if (mh_dir.empty()) GTEST_SKIP() << "makehuman/assets not found";
   const MakeHuman mh = MakeHuman::load(mh_dir);
   const OutfitKit kit = load_outfit_kit("default", mh_dir);
   const int nb = MakeHuman::kBodyVertexCount;

@@ -25,6 +25,7 @@
 #include "core/retarget.h"
 #include "skinning/skinning_rig.h"
 #include "support/fixtures.h"
+#include "support/makehuman_assets.h"
 #include "tools/pipeline/outfit_job.h"
 
 namespace bodymodel {
@@ -38,12 +39,8 @@ int env_int(const char* name, int fallback) {
 }
 
 TEST(OutfitCrowd, DressedCharactersKeepTheBodyInsideTheirClothesThroughAClip) {
-  fs::path mh_dir;
-  try {
-    mh_dir = data_root() / "makehuman";
-  } catch (const std::exception&) {
-  }
-  if (mh_dir.empty() || !fs::is_directory(mh_dir / "assets")) GTEST_SKIP() << "makehuman/assets not found";
+  const fs::path mh_dir = fixtures::makehuman_with_assets();
+  if (mh_dir.empty()) GTEST_SKIP() << "makehuman/assets not found";
   const MakeHuman mh = MakeHuman::load(mh_dir);
   OutfitKit kit = load_outfit_kit("default", mh_dir);
   // Experiments (not the defaults checked here): BODYMODEL_OUTFIT_NEAR / _FAR / _CLEARANCE in mm.

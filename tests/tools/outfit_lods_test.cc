@@ -33,6 +33,7 @@
 #include "skinning/skinning_rig.h"
 #include "support/fixtures.h"
 #include "support/browser.h"
+#include "support/makehuman_assets.h"
 #include "support/run_cli.h"
 #include "tools/pipeline/crowd_viewer.h"
 #include "tools/pipeline/outfit_job.h"
@@ -84,12 +85,8 @@ const std::vector<DressedLods>& dressed_pair() {
   static bool made = false;
   if (made) return out;
   made = true;
-  fs::path mh_dir;
-  try {
-    mh_dir = data_root() / "makehuman";
-  } catch (const std::exception&) {
-  }
-  if (mh_dir.empty() || !fs::is_directory(mh_dir / "assets")) return out;
+  const fs::path mh_dir = fixtures::makehuman_with_assets();
+  if (mh_dir.empty()) return out;
   const MakeHuman mh = MakeHuman::load(mh_dir);
   OutfitKit kit = load_outfit_kit("default", mh_dir);
   const BvhMotion clip = read_bvh(mh_dir / "motion/cmu/02_02.bvh");
