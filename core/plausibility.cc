@@ -89,7 +89,10 @@ bool triangles_cross(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, int f
 
 }  // namespace
 
-int self_intersecting_triangle_pairs_box_d(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, std::ptrdiff_t cutoff) {
+namespace {
+
+template <class Found>
+void for_each_box_d_pair(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, std::ptrdiff_t cutoff, Found&& found) {
   // One box per triangle; its info is the face index.
   using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, int, CGAL::Box_intersection_d::ID_EXPLICIT>;
   std::vector<Box> boxes;
@@ -102,25 +105,37 @@ int self_intersecting_triangle_pairs_box_d(const Eigen::MatrixX3d& V, const Eige
     }
     boxes.emplace_back(lo, hi, static_cast<int>(f));
   }
-  int count = 0;
   auto callback = [&](const Box& a, const Box& b) {
-    if (triangles_cross(V, F, a.info(), b.info())) ++count;
+    if (triangles_cross(V, F, a.info(), b.info())) found(a.info(), b.info());
   };
   // cutoff: below this many boxes the segment tree stops recursing and scans. CGAL's default
   // (10) recurses far too deep for a body's ~27 000 small boxes; 2000 (the default here) is the
   // value of CGAL's own Polygon_mesh_processing::self_intersections.
   CGAL::box_self_intersection_d<CGAL::Sequential_tag>(boxes.begin(), boxes.end(), callback, cutoff);
+}
+
+}  // namespace
+
+int self_intersecting_triangle_pairs_box_d(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, std::ptrdiff_t cutoff) {
+  int count = 0;
+  for_each_box_d_pair(V, F, cutoff, [&](int, int) { ++count; });
   return count;
 }
 
-int self_intersecting_triangle_pairs(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F) {
+namespace {
+
+// Calls found(fa, fb) for every intersecting pair (fa < fb in grid order, each pair once); false
+// when the grid is unsuitable (non-finite or degenerate extent, a triangle soup): the caller then
+// uses the box intersection instead.
+template <class Found>
+bool grid_intersecting_pairs(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, Found&& found) {
   // Broad phase: a uniform grid of cells about twice a triangle's mean box extent; every pair of
   // triangles whose (closed) boxes overlap shares the cell of its overlap's lowest corner and is
   // tested there, once. The same pairs as CGAL's box_self_intersection_d (the narrow phase is
   // the same), in less CPU on population bodies (bench/plausibility_bench.cc; docs/population.md).
   const int nf = static_cast<int>(F.rows());
-  if (nf < 2) return 0;
-  if (!V.allFinite()) return self_intersecting_triangle_pairs_box_d(V, F);
+  if (nf < 2) return true;
+  if (!V.allFinite()) return false;
   std::vector<std::array<double, 6>> box(nf);
   double extent = 0;
   for (int f = 0; f < nf; ++f)
@@ -137,7 +152,7 @@ int self_intersecting_triangle_pairs(const Eigen::MatrixX3d& V, const Eigen::Mat
   // At most 256 cells a side and 2²² cells (also when the triangles are degenerate: h = 0).
   const Eigen::RowVector3d size = hi - lo;
   h = std::max({h, size.maxCoeff() / 256.0, std::cbrt(size.prod() / (1 << 22))});
-  if (!(h > 0)) return self_intersecting_triangle_pairs_box_d(V, F);
+  if (!(h > 0)) return false;
   int dim[3];
   for (int k = 0; k < 3; ++k) dim[k] = std::max(1, std::min(256, static_cast<int>((hi(k) - lo(k)) / h) + 1));
   auto cell = [&](double x, int k) { return std::clamp(static_cast<int>((x - lo(k)) / h), 0, dim[k] - 1); };
@@ -154,13 +169,12 @@ int self_intersecting_triangle_pairs(const Eigen::MatrixX3d& V, const Eigen::Mat
   for (int f = 0; f < nf; ++f) for_each_cell(f, [&](long long c) { ++first[c + 1]; });
   for (long long c = 0; c < cells; ++c) first[c + 1] += first[c];
   // Triangles far larger than the cells (a soup, not a surface): the box intersection instead.
-  if (first[cells] > 64LL * nf) return self_intersecting_triangle_pairs_box_d(V, F);
+  if (first[cells] > 64LL * nf) return false;
   std::vector<int> items(first[cells]);
   {
     std::vector<long long> fill(first.begin(), first.end() - 1);
     for (int f = 0; f < nf; ++f) for_each_cell(f, [&](long long c) { items[fill[c]++] = f; });
   }
-  int count = 0;
   for (int x = 0; x < dim[0]; ++x)
     for (int y = 0; y < dim[1]; ++y)
       for (int z = 0; z < dim[2]; ++z) {
@@ -174,10 +188,29 @@ int self_intersecting_triangle_pairs(const Eigen::MatrixX3d& V, const Eigen::Mat
             if (!overlap || cell(std::max(A[0], B[0]), 0) != x || cell(std::max(A[1], B[1]), 1) != y ||
                 cell(std::max(A[2], B[2]), 2) != z)
               continue;
-            if (triangles_cross(V, F, items[i], items[j])) ++count;
+            if (triangles_cross(V, F, items[i], items[j])) found(items[i], items[j]);
           }
       }
+  return true;
+}
+
+}  // namespace
+
+int self_intersecting_triangle_pairs(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F) {
+  int count = 0;
+  if (!grid_intersecting_pairs(V, F, [&](int, int) { ++count; })) return self_intersecting_triangle_pairs_box_d(V, F);
   return count;
+}
+
+std::vector<std::pair<int, int>> self_intersecting_triangle_pair_list(const Eigen::MatrixX3d& V,
+                                                                      const Eigen::MatrixX3i& F) {
+  std::vector<std::pair<int, int>> pairs;
+  if (!grid_intersecting_pairs(V, F, [&](int a, int b) { pairs.emplace_back(std::min(a, b), std::max(a, b)); })) {
+    pairs.clear();
+    for_each_box_d_pair(V, F, 2000, [&](int a, int b) { pairs.emplace_back(std::min(a, b), std::max(a, b)); });
+  }
+  std::sort(pairs.begin(), pairs.end());
+  return pairs;
 }
 
 }  // namespace bodymodel

@@ -16,6 +16,7 @@
 #include <cstddef>
 #include <Eigen/Core>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/skeleton.h"
@@ -47,6 +48,9 @@ std::vector<char> trunk_and_limbs_region(const std::vector<std::string>& bone_na
 // Broad phase a uniform grid; the same count as self_intersecting_triangle_pairs_box_d (CGAL's
 // box_self_intersection_d broad phase, the reference), with the same exact narrow phase.
 int self_intersecting_triangle_pairs(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F);
+// The same pairs as a list (face indices, first < second, sorted).
+std::vector<std::pair<int, int>> self_intersecting_triangle_pair_list(const Eigen::MatrixX3d& V,
+                                                                      const Eigen::MatrixX3i& F);
 // cutoff: CGAL's segment-tree cutoff (its own default is 10); the pairs found do not depend on it.
 int self_intersecting_triangle_pairs_box_d(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
                                            std::ptrdiff_t cutoff = 2000);

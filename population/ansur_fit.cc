@@ -143,6 +143,7 @@ AnsurFitRun fit_ansur_rows(const ProportionFitter& fitter, const MeasurementSet&
   for (const auto& p : run.people) {
     run.flipped_people += p.fit.flipped_triangles > 0;
     run.self_intersecting_people += p.fit.self_intersections > p.fit.reference_self_intersections;
+    run.pushed_apart_people += p.fit.intersections_repaired > 0;
   }
   summarise(run, table, names, o.given, prior);
   run.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -47,6 +47,7 @@ struct AnsurFitRun {
   int flipped_people = 0;              // people whose body has a flipped triangle
   int self_intersecting_people = 0;    // ... more intersecting triangle pairs than MakeHuman's own
                                        // body (ProportionFit::reference_self_intersections)
+  int pushed_apart_people = 0;         // people whose crossing parts were pushed apart
   int template_self_intersections = 0;
 };
 

@@ -10,6 +10,7 @@
 
 #include "core/error.h"
 #include "core/fold_repair.h"
+#include "core/intersection_repair.h"
 #include "core/plausibility.h"
 #include "population/bounded_lm.h"
 #include "population/fit_measurements.h"
@@ -135,6 +136,7 @@ struct ProportionFitter::Impl {
   std::vector<std::string> names[2];
   Eigen::MatrixX3d template_V;        // MakeHuman's default body (the fold reference)
   int template_self_intersections = 0;
+  std::vector<char> trunk_and_limb_faces;  // faces with every vertex in mh.trunk_and_limbs_region()
 };
 
 namespace {
@@ -213,6 +215,11 @@ ProportionFitter::ProportionFitter(const MakeHuman& mh, MeasurementSet set, cons
   }
   m->template_V = mh.build_vertices(MacroSettings{}).topRows(MakeHuman::kBodyVertexCount);
   m->template_self_intersections = self_intersecting_triangle_pairs(m->template_V, mh.body_faces());
+  const std::vector<char> region = mh.trunk_and_limbs_region();
+  const Eigen::MatrixX3i& F = mh.body_faces();
+  m->trunk_and_limb_faces.resize(F.rows());
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    m->trunk_and_limb_faces[f] = region[F(f, 0)] && region[F(f, 1)] && region[F(f, 2)];
   impl_ = std::move(m);
 }
 
@@ -410,6 +417,24 @@ namespace {
 
 // One fit with the parameters' prior scales times `stiffness` (the retry of a folded body moves
 // the modifiers less), fold repair included.
+// Where the trunk and limbs cross (inner thighs, a breast into the chest), pushes them apart
+// (core/intersection_repair.h); kept when it removes intersections without adding a flipped
+// triangle, and the body is measured again.
+void push_apart_intersections(ProportionProblem& p, const ProportionFitter::Impl& m, const Eigen::MatrixX3d& reference,
+                              ProportionFit& fit) {
+  const Eigen::MatrixX3i& F = m.mh.body_faces();
+  Eigen::MatrixX3d W = fit.V;
+  repair_self_intersections(W, F, m.trunk_and_limb_faces);
+  const int pairs = self_intersecting_triangle_pairs(W, F);
+  const int flipped = count_flipped_triangles(W, reference, F);
+  if (pairs >= fit.self_intersections || flipped > fit.flipped_triangles) return;
+  fit.intersections_repaired = fit.self_intersections - pairs;
+  fit.self_intersections = pairs;
+  fit.flipped_triangles = flipped;
+  fit.V = std::move(W);
+  fit.measured = p.measure(fit.V);
+}
+
 ProportionFit fit_once(const ProportionFitter::Impl& m, Sex sex, double age_years,
                        const std::vector<ProportionTarget>& targets, const MeasurementPrior& prior, double stiffness) {
   std::vector<Parameter> ps = m.params[sex == Sex::male ? 1 : 0];
@@ -456,6 +481,8 @@ ProportionFit fit_once(const ProportionFitter::Impl& m, Sex sex, double age_year
   if (fit.self_intersections > m.template_self_intersections)
     fit.reference_self_intersections =
         std::max(m.template_self_intersections, self_intersecting_triangle_pairs(reference, m.mh.body_faces()));
+  if (m.o.intersection_repair && fit.self_intersections > fit.reference_self_intersections)
+    push_apart_intersections(p, m, reference, fit);
   return fit;
 }
 

@@ -86,6 +86,11 @@ struct ProportionFitOptions {
   // still has a flipped triangle or more self-intersections than the template; the body with
   // the fewest is kept.
   int fold_retries = 3;
+  // A body that still intersects itself more than MakeHuman's own has its trunk and limbs pushed
+  // apart where they cross (core/intersection_repair.h; the hands, feet and head, where
+  // MakeHuman's body has its own, are left alone), kept only if it has fewer intersections and no
+  // more flipped triangles; then measured again. false: only the refits.
+  bool intersection_repair = true;
 };
 
 struct ProportionFit {
@@ -105,6 +110,7 @@ struct ProportionFit {
   int flipped_before_repair = 0;
   int flipped_triangles = 0;
   int self_intersections = 0;          // intersecting triangle pairs (core/plausibility.h)
+  int intersections_repaired = 0;      // pairs removed by the intersection repair (0: not run)
   // ... of MakeHuman's own body: the larger of the default body's and that of the same macro
   // sliders (computed only when self_intersections exceeds the default body's).
   int reference_self_intersections = 0;

@@ -260,9 +260,10 @@ void print_ansur_summary(const AnsurFitRun& run) {
                100 * s.within, s.rmse_body, s.given ? "" : fmt::format("{:.2f}", s.rmse_regression), s.mean_error,
                s.given ? "" : fmt::format("{:.2f}", s.rmse_body / s.rmse_regression));
   fmt::print("people      {} in {:.1f} s ({:.2f} people/s); {} with a flipped triangle, {} with more "
-             "self-intersecting triangle pairs than MakeHuman's own body (the default body has {})\n",
+             "self-intersecting triangle pairs than MakeHuman's own body (the default body has {}; {} pushed apart "
+             "where they crossed)\n",
              run.people.size(), run.seconds, run.people.size() / run.seconds, run.flipped_people,
-             run.self_intersecting_people, run.template_self_intersections);
+             run.self_intersecting_people, run.template_self_intersections, run.pushed_apart_people);
 }
 
 // fit-measurements --people ANSUR.csv: one body per soldier from the chosen columns, the prior and
