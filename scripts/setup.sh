@@ -19,6 +19,7 @@ packages=(
   snakemake  # workflow/Snakefile: registration at scale (register --shard jobs as rules)
   pybind11-dev python3-pybind11 python3-numpy python3-pytest python3-matplotlib   # the Python module
   libcpp-httplib-dev chromium
+  blender  # OutfitLods.BlenderImportsLevelsMaterialsAndTheClip: Debian's Blender imports every glb we write
 )
 
 missing=()
