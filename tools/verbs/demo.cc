@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <functional>
 
 #include <chrono>
@@ -178,6 +179,7 @@ const int kCrowdFrames = 60;
 // frame (every 8 capture frames) so the report can show a held-out one beside the truth.
 const int kMarkerMeshes = 24, kMarkerMeshRate = 15, kMarkerRate = 120;
 const char* const kMarkerDeformStage = "markers: skin from the cleaned markers";
+const char* const kMarkerCleanStage = "markers: clean the capture";
 
 std::vector<fs::path> marker_meshes() {
   std::vector<fs::path> files;
@@ -224,13 +226,13 @@ void add_marker_stages(const std::function<std::string(const fs::path&)>& p, std
   const std::string mesh_rate = std::to_string(kMarkerMeshRate);
   sim.insert(sim.end(), {"--mesh-rate", mesh_rate, "--rate", std::to_string(kMarkerRate), "--out", p("markers/sim")});
   stages.push_back({"markers: simulate a capture", sim, {}});
-  stages.push_back({"markers: clean the capture",
+  stages.push_back({kMarkerCleanStage,
                     {"markers", "clean", p("markers/sim/capture.c3d"), "--out", p("markers/clean.trc"), "--truth",
                      p("markers/sim/truth.trc")},
                     {"markers: simulate a capture"}});
   deform.insert(deform.end(), {"--mesh-rate", mesh_rate, "--write-every", std::to_string(kMarkerRate / kMarkerMeshRate),
                                "--out", p("markers/deform")});
-  stages.push_back({kMarkerDeformStage, deform, {"markers: clean the capture"}});
+  stages.push_back({kMarkerDeformStage, deform, {kMarkerCleanStage}});
 }
 
 std::vector<Stage> demo_stages(const fs::path& out, int crowd, bool viewer) {
@@ -285,7 +287,15 @@ std::vector<Stage> demo_stages(const fs::path& out, int crowd, bool viewer) {
                                        "--out", p("animation/" + c), "--format", "none"},
                       {"character (MWE rig)"}});
   add_marker_stages(p, stages);
-  if (viewer) stages.push_back(viewer_stage(p, cmu, crowd));
+  if (viewer) {
+    Stage v = viewer_stage(p, cmu, crowd);
+    // The cleaned markers playing, the filled samples in the filled colour.
+    if (std::any_of(stages.begin(), stages.end(), [](const Stage& s) { return s.name == kMarkerCleanStage; })) {
+      v.args.insert(v.args.end(), {"--markers", p("markers/clean.trc"), "--marker-report", p("markers/clean.json")});
+      v.needs.push_back(kMarkerCleanStage);
+    }
+    stages.push_back(v);
+  }
   return stages;
 }
 
@@ -448,7 +458,8 @@ std::string report_body(const fs::path& out, double total_seconds, bool viewer_o
     b += "<p><b><a href=\"viewer/index.html\">Interactive 3D viewer</a></b> (opens from the file system, no "
          "network): the character playing clip 12_03, skinned in a WebGL vertex shader with its MWE rig or its SSD "
          "base, the per-vertex distance between them; to orbit, the registered scan coloured by its distance to the "
-         "true body, the sweeps' ends and the crowd (one by one or side by side).</p>\n";
+         "true body, the sweeps' ends and the crowd (one by one or side by side)" +
+         std::string(markers ? "; the cleaned markers of section 7 playing, the filled samples in orange" : "") + ".</p>\n";
   b += "<p>Largest edge-length ratio to rest over all frames (the issue's check: at most 3), its largest "
        "99th percentile over edges, the main bone at the worst edge, and flipped triangles (normal against the "
        "rotation of the triangle's main bone), for the MWE rig, its SSD base (MakeHuman's weights smoothed) and "
