@@ -9,6 +9,7 @@
 // Skipped, saying why, when Chromium or three.js is missing (scripts/setup.sh installs them).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -120,6 +121,28 @@ std::string field(const std::string& text, const std::string& key) {
   std::smatch m;
   const std::regex re(key + "=([^ ]*)");
   return std::regex_search(text, m, re) ? m[1].str() : "";
+}
+
+// Bad marker input ends with one line naming what is wrong, and writes no folder.
+TEST(MarkerViewer, RefusesAReportOfAnotherCaptureAndAReportWithoutMarkers) {
+  fixtures::TempDir tmp;
+  write_markers(tmp / "clean.trc", sway(false));
+  write_text_file(tmp / "other.json", "{\"gaps\": [{\"marker\": \"Z9\", \"first_frame\": 1, \"last_frame\": 2}]}\n");
+  write_text_file(tmp / "late.json", "{\"gaps\": [{\"marker\": \"m1\", \"first_frame\": 50, \"last_frame\": 60}]}\n");
+  write_text_file(tmp / "three.min.js", "// not used: the input is refused first\n");
+  const std::string three = " --three " + (tmp / "three.min.js").string() + " --out " + (tmp / "v").string();
+  const std::pair<std::string, std::string> cases[] = {
+      {"--markers " + (tmp / "clean.trc").string() + " --marker-report " + (tmp / "other.json").string(), "'Z9'"},
+      {"--markers " + (tmp / "clean.trc").string() + " --marker-report " + (tmp / "late.json").string(), "50-60"},
+      {"--markers " + (tmp / "missing.trc").string(), "missing.trc"},
+      {"--mesh " + (tmp / "x.obj").string() + " --marker-report " + (tmp / "other.json").string(), "--marker-report needs --markers"}};
+  for (const auto& [args, needle] : cases) {
+    const auto r = fixtures::run_cli("viewer " + args + three);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find(needle), std::string::npos) << args << "\n" << r.output;
+    EXPECT_LE(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_FALSE(fs::exists(tmp / "v")) << args;
+  }
 }
 
 TEST(MarkerViewerBrowser, PlaysTheMarkersAndDrawsTheFilledSamplesInTheirColour) {
