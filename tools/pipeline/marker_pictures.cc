@@ -218,7 +218,7 @@ std::string marker_pictures_html(const fs::path& out, const MarkerPictures& p) {
                   p.markers, p.frames, p.filled_samples, p.gaps));
   b += html_figure(out / "pictures" / "marker_skin.png", "pictures/marker_skin.png",
                    fmt::format("Held-out capture frame {} (mesh {}, the one where the skin is worst): the true mesh (grey) "
-                               "and the mesh driven by the cleaned markers (Park &amp; Hodgins: parts, quadratic, RBF), "
+                               "and the mesh driven by the cleaned markers (Park and Hodgins: parts, quadratic, RBF), "
                                "coloured by the distance to the truth, blue 0 → red ≥ 30 mm; mean {:.1f} mm.",
                                p.held_out_capture_frame, p.held_out_mesh, p.park_mean_mm));
   b += html_table_from_csv(out / "markers" / "markers.csv", "markers/markers.csv");
