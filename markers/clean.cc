@@ -620,7 +620,20 @@ CleanResult clean_markers(const MarkerData& capture, const CleanOptions& o, cons
   }
   out.merged.xyz = std::move(X);
   out.cleaned.xyz = std::move(Y);
+  r.gaps = find_gaps(out.merged);
   return out;
+}
+
+std::vector<GapRecord> find_gaps(const MarkerData& d) {
+  std::vector<GapRecord> gaps;
+  for (int i = 0; i < d.marker_count(); ++i)
+    for (int t = 0; t < d.frame_count(); ++t) {
+      if (d.present(t, i)) continue;
+      const int first = t;
+      while (t + 1 < d.frame_count() && !d.present(t + 1, i)) ++t;
+      gaps.push_back({d.labels[i], first, t});
+    }
+  return gaps;
 }
 
 nlohmann::json clean_report_json(const CleanReport& r) {
@@ -632,10 +645,13 @@ nlohmann::json clean_report_json(const CleanReport& r) {
   for (const auto& m : r.undone)
     undone.push_back({{"piece", m.piece}, {"marker", m.marker}, {"first_frame", m.first}, {"last_frame", m.last},
                       {"model_distance_mm", m.mean_distance_mm}});
+  nlohmann::json gaps = nlohmann::json::array();
+  for (const auto& g : r.gaps) gaps.push_back({{"marker", g.marker}, {"first_frame", g.first}, {"last_frame", g.last}});
   return {{"markers", r.markers}, {"pieces", r.pieces}, {"merged", r.merged}, {"unmerged", r.unmerged},
           {"merges", merges}, {"merges_undone", undone}, {"gaps_before_merge", r.gaps_before}, {"gaps_found", r.gaps_after_merge},
           {"gaps_filled", r.gaps_filled}, {"gaps_left", r.gaps_left}, {"samples_missing", r.samples_missing},
-          {"filled_from_neighbours", r.filled_from_neighbours}, {"filled_by_interpolation", r.filled_by_interpolation}};
+          {"filled_from_neighbours", r.filled_from_neighbours}, {"filled_by_interpolation", r.filled_by_interpolation},
+          {"gaps", gaps}};
 }
 
 std::string clean_summary_line(const CleanReport& r) {

@@ -47,6 +47,13 @@ struct MergeRecord {
   double mean_distance_mm = 0;  // from the neighbours' estimate
 };
 
+// A run of missing samples of one marker after merging (frames 0-based, inclusive): what the
+// hole filling filled (or, when no sample bounds it on one side, held).
+struct GapRecord {
+  std::string marker;
+  int first = 0, last = 0;
+};
+
 struct CleanReport {
   int markers = 0, pieces = 0, merged = 0;
   std::vector<MergeRecord> merges;
@@ -54,6 +61,7 @@ struct CleanReport {
   std::vector<MergeRecord> undone;    // merges taken out again (mean_distance_mm: from the neighbourhood models)
   int gaps_before = 0, gaps_after_merge = 0, gaps_filled = 0, gaps_left = 0;
   long samples_missing = 0, filled_from_neighbours = 0, filled_by_interpolation = 0;
+  std::vector<GapRecord> gaps;        // the gaps found (after merging), in marker then frame order
 };
 
 struct CleanResult {
@@ -66,6 +74,9 @@ struct CleanResult {
 // marker is missing in the reference frame.
 CleanResult clean_markers(const MarkerData& capture, const CleanOptions& options = {},
                           const std::function<void(double)>& progress = {});
+
+// The runs of missing samples of every marker of `d`, in marker then frame order.
+std::vector<GapRecord> find_gaps(const MarkerData& d);
 
 nlohmann::json clean_report_json(const CleanReport& r);
 std::string clean_summary_line(const CleanReport& r);

@@ -2,7 +2,8 @@
 # The main job on the bundled default data: installs what is missing, builds, then runs
 # `bodymodel demo`, which runs every stage (synthetic scan database → registration + evaluation →
 # model → regressor table → height and weight sweeps → a crowd of rigged, animated characters →
-# one character animated with every CMU clip) with a progress line per stage and a summary, and
+# one character animated with every CMU clip → a dense-marker capture simulated, cleaned and
+# driving a skin on a short Vlasic crane clip) with a progress line per stage and a summary, and
 # writes OUT/report.html (default ./out; an existing OUT is replaced).
 # Usage: scripts/demo.sh [OUT]
 set -euo pipefail

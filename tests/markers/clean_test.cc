@@ -131,6 +131,38 @@ TEST(MarkerClean, LeavesGhostsAndRefusesAnIncompleteReferenceFrame) {
   }
 }
 
+// The report's gaps (the pictures and the viewer draw the filled samples from them): every run of
+// missing samples after merging, per marker, once; they cover exactly the samples the cleaning filled.
+TEST(MarkerClean, ReportListsEveryGapAfterMerging) {
+  MarkerData d;
+  d.labels = {"A", "B"};
+  d.xyz = Eigen::MatrixXd::Zero(10, 6);
+  for (int t : {2, 3, 4, 9}) d.clear(t, 0);
+  d.clear(0, 1);
+  const std::vector<GapRecord> g = find_gaps(d);
+  ASSERT_EQ(g.size(), 3u);
+  EXPECT_EQ(g[0].marker, "A"); EXPECT_EQ(g[0].first, 2); EXPECT_EQ(g[0].last, 4);
+  EXPECT_EQ(g[1].marker, "A"); EXPECT_EQ(g[1].first, 9); EXPECT_EQ(g[1].last, 9);
+  EXPECT_EQ(g[2].marker, "B"); EXPECT_EQ(g[2].first, 0); EXPECT_EQ(g[2].last, 0);
+
+  std::mt19937 rng(8);
+  const MarkerData truth = moving_body(120, rng);
+  const CleanResult r = clean_markers(gappy(truth, 0.1, rng));
+  long samples = 0;
+  for (const GapRecord& gap : r.report.gaps) {
+    samples += gap.last - gap.first + 1;
+    const int i = static_cast<int>(std::find(r.merged.labels.begin(), r.merged.labels.end(), gap.marker) - r.merged.labels.begin());
+    ASSERT_LT(i, r.merged.marker_count());
+    for (int t = gap.first; t <= gap.last; ++t) EXPECT_FALSE(r.merged.present(t, i));
+    if (gap.first > 0) EXPECT_TRUE(r.merged.present(gap.first - 1, i));
+    if (gap.last + 1 < r.merged.frame_count()) EXPECT_TRUE(r.merged.present(gap.last + 1, i));
+  }
+  EXPECT_GT(samples, 0);
+  EXPECT_EQ(samples, r.report.samples_missing);
+  EXPECT_EQ(static_cast<int>(r.report.gaps.size()), r.report.gaps_after_merge);
+  EXPECT_EQ(clean_report_json(r.report)["gaps"].size(), r.report.gaps.size());
+}
+
 // A known answer for the neighbourhood-model check: markers A and B are both missing over frames
 // 100–129 and one piece carries B's samples there. A's samples just before and after the gap were
 // swapped onto B's place (a confusion), so A's rigid prediction follows B exactly; B's own samples

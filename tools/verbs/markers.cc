@@ -158,7 +158,8 @@ void add_clean(CLI::App* group) {
 }
 
 struct DeformArgs {
-  std::string markers, meshes, out;
+  std::string markers, out;
+  std::vector<std::string> meshes;  // one folder, or the frame files in order
   double unit_mm = 1000;
   int write_every = 0;
   bool force = false;
@@ -180,7 +181,9 @@ std::string deform_table(const MarkerDeformComparison& r) {
 void run_deform(const DeformArgs& a) {
   if (!(a.unit_mm > 0)) throw InputError("--unit-mm must be positive");
   const MarkerData markers = read_markers(a.markers);
-  MeshSequence seq = read_mesh_sequence(a.meshes);
+  MeshSequence seq = a.meshes.size() == 1 && std::filesystem::is_directory(a.meshes[0])
+                         ? read_mesh_sequence(a.meshes[0])
+                         : read_mesh_files(std::vector<std::filesystem::path>(a.meshes.begin(), a.meshes.end()));
   for (auto& V : seq.frames) V *= a.unit_mm;
   StagedFolder out(a.out, a.force);
   ProgressBar bar("markers deform");
@@ -193,7 +196,8 @@ void run_deform(const DeformArgs& a) {
     line += fmt::format("{}{} {:.2f} / {:.1f}", line.empty() ? "" : ", ", e.method, e.mean, e.max);
   }
   const nlohmann::json summary = {
-      {"verb", "markers deform"}, {"markers", a.markers}, {"meshes", a.meshes}, {"parts", a.o.parts},
+      {"verb", "markers deform"}, {"markers", a.markers},
+      {"meshes", a.meshes.size() == 1 ? nlohmann::json(a.meshes[0]) : nlohmann::json(a.meshes)}, {"parts", a.o.parts},
       {"mesh_rate", a.o.mesh_rate}, {"train_meshes", r.train_meshes}, {"test_meshes", r.test_meshes},
       {"test_frames", r.test_frames}, {"errors", errors}};
   write_text_file(out / "deform.json", json_text(summary, 1) + "\n");
@@ -214,7 +218,8 @@ void add_deform(CLI::App* group) {
       "  bodymodel markers deform clean.trc --meshes ../shared/data/animations/vlasic-jumping --out deform/");
   auto a = std::make_shared<DeformArgs>();
   cmd->add_option("markers", a->markers, "Cleaned capture (.c3d or .trc): every marker labelled and present")->required();
-  cmd->add_option("--meshes", a->meshes, "Folder of the truth mesh frames (frame 0: the reference pose)")->required();
+  cmd->add_option("--meshes", a->meshes, "Folder of the truth mesh frames, or the frame files in order (frame 0: the reference pose)")
+      ->required();
   cmd->add_option("--out", a->out, "Output folder")->required();
   cmd->add_option("--mesh-rate", a->o.mesh_rate, "Frames per second of the meshes")->capture_default_str();
   cmd->add_option("--unit-mm", a->unit_mm, "Millimetres per mesh unit (1000: metres)")->capture_default_str();

@@ -19,10 +19,12 @@
 #include "core/io/json_text.h"
 #include "core/io/mesh_io.h"
 #include "core/retarget.h"
+#include "markers/marker_data.h"
 #include "skinning/rig_io.h"
 #include "tools/console.h"
 #include "tools/pipeline/character.h"
 #include "tools/pipeline/character_file.h"
+#include "tools/pipeline/marker_pictures.h"
 #include "tools/pipeline/output_folder.h"
 #include "tools/verb.h"
 #include "tools/verbs/skin_motion.h"
@@ -40,6 +42,7 @@ struct ViewerArgs {
   std::vector<std::string> error_mesh_args;  // as given: MESH REFERENCE MESH REFERENCE ...
   double error_scale = 30;  // mm at the red end of the colour map
   std::string bvh, out, three;
+  std::string markers, marker_report;  // a capture (.c3d/.trc) and the markers clean report of its gaps
   int frames = 48, every = 2, first = 0;
   std::vector<int> check_frames = {0, 1, 2};
   bool force = false, no_check = false;
@@ -206,6 +209,27 @@ void add_static_meshes(const ViewerArgs& a, nlohmann::json& d) {
   }
 }
 
+// The capture as points over time: positions (frames × markers × 3, float32, mm; 0 where missing)
+// and a state per sample: 0 seen, 1 filled by the cleaning (inside a gap of the report), 2 missing.
+void add_markers(const ViewerArgs& a, nlohmann::json& d) {
+  const MarkerData m = read_markers(a.markers);
+  const std::vector<std::vector<char>> filled =
+      filled_mask(m, a.marker_report.empty() ? std::vector<GapRecord>() : read_clean_gaps(a.marker_report));
+  long filled_samples = 0;
+  for (const auto& row : filled) filled_samples += std::count(row.begin(), row.end(), 1);
+  std::vector<float> pos;
+  std::vector<uint8_t> state;
+  for (int t = 0; t < m.frame_count(); ++t)
+    for (int i = 0; i < m.marker_count(); ++i) {
+      const bool seen = m.present(t, i);
+      for (int k = 0; k < 3; ++k) pos.push_back(seen ? static_cast<float>(m.xyz(t, 3 * i + k)) : 0.f);
+      state.push_back(!seen ? 2 : filled[t][i] ? 1 : 0);
+    }
+  d["markers"] = {{"name", fs::path(a.markers).filename().string()}, {"count", m.marker_count()},
+                  {"frames", m.frame_count()}, {"rate", m.rate}, {"positions", b64(pos)}, {"state", b64(state)},
+                  {"filled_samples", filled_samples}, {"missing", missing_fraction(m)}};
+}
+
 // check.json: the C++ (double precision) evaluator's positions on the check frames.
 nlohmann::json check_json(const ViewerArgs& a, const std::vector<NamedRig>& rigs,
                           const std::vector<BoneTransforms>& maps, const nlohmann::json& d) {
@@ -231,8 +255,9 @@ nlohmann::json check_json(const ViewerArgs& a, const std::vector<NamedRig>& rigs
 }
 
 void run_viewer(const ViewerArgs& a) {
-  if (a.rigs.empty() && a.meshes.empty() && a.error_meshes.empty())
-    throw InputError("give at least one --rig, --mesh or --error-mesh");
+  if (a.rigs.empty() && a.meshes.empty() && a.error_meshes.empty() && a.markers.empty())
+    throw InputError("give at least one --rig, --mesh, --error-mesh or --markers");
+  if (!a.marker_report.empty() && a.markers.empty()) throw InputError("--marker-report needs --markers");
   if (!(a.error_scale > 0)) throw InputError(fmt::format("--error-scale must be positive, found {}", a.error_scale));
   if (!a.rigs.empty() && a.bvh.empty()) throw InputError("--rig needs --bvh (the clip to play)");
   if (a.frames < 1) throw InputError(fmt::format("--frames must be at least 1, found {}", a.frames));
@@ -243,6 +268,7 @@ void run_viewer(const ViewerArgs& a) {
   std::vector<BoneTransforms> maps;
   if (!rigs.empty()) maps = add_animation(a, L, d, frames);
   add_static_meshes(a, d);
+  if (!a.markers.empty()) add_markers(a, d);
   d["error_scale"] = a.error_scale;
   nlohmann::json check;
   if (!rigs.empty() && !a.no_check) check = check_json(a, rigs, maps, d);
@@ -261,8 +287,10 @@ void run_viewer(const ViewerArgs& a) {
   fs::copy_file(three, out / "three.min.js", ec);
   if (ec) throw InputError("cannot copy '" + three.string() + "': " + ec.message());
   out.commit();
-  fmt::print("viewer: {} rig(s), {} frame(s), {} mesh(es) → {}\n", rigs.size(), frames.size(),
+  fmt::print("viewer: {} rig(s), {} frame(s), {} mesh(es){} → {}\n", rigs.size(), frames.size(),
              a.meshes.size() + a.error_meshes.size(),
+             a.markers.empty() ? "" : fmt::format(", {} markers × {} frames", d["markers"]["count"].get<int>(),
+                                                  d["markers"]["frames"].get<int>()),
              (fs::path(a.out) / "index.html").string());
 }
 
@@ -275,7 +303,8 @@ BODYMODEL_VERB(add_viewer_verb) {
       "An offline interactive 3D viewer folder (OUT/index.html opens from the file system): orbit\n"
       "meshes, play a BVH clip on rigs skinned in a WebGL vertex shader (ssd, as, mwe; a character\n"
       "rig brings its MWE rig and its SSD base), switch methods and show the per-vertex distance\n"
-      "to a reference rig; meshes coloured by their distance to a reference. OUT/check.json: the C++ evaluator's positions on --check-frames.");
+      "to a reference rig; meshes coloured by their distance to a reference; a marker capture playing, the samples\n"
+      "the cleaning filled in another colour. OUT/check.json: the C++ evaluator's positions on --check-frames.");
   cmd->add_option("--rig", a->rigs, "Skinning rig (.npz from skin fit or character), repeatable");
   cmd->add_option("--mesh", a->meshes, "Static mesh to orbit (OBJ, PLY, OFF), repeatable");
   cmd->add_option("--error-mesh", a->error_mesh_args,
@@ -285,6 +314,9 @@ BODYMODEL_VERB(add_viewer_verb) {
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   cmd->add_option("--error-scale", a->error_scale, "Distance (mm) at the red end of the colour map")
       ->capture_default_str();
+  cmd->add_option("--markers", a->markers, "Marker capture (.c3d or .trc) drawn as points playing over time");
+  cmd->add_option("--marker-report", a->marker_report,
+                  "The markers clean report (JSON) of --markers: the samples in its gaps are drawn in the filled colour");
   cmd->add_option("--bvh", a->bvh, "Clip played on the rigs (CMU clips are retargeted)");
   cmd->add_option("--frames", a->frames, "Clip frames stored")->capture_default_str();
   cmd->add_option("--every", a->every, "Keep every n-th clip frame")->capture_default_str();

@@ -135,6 +135,55 @@ const statics = (D.meshes || []).map((s) => {
   return { name: s.errors ? s.name + ' (error vs ' + s.reference + ')' : s.name, mesh, box: g.boundingBox,
            errors: !!s.errors, mean: s.error_mean, max: s.error_max, reference: s.reference };
 });
+// A marker capture (D.markers): points playing over time at the capture's rate; per sample a state,
+// 0 seen, 1 filled by the cleaning (drawn in orange), 2 missing (not drawn).
+const MARKER_VERT = `
+precision highp float;
+uniform mat4 modelViewMatrix; uniform mat4 projectionMatrix; uniform float uSize;
+in vec3 position; in float state; out float vState;
+void main() {
+  vState = state;
+  gl_Position = state > 1.5 ? vec4(2.0, 2.0, 2.0, 1.0) : projectionMatrix * modelViewMatrix * vec4(position, 1.0);
+  gl_PointSize = uSize;
+}`;
+const MARKER_FRAG = `
+precision highp float;
+in float vState; out vec4 color;
+void main() {
+  if (vState > 1.5) discard;
+  color = vec4(vState > 0.5 ? vec3(0.95, 0.42, 0.05) : vec3(0.2, 0.32, 0.62), 1.0);
+}`;
+const markers = D.markers ? (() => {
+  const M = D.markers, pos = f32(M.positions), st = Uint8Array.from(atob(M.state), (c) => c.charCodeAt(0));
+  const g = new THREE.BufferGeometry();
+  g.setAttribute('position', new THREE.BufferAttribute(new Float32Array(3 * M.count), 3));
+  g.setAttribute('state', new THREE.BufferAttribute(new Float32Array(M.count).fill(2), 1));
+  const box = new THREE.Box3(), p = new THREE.Vector3();
+  for (let i = 0; i < st.length; ++i) if (st[i] < 2) box.expandByPoint(p.set(pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]));
+  const material = new THREE.RawShaderMaterial({ glslVersion: THREE.GLSL3, vertexShader: MARKER_VERT,
+                                                 fragmentShader: MARKER_FRAG, uniforms: { uSize: { value: 6 } } });
+  const points = new THREE.Points(g, material);
+  points.frustumCulled = false;  // the positions change every frame
+  points.visible = false;
+  scene.add(points);
+  return { M, pos, st, g, box, points, frame: -1, playing: true };
+})() : null;
+state.markerFrame = 0;
+function setMarkerFrame(f) {  // copies frame f's positions and states into the drawn points
+  if (!markers || markers.frame === f) return;
+  const n = markers.M.count, P = markers.g.getAttribute('position'), S = markers.g.getAttribute('state');
+  P.array.set(markers.pos.subarray(3 * n * f, 3 * n * (f + 1)));
+  let filled = 0, missing = 0;
+  for (let i = 0; i < n; ++i) {
+    const s = markers.st[n * f + i];
+    S.array[i] = s; filled += s === 1; missing += s === 2;
+  }
+  P.needsUpdate = true; S.needsUpdate = true;
+  markers.frame = f; state.markerFrame = f;
+  document.getElementById('markerText').textContent =
+    `frame ${f + 1} / ${markers.M.frames}: ${n - missing} of ${n} markers, ${filled} filled`;
+}
+
 // "All meshes side by side" (e.g. the crowd): laid out along x with a gap of a tenth of the widest.
 const layout = (() => {
   const widest = Math.max(0, ...statics.map((s) => s.box.max.x - s.box.min.x));
@@ -169,9 +218,10 @@ canvas.addEventListener('pointermove', (e) => {
 });
 canvas.addEventListener('wheel', (e) => { e.preventDefault(); orbit.dist *= Math.exp(e.deltaY * 0.001); }, { passive: false });
 
-function show(meshIndex) {  // -1: the skinned rig, -2: every static mesh side by side
+function show(meshIndex) {  // -1: the skinned rig, -2: every static mesh side by side, -3: the markers
   state.mesh = meshIndex;
   if (skinned) skinned.visible = meshIndex === -1;
+  if (markers) markers.points.visible = meshIndex === -3;
   statics.forEach((s, i) => {
     s.mesh.visible = meshIndex === -2 || i === meshIndex;
     s.mesh.position.x = meshIndex === -2 ? layout[i] : 0;
@@ -182,8 +232,11 @@ function show(meshIndex) {  // -1: the skinned rig, -2: every static mesh side b
     const all = new THREE.Box3();
     statics.forEach((s, i) => all.union(s.box.clone().translate(new THREE.Vector3(layout[i], 0, 0))));
     frameObject(all);
+  } else if (meshIndex === -3) {
+    frameObject(markers.box.clone());
   } else frameObject(statics[meshIndex].box);
   if (rigs.length) el('rigControls').style.display = meshIndex === -1 ? '' : 'none';  // they act on the rig only
+  el('markerControls').style.display = meshIndex === -3 ? '' : 'none';
   updateLegend();
 }
 
@@ -208,6 +261,7 @@ const objSel = el('object');
 if (skinned) objSel.add(new Option('animated rig (' + D.clip + ')', '-1'));
 statics.forEach((s, i) => objSel.add(new Option(s.name, String(i))));
 if (statics.length > 1) objSel.add(new Option('all meshes side by side', '-2'));
+if (markers) objSel.add(new Option('markers (' + D.markers.name + ')', '-3'));
 objSel.onchange = () => show(Number(objSel.value));
 for (const id of ['method', 'reference']) rigs.forEach((r, i) => el(id).add(new Option(r.name, String(i))));
 el('reference').value = String(Math.max(0, rigs.findIndex((r) => r.method === 2)));
@@ -225,6 +279,10 @@ function applyRig() {
   updateLegend();
 }
 for (const id of ['method', 'reference', 'error', 'scale']) el(id).oninput = applyRig;
+el('mplay').onclick = () => {
+  markers.playing = !markers.playing; el('mplay').textContent = markers.playing ? 'pause' : 'play';
+  markers.t0 = performance.now() - 1000 * state.markerFrame / markers.M.rate;
+};
 el('play').onclick = () => { state.playing = !state.playing; el('play').textContent = state.playing ? 'pause' : 'play'; };
 if (!rigs.length) for (const id of ['rigControls']) el(id).style.display = 'none';
 
@@ -240,14 +298,22 @@ function draw() {
     skinned.material.uniforms.uFrame.value = state.frame;
     el('frameText').textContent = 'frame ' + (state.frame + 1) + ' / ' + D.frames;
   }
+  setMarkerFrame(state.markerFrame);
   renderer.render(scene, camera);
   state.framesDrawn++;
 }
-function tick(now) {
+function step(now) {  // the frames shown at time `now` (ms), drawn
   if (skinned && state.playing) {
     state.frame = Math.floor((now - t0) / 1000 / D.frame_time) % D.frames;
   }
+  if (markers && markers.playing) {
+    if (markers.t0 === undefined) markers.t0 = now;
+    state.markerFrame = Math.floor((now - markers.t0) / 1000 * markers.M.rate) % markers.M.frames;
+  }
   draw();
+}
+function tick(now) {
+  step(now);
   requestAnimationFrame(tick);
 }
 
@@ -310,6 +376,17 @@ window.viewerApi = {
     return { vp: vp.elements.slice(), width: canvas.width, height: canvas.height };
   },
   play: () => { state.playing = true; t0 = performance.now(); },
+  // One step of the play loop at performance.now() (headless virtual time runs timers, not
+  // animation frames); returns the marker frame drawn.
+  step: () => { step(performance.now()); return state.markerFrame; },
+  // The markers shown and stopped at a frame, drawn now; the view-projection matrix and size as freeze.
+  showMarkers: (frame) => {
+    if (!markers) throw new Error('no markers in this viewer');
+    objSel.value = '-3'; show(-3);
+    markers.playing = false; state.markerFrame = frame; draw();
+    const vp = new THREE.Matrix4().multiplyMatrices(camera.projectionMatrix, camera.matrixWorldInverse);
+    return { vp: vp.elements.slice(), width: canvas.width, height: canvas.height };
+  },
   // RGBA pixels of the drawn canvas, rows bottom-up (gl.readPixels), base64.
   pixels: () => {
     const gl = renderer.getContext(), w = canvas.width, h = canvas.height, px = new Uint8Array(w * h * 4);
@@ -321,13 +398,14 @@ window.viewerApi = {
 
 el('scale').max = String(Math.max(100, state.errScale));
 el('scale').value = String(state.errScale);
-show(skinned ? -1 : 0);
+show(skinned ? -1 : markers && !statics.length ? -3 : 0);
 // A view can be linked: index.html?rig=0&reference=1&error=1&frame=12 (frame given: paused there),
 // index.html?mesh=2 (a static mesh; -2: all side by side).
 const q = new URLSearchParams(location.search);
 for (const id of ['rig', 'reference']) if (q.has(id) && rigs[Number(q.get(id))]) el(id === 'rig' ? 'method' : id).value = q.get(id);
 if (q.get('error') === '1') el('error').checked = true;
-if (q.has('mesh') && (statics[Number(q.get('mesh'))] || (q.get('mesh') === '-2' && statics.length > 1))) {
+if (q.has('mesh') && (statics[Number(q.get('mesh'))] || (q.get('mesh') === '-2' && statics.length > 1) ||
+                      (q.get('mesh') === '-3' && markers))) {
   objSel.value = q.get('mesh'); show(Number(q.get('mesh')));
 }
 applyRig();
