@@ -15,10 +15,11 @@
 
 namespace bodymodel {
 
-Eigen::VectorXd vertex_roughness_deg(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F) {
+namespace {
+
+// vertex_roughness_deg with the one-ring neighbours given as the mesh's unique edges E.
+Eigen::VectorXd roughness_over_edges(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const Eigen::MatrixX2i& E) {
   const Eigen::MatrixX3d N = vertex_normals(V, F);
-  // One-ring neighbours through the edges.
-  const Eigen::MatrixX2i E = unique_edges(F);
   Eigen::MatrixX3d sum = Eigen::MatrixX3d::Zero(V.rows(), 3);
   for (Eigen::Index e = 0; e < E.rows(); ++e) {
     sum.row(E(e, 0)) += N.row(E(e, 1));
@@ -34,8 +35,19 @@ Eigen::VectorXd vertex_roughness_deg(const Eigen::MatrixX3d& V, const Eigen::Mat
   return angle;
 }
 
+}  // namespace
+
+Eigen::VectorXd vertex_roughness_deg(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F) {
+  return roughness_over_edges(V, F, unique_edges(F));  // one-ring neighbours through the edges
+}
+
 Roughness roughness(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const std::vector<char>& region) {
-  const Eigen::VectorXd a = vertex_roughness_deg(V, F);
+  return roughness(V, F, region, unique_edges(F));
+}
+
+Roughness roughness(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const std::vector<char>& region,
+                    const Eigen::MatrixX2i& edges) {
+  const Eigen::VectorXd a = roughness_over_edges(V, F, edges);
   std::vector<double> values;
   values.reserve(a.size());
   for (Eigen::Index v = 0; v < a.size(); ++v)

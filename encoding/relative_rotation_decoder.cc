@@ -683,6 +683,26 @@ void llt_solve_panel(const SparseMatrixd& L, double* z, int w_runtime) {
   }
 }
 
+// The Poisson solve K X = rhs for every column of rhs through one pass over the factor
+// (llt_solve_panel; the decoder's own three columns too), or Eigen's solve if the factor is not
+// laid out as llt_solve_panel expects.
+Eigen::MatrixXd panel_solve(const PoissonFactor& factor, const Eigen::MatrixXd& rhs) {
+  const SparseMatrixd& L = factor.solver.matrixL().nestedExpression();
+  for (int j = 0; j < L.cols(); ++j)  // the layout llt_solve_panel relies on
+    if (L.outerIndexPtr()[j] == L.outerIndexPtr()[j + 1] || L.innerIndexPtr()[L.outerIndexPtr()[j]] != j)
+      return factor.solver.solve(rhs);
+  // Row-major panel in the factor's order: row i = row P⁻¹(i) of rhs.
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> z = factor.solver.permutationP() * rhs;
+  const int w = static_cast<int>(rhs.cols());
+  if (w == 12)
+    llt_solve_panel<12>(L, z.data(), w);
+  else if (w == 3)
+    llt_solve_panel<3>(L, z.data(), w);
+  else
+    llt_solve_panel<0>(L, z.data(), w);
+  return factor.solver.permutationPinv() * z;
+}
+
 }  // namespace
 
 Eigen::MatrixXd RelativeRotationDecoder::solve_positions_many(const std::vector<Eigen::Matrix3d>& U,
@@ -708,18 +728,7 @@ Eigen::MatrixXd RelativeRotationDecoder::solve_positions_many(const std::vector<
       for (int j = 0; j < fields; ++j)
         rhs.block<1, 3>(v, 3 * j) = m.vertex_component[v] < 0 ? Eigen::RowVector3d(Vrest.row(v))
                                                                  : Eigen::RowVector3d::Zero();
-  const SparseMatrixd& L = factor->solver.matrixL().nestedExpression();
-  for (int j = 0; j < L.cols(); ++j)  // the layout llt_solve_panel relies on
-    if (L.outerIndexPtr()[j] == L.outerIndexPtr()[j + 1] || L.innerIndexPtr()[L.outerIndexPtr()[j]] != j)
-      return factor->solver.solve(rhs);
-  // Row-major panel in the factor's order: row i = row P⁻¹(i) of rhs.
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> z =
-      factor->solver.permutationP() * rhs;
-  if (w == 12)
-    llt_solve_panel<12>(L, z.data(), w);
-  else
-    llt_solve_panel<0>(L, z.data(), w);
-  Eigen::MatrixXd X = factor->solver.permutationPinv() * z;
+  Eigen::MatrixXd X = panel_solve(*factor, rhs);
   if (!X.allFinite()) throw NumericalError("Poisson system: the solve produced NaN");
   return X;
 }
@@ -793,7 +802,7 @@ Eigen::MatrixX3d RelativeRotationDecoder::positions(const std::vector<Eigen::Mat
     if (factor->pinned[v])
       rhs.row(v) = m.vertex_component[v] < 0 ? Eigen::RowVector3d(Vrest.row(v))
                                              : Eigen::RowVector3d::Zero();
-  Eigen::MatrixX3d X = factor->solver.solve(rhs);
+  Eigen::MatrixX3d X = panel_solve(*factor, rhs);
   timing.poisson_ms += ms_since(t0);
   if (!X.allFinite()) throw NumericalError("Poisson system: the solve produced NaN");
   return X;

@@ -4,7 +4,9 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <cmath>
 #include <mutex>
+#include <map>
 #include <set>
 
 #include "core/error.h"
@@ -94,6 +96,96 @@ void generate_crowd_bodies_for(std::shared_ptr<const BodyModel> model,
   } else {
     tbb::parallel_for(0, n, body);
   }
+}
+
+double mean_pairwise_distance(const std::vector<Eigen::MatrixX3d>& bodies) {
+  std::vector<std::pair<int, int>> pairs;
+  for (int i = 0; i < static_cast<int>(bodies.size()); ++i)
+    for (int j = i + 1; j < static_cast<int>(bodies.size()); ++j) pairs.emplace_back(i, j);
+  std::vector<double> d(pairs.size());
+  tbb::parallel_for(0, static_cast<int>(pairs.size()),
+                    [&](int p) { d[p] = rms_vertex_distance(bodies[pairs[p].first], bodies[pairs[p].second]); });
+  double sum = 0;
+  for (double v : d) sum += v;
+  return pairs.empty() ? 0.0 : sum / static_cast<double>(pairs.size());
+}
+
+std::vector<int> diversity_subjects(const BodyModel& model, Sex sex, int sample) {
+  const int sex_label = model.shape.regression.find("sex");
+  std::vector<int> out;
+  for (int i = 0; i < model.shape.pca.coefficients.rows(); ++i)
+    if (static_cast<int>(out.size()) < sample &&
+        (sex == Sex::unknown || sex_label < 0 ||
+         std::abs(model.shape.labels(i, sex_label) - (sex == Sex::male ? 1.0 : 0.0)) < 0.5))
+      out.push_back(i);
+  return out;
+}
+
+namespace {
+
+// The subjects `which` decoded from their coefficients, in parallel (`threads` 0 = all cores).
+std::map<int, Eigen::MatrixX3d> decode_subjects(const BodyModel& model, const std::set<int>& which, int threads) {
+  const auto shared = std::shared_ptr<const BodyModel>(std::shared_ptr<const BodyModel>(), &model);
+  const ShapeMorpher morpher(shared);
+  const std::vector<int> list(which.begin(), which.end());
+  std::vector<Eigen::MatrixX3d> V(list.size());
+  const auto& C = model.shape.pca.coefficients;
+  auto run = [&] {
+    tbb::parallel_for(0, static_cast<int>(list.size()), [&](int t) {
+      V[t] = morpher.decode(morpher.reconstruct(C.row(list[t]).transpose()));
+    });
+  };
+  if (threads > 0) {
+    tbb::task_arena arena(threads);
+    arena.execute(run);
+  } else {
+    run();
+  }
+  std::map<int, Eigen::MatrixX3d> out;
+  for (size_t t = 0; t < list.size(); ++t) out.emplace(list[t], std::move(V[t]));
+  return out;
+}
+
+SubjectDiversity diversity_of(const std::vector<int>& subjects, const std::map<int, Eigen::MatrixX3d>& decoded) {
+  std::vector<Eigen::MatrixX3d> bodies;
+  for (int i : subjects) bodies.push_back(decoded.at(i));
+  return SubjectDiversity{mean_pairwise_distance(bodies), static_cast<int>(subjects.size())};
+}
+
+const char* sex_key(Sex sex) { return sex == Sex::female ? "female" : sex == Sex::male ? "male" : "unknown"; }
+
+}  // namespace
+
+SubjectDiversity subject_diversity(const BodyModel& model, Sex sex, int sample, int threads) {
+  const std::vector<int> subjects = diversity_subjects(model, sex, sample);
+  return diversity_of(subjects, decode_subjects(model, std::set<int>(subjects.begin(), subjects.end()), threads));
+}
+
+nlohmann::json subject_diversity_record(const BodyModel& model, int sample, int threads) {
+  const Sex sexes[] = {Sex::unknown, Sex::female, Sex::male};
+  std::set<int> all;
+  for (Sex s : sexes)
+    for (int i : diversity_subjects(model, s, sample)) all.insert(i);
+  const std::map<int, Eigen::MatrixX3d> decoded = decode_subjects(model, all, threads);
+  nlohmann::json record = {{"fingerprint", model_fingerprint(model)}, {"sample", sample}};
+  for (Sex s : sexes) {
+    const SubjectDiversity d = diversity_of(diversity_subjects(model, s, sample), decoded);
+    record[sex_key(s)] = {{"mean_pairwise_mm", d.mean_pairwise_mm}, {"subjects", d.subjects}};
+  }
+  return record;
+}
+
+std::optional<SubjectDiversity> stored_subject_diversity(const BodyModel& model, Sex sex, int sample) {
+  if (!model.metadata.is_object() || !model.metadata.contains("subject_diversity")) return std::nullopt;
+  const nlohmann::json& r = model.metadata["subject_diversity"];
+  if (!r.is_object() || r.value("sample", -1) != sample || !r.contains(sex_key(sex)) ||
+      r.value("fingerprint", std::string()) != model_fingerprint(model))
+    return std::nullopt;
+  const nlohmann::json& e = r[sex_key(sex)];
+  if (!e.is_object() || !e.contains("mean_pairwise_mm") || !e["mean_pairwise_mm"].is_number() ||
+      !e.contains("subjects") || !e["subjects"].is_number_integer())
+    return std::nullopt;
+  return SubjectDiversity{e["mean_pairwise_mm"].get<double>(), e["subjects"].get<int>()};
 }
 
 }  // namespace bodymodel

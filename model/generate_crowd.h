@@ -7,9 +7,12 @@
 // the count (a crowd of 10 is the first 10 bodies of a crowd of 200 with the same seed).
 #pragma once
 
+#include <nlohmann/json.hpp>
+
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -57,5 +60,35 @@ void generate_crowd_bodies_for(std::shared_ptr<const BodyModel> model,
                                const std::vector<int>& indices, const GenerateCrowdOptions& options,
                                const std::function<void(CrowdBody&&)>& on_body,
                                const ProgressCallback& progress = {});
+
+// ---- Diversity: how different a crowd's bodies are, against the model's training subjects ----
+
+// How many training subjects (of the crowd's sex) `generate` compares a crowd's first bodies with.
+inline constexpr int kDiversitySample = 40;
+
+// Mean rms_vertex_distance (model/morph.h) over the pairs i < j of `bodies`, summed in that order
+// (the pairs are measured in parallel; the sum does not depend on the thread count).
+double mean_pairwise_distance(const std::vector<Eigen::MatrixX3d>& bodies);
+
+// The training subjects a crowd of `sex` is compared with: the first `sample` shape-model
+// subjects of that sex (of any sex for Sex::unknown or a model without a sex label).
+std::vector<int> diversity_subjects(const BodyModel& model, Sex sex, int sample);
+
+struct SubjectDiversity {
+  double mean_pairwise_mm = 0;  // mean_pairwise_distance of the decoded subjects
+  int subjects = 0;
+};
+// The diversity_subjects decoded from their shape coefficients (ShapeMorpher with the default
+// decoder, as a crowd's bodies are), then mean_pairwise_distance. `threads` 0 = all cores.
+SubjectDiversity subject_diversity(const BodyModel& model, Sex sex, int sample, int threads = 0);
+
+// The same for Sex::unknown, female and male at once (each subject decoded once), as a record for
+// the model's metadata["subject_diversity"] (`bodymodel build` stores it, so `generate` need not
+// decode the subjects on every run): {"fingerprint": model_fingerprint, "sample", "unknown" |
+// "female" | "male": {"mean_pairwise_mm", "subjects"}}.
+nlohmann::json subject_diversity_record(const BodyModel& model, int sample, int threads = 0);
+// The stored figure for `sex` and `sample` when the model's metadata has a record made for this
+// very model (same fingerprint: bases, mean, eigenvalues, regression), else nullopt.
+std::optional<SubjectDiversity> stored_subject_diversity(const BodyModel& model, Sex sex, int sample);
 
 }  // namespace bodymodel

@@ -123,6 +123,12 @@ class ShapeMorpher {
 
   // Decodes encoding values x (relative to the model's mean), aligned to the template.
   Eigen::MatrixX3d decode(const Eigen::VectorXd& x) const;
+  // The shape model's pca.reconstruct(c) = mean + basis·c. When every basis value is a float32
+  // (a model read from a file stores its bases so, model/model_file.h) the product reads a
+  // float32 copy of the basis, made on first use: half the memory traffic of the double basis
+  // (the product is memory-bound), the same values, summed in double in another order (results
+  // within rounding of pca.reconstruct). Otherwise pca.reconstruct itself. Thread-safe.
+  Eigen::VectorXd reconstruct(const Eigen::VectorXd& c) const;
   // measure_body (core/measure.h) of V.
   BodyMeasurements measure(const Eigen::MatrixX3d& V, Sex sex) const;
 
@@ -158,6 +164,8 @@ class ShapeMorpher {
   RelativeRotationDecoder decoder_;
   struct ResponseCache;
   std::shared_ptr<ResponseCache> response_cache_;
+  struct FloatBasis;
+  std::shared_ptr<FloatBasis> float_basis_;
 };
 
 // The fold repair bodies get after decoding (generation and morphing): 8 passes, regions up to

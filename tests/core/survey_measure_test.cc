@@ -6,6 +6,7 @@
 
 #include <cmath>
 
+#include "core/geometry.h"
 #include "core/landmarks.h"
 #include "core/makehuman.h"
 #include "core/measure.h"
@@ -171,6 +172,14 @@ TEST(Plausibility, RoughnessSeesACrease) {
   const Roughness rough = roughness(V, b.mesh.F, region);
   EXPECT_GT(rough.max_deg, smooth.max_deg);
   EXPECT_GT(rough.p95_deg, 1.25 * smooth.p95_deg);
+  // With the edges given once (a crowd's bodies): the same figures, bit for bit.
+  const Eigen::MatrixX2i edges = unique_edges(b.mesh.F);
+  for (const Eigen::MatrixX3d* mesh : {&b.mesh.V, static_cast<const Eigen::MatrixX3d*>(&V)}) {
+    const Roughness a = roughness(*mesh, b.mesh.F, region), e = roughness(*mesh, b.mesh.F, region, edges);
+    EXPECT_EQ(a.p95_deg, e.p95_deg);
+    EXPECT_EQ(a.max_deg, e.max_deg);
+    EXPECT_EQ(a.vertices, e.vertices);
+  }
 }
 
 TEST(Plausibility, SelfIntersectionsOfTwoCrossingBodies) {

@@ -5,10 +5,12 @@
 
 #include <map>
 #include <mutex>
+#include <random>
 
 #include "core/error.h"
 #include "model/generate_crowd.h"
 #include "model/morph.h"
+#include "model/quantise.h"
 #include "model_test_util.h"
 #include "support/fixtures.h"
 
@@ -111,6 +113,71 @@ TEST(GenerateCrowd, BodyKDependsOnlyOnTheSeedAndK) {
   EXPECT_FALSE(serial[0] == serial[1]);
   o.threads = -1;
   EXPECT_THROW(generate_crowd_bodies(model, {}, {0}, o, keep(parallel)), InputError);
+}
+
+// ShapeMorpher::reconstruct on a model whose basis is float32 (as every model read from a file
+// has) reads a float32 copy of the basis: the same values summed in another order, so the
+// encodings agree to rounding and the decoded bodies (what generation and the diversity decode)
+// within 1e-6 mm. A double basis (not exactly float) takes pca.reconstruct itself.
+TEST(Generate, FloatBasisReconstructGivesTheBodiesOfThePcaReconstruction) {
+  auto exact = shape_test_model();
+  ModelFileOptions as_file;  // basis_bits 32: the bases rounded to float32 as save_model stores them
+  auto model = std::make_shared<const BodyModel>(with_quantised_bases(*exact, as_file));
+  ASSERT_FALSE(model->shape.pca.basis == exact->shape.pca.basis);  // the rounding is real
+  const ShapeMorpher morpher(model), reference(exact);
+  const Pca& pca = model->shape.pca;
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> n01;
+  std::vector<Eigen::VectorXd> coefficients = {pca.coefficients.row(0).transpose(),
+                                               pca.coefficients.row(7).transpose()};
+  Eigen::VectorXd c(pca.component_count());
+  for (int k = 0; k < c.size(); ++k) c(k) = 2 * std::sqrt(std::max(pca.eigenvalues(k), 0.0)) * n01(rng);
+  coefficients.push_back(c);
+  for (const Eigen::VectorXd& ck : coefficients) {
+    const Eigen::VectorXd x = morpher.reconstruct(ck), x_ref = pca.reconstruct(ck);
+    ASSERT_EQ(x.size(), x_ref.size());
+    EXPECT_LE((x - x_ref).cwiseAbs().maxCoeff(), 1e-12 * (1 + x_ref.cwiseAbs().maxCoeff()));
+    EXPECT_GT((x - pca.mean).norm(), 1.0);  // a real change, not the mean
+    const Eigen::MatrixX3d V = morpher.decode(x), V_ref = morpher.decode(x_ref);
+    EXPECT_LE((V - V_ref).cwiseAbs().maxCoeff(), 1e-6) << "mm";
+    // The double basis is not float-exact: its reconstruction is pca.reconstruct, bit for bit.
+    EXPECT_TRUE(reference.reconstruct(ck) == exact->shape.pca.reconstruct(ck));
+  }
+}
+
+// The training subjects' diversity `build` stores equals decoding the subjects now, for each sex;
+// a record of another model (changed basis) or another sample size is not used.
+TEST(GenerateCrowd, StoredSubjectDiversityEqualsDecodingTheSubjects) {
+  auto base = shape_test_model();
+  const int sample = 4;
+  BodyModel with_record = *base;
+  with_record.metadata["subject_diversity"] = subject_diversity_record(*base, sample, 2);
+  for (Sex sex : {Sex::unknown, Sex::female, Sex::male}) {
+    const SubjectDiversity now = subject_diversity(*base, sex, sample, 1);
+    const std::optional<SubjectDiversity> stored = stored_subject_diversity(with_record, sex, sample);
+    ASSERT_TRUE(stored.has_value());
+    EXPECT_EQ(stored->subjects, sample);
+    EXPECT_EQ(now.subjects, sample);
+    EXPECT_GT(now.mean_pairwise_mm, 1.0);
+    EXPECT_NEAR(stored->mean_pairwise_mm, now.mean_pairwise_mm, 1e-9);
+    EXPECT_FALSE(stored_subject_diversity(with_record, sex, sample + 1).has_value());
+  }
+  // Women and men are different subjects: different figures.
+  EXPECT_NE(subject_diversity(*base, Sex::female, sample).mean_pairwise_mm,
+            subject_diversity(*base, Sex::male, sample).mean_pairwise_mm);
+  BodyModel changed = with_record;
+  changed.shape.pca.basis(0, 0) += 1e-3;
+  EXPECT_FALSE(stored_subject_diversity(changed, Sex::unknown, sample).has_value());
+  EXPECT_FALSE(stored_subject_diversity(*base, Sex::unknown, sample).has_value());  // no record
+  // The parallel pairwise mean is the serial one, pair by pair in order.
+  std::vector<Eigen::MatrixX3d> bodies;
+  const ShapeMorpher morpher(base);
+  for (int i : diversity_subjects(*base, Sex::male, 3))
+    bodies.push_back(morpher.decode(base->shape.pca.reconstruct(base->shape.pca.coefficients.row(i).transpose())));
+  double sum = 0;
+  for (int i = 0; i < 3; ++i)
+    for (int j = i + 1; j < 3; ++j) sum += rms_vertex_distance(bodies[i], bodies[j]);
+  EXPECT_EQ(mean_pairwise_distance(bodies), sum / 3);
 }
 
 }  // namespace

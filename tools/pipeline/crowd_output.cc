@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
+#include "core/geometry.h"
 #include "core/io/csv.h"
 #include "core/io/mesh_io.h"
 #include "core/plausibility.h"
@@ -162,6 +163,7 @@ GenerateCrowdSummary write_crowd(std::shared_ptr<const BodyModel> model,
   auto last_flush = std::chrono::steady_clock::now();
   const auto t0 = last_flush;
   report_progress(progress, 0, fmt::format("{} bodies to generate, {} already there", todo.size(), summary.skipped));
+  const Eigen::MatrixX2i edges = unique_edges(model->tmpl->faces());  // one topology: sorted once
   // Each body is written as soon as it is made (on its worker thread), so memory does not grow
   // with the crowd.
   auto write_body = [&](CrowdBody&& b) {
@@ -171,7 +173,7 @@ GenerateCrowdSummary write_crowd(std::shared_ptr<const BodyModel> model,
     write_mesh(out / summary.files[i], g.V, model->tmpl->faces());
     const BodyMeasurements& m = g.measured;
     auto num = [](double v) { return std::isfinite(v) ? fmt::format("{:.2f}", v) : std::string(); };
-    const Roughness rough = roughness(g.V, model->tmpl->faces(), o.roughness_region);
+    const Roughness rough = roughness(g.V, model->tmpl->faces(), o.roughness_region, edges);
     const int crossing = self_intersecting_triangle_pairs(g.V, model->tmpl->faces());
     std::string row = fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}", i,
                                   csv_field(summary.files[i]),

@@ -8,7 +8,9 @@
 #include "core/error.h"
 #include "core/makehuman.h"
 #include "model/database.h"
+#include "model/generate_crowd.h"
 #include "model/model_file.h"
+#include "model/quantise.h"
 #include "tools/console.h"
 #include "tools/verb.h"
 #include "tools/verbs/model_common.h"
@@ -191,6 +193,9 @@ void run_build(BuildArgs& a) {
   else
     model.metadata["source"] = {{"registered", a.reg}, {"database", a.db}, {"mm_per_unit", 1.0}};
   const ModelFileOptions storage = model_cli::choose_basis_storage(model, a.quantise, 64, 20, 0.5);
+  // The training subjects' diversity every `generate` prints, measured once here on the model as
+  // it is stored (so a crowd need not decode the subjects on every run).
+  model.metadata["subject_diversity"] = subject_diversity_record(with_quantised_bases(model, storage), kDiversitySample);
   save_model(a.out, model, storage);
   cli::info("wrote " + a.out);
 }

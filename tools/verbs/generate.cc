@@ -9,12 +9,14 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <optional>
 #include <sstream>
 
 #include "core/io/atomic_write.h"
 #include "core/io/csv.h"
 #include "core/io/mesh_io.h"
 #include "core/plausibility.h"
+#include "model/generate_crowd.h"
 #include "model/morph.h"
 #include "population/people.h"
 #include "tools/pipeline/crowd_output.h"
@@ -35,7 +37,7 @@ struct GenerateArgs {
   bool clamp = false, no_girths = false, force = false;
   std::string population, match = "sex,age_years,height_cm,weight_kg";
   int jobs = 0;
-  int diversity_sample = 40;
+  int diversity_sample = kDiversitySample;
 };
 
 LabelCondition parse_where(const SemanticRegression& reg, const std::string& s, bool clamp) {
@@ -202,41 +204,15 @@ DrawnPopulation draw_population(const GenerateArgs& a) {
 // The crowd's figures: constraints, folds, diversity against the training subjects, plausibility.
 void print_generate_summary(const GenerateArgs& a, const std::shared_ptr<const BodyModel>& model, Sex sex, int n,
                             const fs::path& out, const GenerateCrowdSummary& s, const CrowdOutputOptions& co) {
-  const SemanticRegression& reg = model->shape.regression;
   // Diversity: mean pairwise RMS vertex distance (after rigid fit) of a sample of the crowd
   // (read back: skipped bodies are only on disk), against that of the model's training
-  // subjects (decoded from their coefficients, in parallel on one thread-safe morpher).
+  // subjects: the figure `build` stored in the model when it has one for this very model, else
+  // the subjects decoded from their coefficients now (model/generate_crowd.h).
   const int k = std::min(n, a.diversity_sample);
   std::vector<Eigen::MatrixX3d> crowd(k);
   for (int i = 0; i < k; ++i) crowd[i] = read_mesh(out / s.files[i]).V;
-  const auto& C = model->shape.pca.coefficients;
-  std::vector<int> same_sex;
-  int sex_label = reg.find("sex");
-  for (int i = 0; i < C.rows(); ++i)
-    if (static_cast<int>(same_sex.size()) < a.diversity_sample &&
-        (sex == Sex::unknown || sex_label < 0 ||
-         std::abs(model->shape.labels(i, sex_label) - (sex == Sex::male ? 1.0 : 0.0)) < 0.5))
-      same_sex.push_back(i);
-  const ShapeMorpher dm(model);
-  std::vector<Eigen::MatrixX3d> subj(same_sex.size());
-  auto decode_subjects = [&] {
-    tbb::parallel_for(0, static_cast<int>(same_sex.size()), [&](int t) {
-      subj[t] = dm.decode(model->shape.pca.reconstruct(C.row(same_sex[t]).transpose()));
-    });
-  };
-  if (a.jobs > 0) {
-    tbb::task_arena arena(a.jobs);
-    arena.execute(decode_subjects);
-  } else {
-    decode_subjects();
-  }
-  auto mean_pairwise = [](const std::vector<Eigen::MatrixX3d>& b) {
-    double sum = 0;
-    int pairs = 0;
-    for (size_t i = 0; i < b.size(); ++i)
-      for (size_t j = i + 1; j < b.size(); ++j, ++pairs) sum += rms_vertex_distance(b[i], b[j]);
-    return pairs ? sum / pairs : 0.0;
-  };
+  std::optional<SubjectDiversity> subj = stored_subject_diversity(*model, sex, a.diversity_sample);
+  if (!subj) subj = subject_diversity(*model, sex, a.diversity_sample, a.jobs);
   fmt::print("bodies                 {} ({} generated, {} skipped as already written)\n", n, s.generated, s.skipped);
   fmt::print("constraints met        {} of {} (as measured on each output)\n", s.constraints_met, n);
   fmt::print("flipped triangles      {} in total, at most {} in a body ({:.4f}% of all triangles), against the "
@@ -251,10 +227,17 @@ void print_generate_summary(const GenerateArgs& a, const std::shared_ptr<const B
       fmt::print("fold repair            {} flipped triangles repaired after decoding: median {}, at most {} in a body\n",
                  total, 0.5 * (b[(b.size() - 1) / 2] + b[b.size() / 2]), b.back());
   }
+  double crowd_diversity = 0;
+  if (a.jobs > 0) {
+    tbb::task_arena arena(a.jobs);
+    arena.execute([&] { crowd_diversity = mean_pairwise_distance(crowd); });
+  } else {
+    crowd_diversity = mean_pairwise_distance(crowd);
+  }
   fmt::print("diversity              mean pairwise RMS vertex distance {:.1f} mm (first {} bodies)\n",
-             mean_pairwise(crowd), k);
+             crowd_diversity, k);
   fmt::print("                       vs {:.1f} mm between the model's {} training subjects{}\n",
-             mean_pairwise(subj), subj.size(), sex == Sex::unknown ? "" : " of that sex");
+             subj->mean_pairwise_mm, subj->subjects, sex == Sex::unknown ? "" : " of that sex");
   {
     std::vector<int> si = s.self_intersections;
     std::vector<double> rp = s.roughness_p95;
