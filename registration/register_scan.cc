@@ -166,6 +166,8 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
   } else {
     // Cotangent weights of the template the pose was fitted on (the shaped body with a shape fit).
     NonrigidRegistration reg(shape && options.nonrigid_on_shaped_rest ? rest : tpl.mesh, no);
+    if (no.contact_segments && tpl.weights.rows() == tpl.mesh.V.rows())
+      reg.set_segments(body_segments(tpl.skeleton, tpl.weights, tpl.mesh.F));
     r.V = reg.fit(r.pose.V, scan, landmarks, &sum.nonrigid, sub(pose_share, 1.0));
     if (options.repair_flipped_rings > 0)
       sum.folded_triangles =

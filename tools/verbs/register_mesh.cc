@@ -188,6 +188,8 @@ void run_register_mesh(RegisterMeshArgs& a) {
       {"pose_only", a.job.pose_only}, {"keep_folds", a.keep_folds},
       {"proportions", a.job.proportions}, {"shape_fit", a.job.shape_fit},
       {"pose_iterations", a.job.pose_iterations}, {"up", a.up}};
+  // Only when on, so folders made before the option resume as they were.
+  if (a.job.contact_segments) settings["contact_segments"] = true;
   // Only when given, so folders made before the option resume as they were.
   if (!a.no.shape_space.empty()) {
     settings["shape_space"] = file_fingerprint(a.no.shape_space);
