@@ -11,7 +11,10 @@
 #include <mutex>
 
 #include "core/error.h"
+#include "core/geometry.h"
+#include "core/point_index.h"
 #include "core/statistics.h"
+#include "registration/metrics.h"
 
 namespace bodymodel {
 
@@ -153,6 +156,42 @@ std::vector<SurfaceLocation> locate_on_surface(const Eigen::MatrixX3d& P, const 
   return out;
 }
 
+std::vector<SurfaceLocation> locate_on_surface_oriented(const Eigen::MatrixX3d& P, const Eigen::MatrixX3d& PN,
+                                                        const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
+                                                        int neighbours) {
+  std::vector<SurfaceLocation> out = locate_on_surface(P, V, F);
+  if (PN.rows() != P.rows())
+    throw InputError("locate on surface: " + std::to_string(PN.rows()) + " normals for " + std::to_string(P.rows()) +
+                     " points");
+  const Eigen::MatrixX3d FN = face_normals(V, F);
+  std::vector<std::vector<int>> vf(size_t(V.rows()));
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) vf[size_t(F(f, k))].push_back(int(f));
+  const PointIndex index(V);
+  const int k = std::max(1, std::min(neighbours, int(V.rows())));
+  auto corner = [&](int f, int c) -> Eigen::Vector3d { return V.row(F(f, c)).transpose(); };
+  tbb::parallel_for(Eigen::Index(0), P.rows(), [&](Eigen::Index i) {
+    SurfaceLocation& l = out[size_t(i)];
+    const Eigen::Vector3d n = PN.row(i).transpose();
+    if (FN.row(l.face).dot(n) >= 0) return;
+    const Eigen::Vector3d p = P.row(i).transpose();
+    double best = std::numeric_limits<double>::infinity();
+    for (int v : index.knn(p, k))
+      for (int f : vf[size_t(v)]) {
+        if (FN.row(f).dot(n) < 0) continue;
+        const double d = point_triangle_distance(p, corner(f, 0), corner(f, 1), corner(f, 2));
+        if (d < best) {
+          best = d;
+          l.face = f;
+        }
+      }
+    if (!std::isfinite(best)) return;
+    l.bary = closest_barycentric(p, corner(l.face, 0), corner(l.face, 1), corner(l.face, 2));
+    l.distance = best;
+  });
+  return out;
+}
+
 Eigen::MatrixX3d carry_locations(const std::vector<SurfaceLocation>& locations,
                                  const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F) {
   Eigen::MatrixX3d Q(Eigen::Index(locations.size()), 3);
@@ -192,13 +231,20 @@ CorrespondenceReport evaluate_correspondence(const std::vector<CorrespondenceMes
   report.location_distance_mean.resize(n);
   for (size_t a = 0; a < n; ++a) {
     report_progress(progress, 0.5 * double(a) / double(n), "locating " + meshes[a].id);
-    located[a] = locate_on_surface(meshes[a].truth, meshes[a].registered, registered_F);
+    if (options.oriented_location && meshes[a].truth_normals.rows() != nt)
+      throw InputError("correspondence: oriented location needs the truth normals of " + meshes[a].id);
+    located[a] = options.oriented_location
+                     ? locate_on_surface_oriented(meshes[a].truth, meshes[a].truth_normals, meshes[a].registered,
+                                                  registered_F)
+                     : locate_on_surface(meshes[a].truth, meshes[a].registered, registered_F);
     double s = 0;
     for (const auto& l : located[a]) s += l.distance;
     report.location_distance_mean[a] = s / double(nt);
   }
   Pool inter(options), intra(options);
   std::mutex mutex;
+  report.vertex_error_mean = Eigen::MatrixXd::Zero(nt, Eigen::Index(n));
+  Eigen::VectorXi pairs_of(Eigen::VectorXi::Zero(Eigen::Index(n)));
   for (size_t a = 0; a < n; ++a) {
     report_progress(progress, 0.5 + 0.5 * double(a) / double(n), "pairs from " + meshes[a].id);
     std::vector<size_t> partners;
@@ -222,9 +268,14 @@ CorrespondenceReport evaluate_correspondence(const std::vector<CorrespondenceMes
       row.stats = error_stats(e);
       std::lock_guard<std::mutex> lock(mutex);
       (row.inter ? inter : intra).add(e);
+      report.vertex_error_mean.col(Eigen::Index(a)) += e;
+      report.vertex_error_mean.col(Eigen::Index(b)) += e;
+      ++pairs_of(Eigen::Index(a)), ++pairs_of(Eigen::Index(b));
     });
     for (auto& r : rows) report.pairs.push_back(std::move(r));
   }
+  for (size_t m = 0; m < n; ++m)
+    if (pairs_of(Eigen::Index(m)) > 0) report.vertex_error_mean.col(Eigen::Index(m)) /= double(pairs_of(Eigen::Index(m)));
   report.inter = inter.stats();
   report.intra = intra.stats();
   report_progress(progress, 1.0, "done");

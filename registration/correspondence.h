@@ -35,6 +35,16 @@ struct SurfaceLocation {
 std::vector<SurfaceLocation> locate_on_surface(const Eigen::MatrixX3d& P, const Eigen::MatrixX3d& V,
                                                const Eigen::MatrixX3i& F);
 
+// Like locate_on_surface, but a point whose closest triangle faces away from its normal (PN, #P
+// by 3 unit normals; dot < 0) is located instead on the closest triangle facing its way among the
+// triangles around its `neighbours` nearest vertices of V (kept as it was when there is none).
+// Where two limbs touch, a point of one limb lies within millimetres of the other's surface, which
+// faces the opposite way; the closest point alone can land on the wrong limb. Approximate: the
+// search is limited to those triangles.
+std::vector<SurfaceLocation> locate_on_surface_oriented(const Eigen::MatrixX3d& P, const Eigen::MatrixX3d& PN,
+                                                        const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F,
+                                                        int neighbours = 32);
+
 // The points at `locations` on the mesh V (#V by 3, the faces F the locations were made on).
 Eigen::MatrixX3d carry_locations(const std::vector<SurfaceLocation>& locations,
                                  const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F);
@@ -45,6 +55,9 @@ struct CorrespondenceMesh {
   std::string subject;       // the person (pairs of one subject are intra-subject)
   Eigen::MatrixX3d truth;    // #T by 3 truth vertices (data set topology), mm
   Eigen::MatrixX3d registered;  // #R by 3 registration vertices (template topology), mm
+  // Optional #T by 3 outward unit normals of the truth: with them the truth vertices are located
+  // by locate_on_surface_oriented (CorrespondenceOptions::oriented_location).
+  Eigen::MatrixX3d truth_normals;
 };
 
 enum class PairSelection { inter, intra, all };
@@ -67,6 +80,9 @@ struct CorrespondenceReport {
   // Per mesh: mean distance (mm) of its truth vertices to its registration's surface (how far
   // the location step had to reach).
   std::vector<double> location_distance_mean;
+  // #truth vertices by #meshes: the mean error of truth vertex i over the evaluated pairs that
+  // include mesh m (as A or as B), where a mesh's contacts show (0 for a mesh in no pair).
+  Eigen::MatrixXd vertex_error_mean;
 };
 
 struct CorrespondenceOptions {
@@ -76,6 +92,9 @@ struct CorrespondenceOptions {
   // 4 830 ordered pairs are 33 million values. Per-pair statistics are exact.
   double histogram_bin = 0.01;
   double histogram_max = 5000;
+  // Locate each truth vertex on a registration triangle facing its way (needs truth_normals),
+  // not on the closest triangle whatever its side: a diagnosis of contacts, not FAUST's protocol.
+  bool oriented_location = false;
 };
 
 // Evaluates every ordered pair (a, b), a ≠ b, selected by options.pairs. truth_F: the truth

@@ -55,6 +55,7 @@ RegistrationSetup registration_setup(const RegistrationJobOptions& o) {
   r.nonrigid.fast_steps = o.fast_steps;
   r.nonrigid.fast_k_end = o.fast_k_end;
   r.nonrigid.normalization_length = o.transform_length;
+  r.nonrigid.contact_segments = o.contact_segments;
   r.skip_nonrigid = o.pose_only;
   r.fit_proportions = o.proportions;
   r.fit_shape = o.shape_fit;  // only read when the template has a shape space

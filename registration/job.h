@@ -50,6 +50,9 @@ struct RegistrationJobOptions {
   // Its prior weight (ShapeFitOptions::space_prior_weight): mm² of mean squared data residual a
   // coefficient of one standard deviation costs.
   double learned_space_prior = ShapeFitOptions{}.space_prior_weight;
+  // Contacts: refuse non-rigid data pairs between body segments that do not touch on the
+  // template (NonrigidOptions::contact_segments; off by default).
+  bool contact_segments = NonrigidOptions{}.contact_segments;
 };
 
 // InputError naming the option when a value is out of range.

@@ -47,8 +47,13 @@ InverseCorrespondences inverse_correspondences(const Eigen::MatrixX3d& V,
                                                const Eigen::MatrixX3d& VN,
                                                const PointCloud& scan,
                                                const PointIndex& scan_index,
-                                               const NonrigidOptions& o) {
+                                               const NonrigidOptions& o,
+                                               const SegmentLabels* labels) {
   const Eigen::Index n = V.rows(), m = scan.P.rows();
+  const bool seg = labels && labels->segments && labels->point_segment.size() == m;
+  auto compatible = [&](Eigen::Index j, int i) {
+    return !seg || labels->segments->compatible(labels->point_segment(j), labels->segments->vertex_segment(i));
+  };
   const double d2max = o.max_distance * o.max_distance;
   const double cos_min = std::cos(o.max_normal_angle_deg * M_PI / 180.0);
   const bool has_n = scan.has_normals();
@@ -64,11 +69,16 @@ InverseCorrespondences inverse_correspondences(const Eigen::MatrixX3d& V,
   // Every scan point → its closest template vertex, with the 30°/50 mm rejection.
   PointIndex vertex_index(V);
   std::vector<int> match(m, -1);
+  std::vector<char> refused(m, 0);
   tbb::parallel_for(Eigen::Index(0), m, [&](Eigen::Index j) {
     double d2 = 0;
     const Eigen::Vector3d p = scan.P.row(j).transpose();
     const int i = vertex_index.nearest(p, &d2);
     if (i < 0 || d2 > d2max) return;
+    if (!compatible(j, i)) {
+      refused[j] = 1;
+      return;
+    }
     if (has_n && !normals_ok(scan.N.row(j).transpose(), VN.row(i).transpose())) return;
     if (o.inverse_max_tangential_offset > 0) {
       const Eigen::Vector3d d = p - V.row(i).transpose(), nv = VN.row(i).transpose();
@@ -109,7 +119,15 @@ InverseCorrespondences inverse_correspondences(const Eigen::MatrixX3d& V,
       }
     }
     double d2 = 0;
-    const int j = scan_index.nearest(v, &d2);
+    int j = -1;
+    if (!seg) {
+      j = scan_index.nearest(v, &d2);
+    } else {
+      std::vector<double> k2;
+      const std::vector<int> near = scan_index.knn(v, 8, &k2);
+      for (size_t k = 0; k < near.size() && j < 0; ++k)
+        if (compatible(near[k], int(i))) j = near[k], d2 = k2[k];
+    }
     if (j < 0 || d2 > d2max) return;
     if (has_n && !normals_ok(scan.N.row(j).transpose(), VN.row(i).transpose())) return;
     if (o.max_tangential_offset > 0) {
@@ -123,6 +141,7 @@ InverseCorrespondences inverse_correspondences(const Eigen::MatrixX3d& V,
     if (out.kind(i) == 1) ++out.plane_count;
     if (out.kind(i) == 2) ++out.closest_count;
   }
+  for (char r : refused) out.refused += r;
   return out;
 }
 
@@ -147,6 +166,7 @@ struct NonrigidRegistration::Impl {
   Eigen::VectorXd smooth_values;         // values of S ⊗ I4 in A's pattern (zeros elsewhere)
   std::vector<int> diag_block;           // n·16 indices into A's values: block (i,i), (r,c)
   Eigen::CholmodSupernodalLLT<SparseMatrixd> solver;
+  BodySegments segments;  // empty: no contact labels
 };
 
 NonrigidRegistration::NonrigidRegistration(const Mesh& tpl, const NonrigidOptions& options)
@@ -208,6 +228,13 @@ NonrigidRegistration::NonrigidRegistration(const Mesh& tpl, const NonrigidOption
 NonrigidRegistration::~NonrigidRegistration() = default;
 NonrigidRegistration::NonrigidRegistration(NonrigidRegistration&&) noexcept = default;
 const NonrigidOptions& NonrigidRegistration::options() const { return impl_->options; }
+
+void NonrigidRegistration::set_segments(BodySegments segments) {
+  if (segments.vertex_segment.size() != impl_->n)
+    throw InputError("non-rigid registration: " + std::to_string(segments.vertex_segment.size()) +
+                     " segment labels for a template of " + std::to_string(impl_->n) + " vertices");
+  impl_->segments = std::move(segments);
+}
 
 namespace {
 
@@ -358,6 +385,7 @@ void record_step(NonrigidSummary& sum, const Eigen::MatrixX3d& V, const InverseC
   sum.matched_vertices = matched;
   sum.plane_matches = corr.plane_count;
   sum.final_beta = beta;
+  sum.contact_refused = corr.refused;
 }
 
 }  // namespace
@@ -378,6 +406,15 @@ Eigen::MatrixX3d NonrigidRegistration::fit(const Eigen::MatrixX3d& V_init,
   resolve_offsets(o, V_init, I.F, scan_index);
   const std::vector<double> betas = nonrigid_schedule(o);
   Eigen::MatrixX3d V = V_init;
+  // Contacts: the scan points' segments from the posed template the fit starts from.
+  SegmentLabels labels;
+  if (o.contact_segments && I.segments.count() > 1) {
+    labels.segments = &I.segments;
+    PointSegmentOptions so;
+    so.unsigned_normals = o.unsigned_normals;
+    labels.point_segment = point_segments(scan.P, scan.has_normals() ? scan.N : Eigen::MatrixX3d(), V_init,
+                                          vertex_normals(V_init, I.F), I.segments.vertex_segment, so);
+  }
   NonrigidSummary sum;
   Eigen::MatrixXd B(4 * n, 3);
   bool have_factor = false;
@@ -386,7 +423,7 @@ Eigen::MatrixX3d NonrigidRegistration::fit(const Eigen::MatrixX3d& V_init,
     const double beta = betas[step], gamma = o.landmark_factor * beta, alpha = o.alpha;
     const Eigen::MatrixX3d VN = vertex_normals(V, I.F);
     auto tc = std::chrono::steady_clock::now();
-    const InverseCorrespondences corr = inverse_correspondences(V, VN, scan, scan_index, o);
+    const InverseCorrespondences corr = inverse_correspondences(V, VN, scan, scan_index, o, labels.segments ? &labels : nullptr);
     auto ts = std::chrono::steady_clock::now();
     sum.correspondence_seconds += std::chrono::duration<double>(ts - tc).count();
 

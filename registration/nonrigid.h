@@ -18,6 +18,7 @@
 #include "core/point_index.h"
 #include "core/progress.h"
 #include "registration/landmarks.h"
+#include "registration/segments.h"
 
 namespace bodymodel {
 
@@ -83,6 +84,13 @@ struct NonrigidOptions {
   // factorisation. reuse_max_iterations ≤ 0: factorise every step.
   int reuse_max_iterations = 12;
   double reuse_tolerance = 1e-7;
+  // Contacts: with body segments given (NonrigidRegistration::set_segments), every scan point
+  // takes the segment of the initial (posed) template's surface it lies on
+  // (registration/segments.h), and data pairs between a scan point and a vertex of segments that
+  // do not touch on the template are refused both ways, so a hand resting on a hip is not pulled
+  // onto the hip. Off (default): every pair is kept, as in the paper; on FAUST's contact poses
+  // the refusal changed nothing measurable (docs/real-registration.md#contacts).
+  bool contact_segments = false;
 };
 
 struct NonrigidSummary {
@@ -97,6 +105,7 @@ struct NonrigidSummary {
   double solve_seconds = 0.0;           // time in factorisation + solve (all steps)
   int factorizations = 0;               // numeric factorisations (≤ iterations)
   int reuse_iterations = 0;             // preconditioned CG iterations, all steps
+  int contact_refused = 0;              // scan points refused across segments, final step
 };
 
 // Median distance from a scan point to its nearest neighbour (from up to 2000 samples).
@@ -111,6 +120,13 @@ struct InverseCorrespondences {
   Eigen::VectorXi kind;      // #V: 0 = no data term, 1 = plane projection, 2 = closest scan point
   int plane_count = 0;
   int closest_count = 0;
+  int refused = 0;           // scan points whose closest vertex was on a non-adjacent segment
+};
+
+// Segment labels for the search (contacts): pairs of incompatible segments are refused.
+struct SegmentLabels {
+  const BodySegments* segments = nullptr;
+  Eigen::VectorXi point_segment;  // #scan points (-1: unknown, compatible with every segment)
 };
 
 // The paper's inverse search (§2.3): every scan point → closest vertex of V (rejecting pairs
@@ -119,12 +135,15 @@ struct InverseCorrespondences {
 // otherwise the closest scan point is used if it passes the same tests; otherwise none.
 //   V, VN  #V by 3 current vertices and unit vertex normals; scan with unit normals;
 //   scan_index  k-d tree over scan.P. max_tangential_offset and inverse_max_tangential_offset must
-//   be resolved (> 0) or they are not applied.
+//   be resolved (> 0) or they are not applied. With `labels`, a scan point whose closest vertex is
+//   on a segment incompatible with its own is not matched, and a vertex's closest-point fallback
+//   takes the closest of its 8 nearest scan points on a compatible segment.
 InverseCorrespondences inverse_correspondences(const Eigen::MatrixX3d& V,
                                                const Eigen::MatrixX3d& VN,
                                                const PointCloud& scan,
                                                const PointIndex& scan_index,
-                                               const NonrigidOptions& options);
+                                               const NonrigidOptions& options,
+                                               const SegmentLabels* labels = nullptr);
 
 // Repairs folds of a registered mesh: triangles of V whose normal points away from the same
 // triangle of V_ref (the pose-fitted template, which has the right orientation everywhere),
@@ -154,6 +173,9 @@ class NonrigidRegistration {
                        const ProgressCallback& progress = {});
 
   const NonrigidOptions& options() const;
+  // Body segments of the template (contacts, NonrigidOptions::contact_segments); without them
+  // no pair is refused.
+  void set_segments(BodySegments segments);
 
  private:
   struct Impl;

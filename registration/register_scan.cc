@@ -25,6 +25,15 @@ double shape_moved(const ShapeFitOptions& so, const ShapeFitResult& sr, const Ma
   return moved;
 }
 
+// The non-rigid solver on `weights_rest`'s cotangent weights, with the template's body segments
+// when contacts are refused.
+NonrigidRegistration nonrigid_solver(const RegistrationTemplate& tpl, const Mesh& weights_rest, const NonrigidOptions& no) {
+  NonrigidRegistration reg(weights_rest, no);
+  if (no.contact_segments && tpl.weights.rows() == tpl.mesh.V.rows())
+    reg.set_segments(body_segments(tpl.skeleton, tpl.weights, tpl.mesh.F));
+  return reg;
+}
+
 }  // namespace
 
 RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& scan,
@@ -165,7 +174,7 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
     r.V = r.pose.V;
   } else {
     // Cotangent weights of the template the pose was fitted on (the shaped body with a shape fit).
-    NonrigidRegistration reg(shape && options.nonrigid_on_shaped_rest ? rest : tpl.mesh, no);
+    NonrigidRegistration reg = nonrigid_solver(tpl, shape && options.nonrigid_on_shaped_rest ? rest : tpl.mesh, no);
     r.V = reg.fit(r.pose.V, scan, landmarks, &sum.nonrigid, sub(pose_share, 1.0));
     if (options.repair_flipped_rings > 0)
       sum.folded_triangles =

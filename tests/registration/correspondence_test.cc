@@ -98,8 +98,37 @@ TEST(Correspondence, PairErrorsAndPoolsMatchTheHandComputedCase) {
   EXPECT_EQ(intra.pairs.size(), 2u);
   EXPECT_EQ(intra.inter.pairs, 0);
   EXPECT_NEAR(intra.intra.mean, intra_mean, 1e-12);
+  // Per truth vertex and mesh, the mean over the pairs that include the mesh: A and B are in both
+  // intra pairs (A → B errors 3, 4, 12; B → A 0.5, √2, 1), C in none.
+  ASSERT_EQ(intra.vertex_error_mean.rows(), 3);
+  ASSERT_EQ(intra.vertex_error_mean.cols(), 3);
+  for (int m : {0, 1}) {
+    EXPECT_NEAR(intra.vertex_error_mean(0, m), (3 + 0.5) / 2, 1e-12);
+    EXPECT_NEAR(intra.vertex_error_mean(1, m), (4 + std::sqrt(2.0)) / 2, 1e-12);
+    EXPECT_NEAR(intra.vertex_error_mean(2, m), (12 + 1) / 2.0, 1e-12);
+  }
+  EXPECT_EQ(intra.vertex_error_mean.col(2).norm(), 0.0);
   // Truth vertices' mean distance to their own registration: A 0.5, √2, 1.
   EXPECT_NEAR(all.location_distance_mean[0], (0.5 + std::sqrt(2.0) + 1) / 3, 1e-12);
+}
+
+// Where two limbs touch: a palm 2 mm above a hip, facing it. A truth point of the hip 1.5 mm above
+// the registration's hip (0.5 mm below its palm) is closest to the palm; located by orientation it
+// lands on the hip, which faces its way.
+TEST(Correspondence, OrientedLocationKeepsAPointOnTheSurfaceFacingItsWay) {
+  const Eigen::MatrixX3d V = rows({{-10, -10, 0}, {10, -10, 0}, {0, 10, 0}, {-10, -10, 2}, {0, 10, 2}, {10, -10, 2}});
+  const Eigen::MatrixX3i F = (Eigen::MatrixX3i(2, 3) << 0, 1, 2, 3, 4, 5).finished();  // hip +z, palm −z
+  const Eigen::MatrixX3d P = rows({{0, 0, 1.5}, {0, 0, 1.8}});
+  const Eigen::MatrixX3d N = rows({{0, 0, 1}, {0, 0, -1}});  // a hip point, a palm point
+  const auto closest = locate_on_surface(P, V, F);
+  EXPECT_EQ(closest[0].face, 1);  // the palm: the wrong limb
+  const auto oriented = locate_on_surface_oriented(P, N, V, F);
+  EXPECT_EQ(oriented[0].face, 0);
+  EXPECT_NEAR(oriented[0].distance, 1.5, 1e-12);
+  EXPECT_NEAR((carry_locations(oriented, V, F).row(0) - Eigen::RowVector3d(0, 0, 0)).norm(), 0.0, 1e-12);
+  EXPECT_EQ(oriented[1].face, 1);  // already facing its way: unchanged
+  EXPECT_NEAR(oriented[1].distance, 0.2, 1e-12);
+  EXPECT_THROW(locate_on_surface_oriented(P, N.topRows(1), V, F), InputError);
 }
 
 TEST(Correspondence, RejectsMismatchedTopologiesAndNaN) {

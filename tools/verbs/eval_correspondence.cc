@@ -38,6 +38,8 @@ struct CorrespondenceArgs {
   std::string reg, truth, out, pairs = "all", truth_up = "y", subject_regex = "^(.*)$", landmarks;
   double truth_scale = 1.0;
   int samples = 30000;
+  bool vertex_errors = false;
+  std::string location = "closest";
 };
 
 std::string cm(double mm) { return fmt::format("{:.3f}", mm / 10.0); }
@@ -80,6 +82,15 @@ void add_eval_correspondence_options(CLI::App* cmd, CorrespondenceArgs& a) {
                   "from each registration's template landmark vertex to the truth's, per landmark "
                   "(landmarks.csv), e.g. nose_tip to see where the face landed")
       ->check(CLI::ExistingFile);
+  cmd->add_option("--location", a.location,
+                  "How a truth vertex is located on its registration: 'closest' (the closest surface point, the "
+                  "protocol) or 'oriented' (the closest triangle facing the vertex's way: where limbs touch, a "
+                  "diagnosis of how much of the error is the location landing on the other limb)")
+      ->check(CLI::IsMember({"closest", "oriented"}))
+      ->capture_default_str();
+  cmd->add_flag("--vertex-errors", a.vertex_errors,
+                "Also write OUT/vertices.csv: per truth vertex (rows) and mesh (columns), its mean error (cm) over "
+                "the evaluated pairs that include the mesh (where a mesh's errors are, e.g. at its contacts)");
 }
 
 // Per landmark of --landmarks: how far the registration put the template's landmark vertex from
@@ -106,6 +117,20 @@ LandmarkFigures landmark_figures(const std::string& file, const std::vector<Corr
     L.lines += fmt::format("landmark {}: mean {:.1f} mm, max {:.1f} mm ({})\n", name, mean, worst.first, worst.second);
   }
   return L;
+}
+
+// OUT/vertices.csv: vertex, then one column of mean errors (cm) per mesh.
+std::string vertex_error_csv(const std::vector<CorrespondenceMesh>& meshes, const CorrespondenceReport& report) {
+  std::string csv = "vertex";
+  for (const auto& m : meshes) csv += "," + csv_field(m.id);
+  csv += "\n";
+  const Eigen::MatrixXd& E = report.vertex_error_mean;
+  for (Eigen::Index i = 0; i < E.rows(); ++i) {
+    csv += std::to_string(i);
+    for (Eigen::Index m = 0; m < E.cols(); ++m) csv += fmt::format(",{:.4f}", E(i, m) / 10.0);
+    csv += "\n";
+  }
+  return csv;
 }
 
 // Each registration with its truth (by file stem). Every registration is evaluated or the run
@@ -256,6 +281,8 @@ ReadMeshes read_correspondence_meshes(const CorrespondenceArgs& a, const Registr
     meshes[k].subject = m[1].str();
     meshes[k].truth = t.V;
     meshes[k].registered = r.V;
+    if (a.location == "oriented")
+      meshes[k].truth_normals = (signed_volume(t.V, t.F) < 0 ? -1.0 : 1.0) * vertex_normals(t.V, t.F);
     truth_meshes[k] = std::move(t);
     read_bar.update(double(k + 1) / double(found.size()), stem);
   }
@@ -290,6 +317,7 @@ void run_eval_correspondence(CorrespondenceArgs& a) {
   options.pairs = a.pairs == "inter"   ? PairSelection::inter
                   : a.pairs == "intra" ? PairSelection::intra
                                         : PairSelection::all;
+  options.oriented_location = a.location == "oriented";
   cli::ProgressBar bar("correspondence");
   const CorrespondenceReport report = evaluate_correspondence(meshes, reg_F, options, bar.callback());
   bar.finish(fmt::format("{} pairs", report.pairs.size()));
@@ -329,6 +357,7 @@ void run_eval_correspondence(CorrespondenceArgs& a) {
   write_text_file(out / "pairs.csv", pair_csv);
   write_text_file(out / "meshes.csv", mesh_csv);
   write_text_file(out / "summary.csv", summary);
+  if (a.vertex_errors) write_text_file(out / "vertices.csv", vertex_error_csv(meshes, report));
   for (const auto& [kind, s] : {std::pair{"inter", report.inter}, {"intra", report.intra}})
     if (s.pairs > 0)
       fmt::print("{}-subject ({} ordered pairs): mean {} cm, median {} cm, p95 {} cm, max {} cm\n",

@@ -228,6 +228,8 @@ void run_register(RegisterArgs& a) {
       {"shape_fit", a.job.shape_fit},       {"proportions", a.job.proportions},
       {"proportions_with_shape", a.job.proportions_with_shape}, {"start_from_truth", a.start_from_truth},
       {"repair_local_folds", a.repair_local_folds}};
+  // Only when on, so folders made before the option resume as they were.
+  if (a.job.contact_segments) settings["contact_segments"] = true;
   // Only when given, so folders made before the option resume as they were.
   if (!a.no.shape_space.empty()) {
     settings["shape_space"] = file_fingerprint(a.no.shape_space);

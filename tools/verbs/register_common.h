@@ -34,6 +34,10 @@ inline void add_registration_flags(CLI::App* cmd, RegistrationJobOptions& job, N
                 "Keep the default MakeHuman body's shape (global scale and landmark proportions "
                 "only) instead of fitting the macro sliders (gender, age, muscle, weight, "
                 "height, proportions, cup) in the pose stage");
+  cmd->add_flag("--contact-segments", job.contact_segments,
+                "Refuse non-rigid data pairs between body segments that do not touch on the template (a scan "
+                "point of a hand resting on a hip, of crossed forearms or of a foot on the other knee is then "
+                "matched only to its own limb; docs/real-registration.md#contacts)");
   cmd->add_option("--shape-space", no.shape_space,
                   "Fit the shape in a space learned from real bodies (a file of `bodymodel shape-space`, "
                   "e.g. ANSUR II's soldiers) instead of the macro sliders; the template starts as its mean body")

@@ -44,7 +44,7 @@ struct RegisterMeshArgs {
   }();
   cli::NegatedRegistrationFlags no;
   std::vector<std::string> meshes;
-  std::string landmarks, out, up = "y";
+  std::string landmarks, out, up = "y", hand_stage = "off";
   double scale = 1.0;
   int jobs = 1, samples = MeshScanOptions{}.samples;
   bool force = false, detail = false, keep_folds = false;
@@ -147,6 +147,10 @@ void add_register_mesh_options(CLI::App* cmd, RegisterMeshArgs& a) {
                 "Do not smooth away triangles the non-rigid fit folded over (where the template "
                 "is finer than the mesh: eyelids, armpits), neither against the posed template "
                 "nor local folds (a triangle facing against its 2-ring, unlike at rest)");
+  cmd->add_option("--hand-stage", a.hand_stage, "As `register --hand-stage`: 'on' fits the wrists again, then one grasp per hand, one curl per finger and the "
+                  "thumbs, after the body; 'off' (the default here) one grasp rotation per hand, fitted with the body")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
   cmd->add_option("--pose-iterations", a.job.pose_iterations,
                   "ICP iterations of the pose fit (0: landmarks only)")
       ->capture_default_str();
@@ -162,6 +166,7 @@ void run_register_mesh(RegisterMeshArgs& a) {
   if (a.jobs < 1) throw InputError("--jobs must be at least 1, got " + std::to_string(a.jobs));
   cli::apply_registration_flags(a.job, a.no);
   if (a.keep_folds) a.job.folds = FoldRepair::keep;
+  a.job.hand_stage = a.hand_stage == "on";
   validate(a.job);
   const Eigen::Matrix3d up = up_axis_rotation(a.up, "--up");
   if (a.samples < 0) throw InputError("--samples must not be negative");
@@ -188,6 +193,9 @@ void run_register_mesh(RegisterMeshArgs& a) {
       {"pose_only", a.job.pose_only}, {"keep_folds", a.keep_folds},
       {"proportions", a.job.proportions}, {"shape_fit", a.job.shape_fit},
       {"pose_iterations", a.job.pose_iterations}, {"up", a.up}};
+  // Only when on, so folders made before the option resume as they were.
+  if (a.job.contact_segments) settings["contact_segments"] = true;
+  if (a.job.hand_stage) settings["hand_stage"] = "on";
   // Only when given, so folders made before the option resume as they were.
   if (!a.no.shape_space.empty()) {
     settings["shape_space"] = file_fingerprint(a.no.shape_space);
