@@ -237,6 +237,8 @@ void add_deform(CLI::App* group) {
   cmd->add_option("--unit-mm", a->unit_mm, "Millimetres per mesh unit (1000: metres)")->capture_default_str();
   cmd->add_option("--parts", a->o.parts, "Rigid parts (recovered from the training meshes)")->capture_default_str();
   cmd->add_option("--max-distance", a->o.max_marker_distance, "Largest distance (mm) of a reference marker from the mesh")->capture_default_str();
+  cmd->add_option("--rbf-ridge", a->o.skin.rbf_ridge, "Added to the RBF kernel matrix's diagonal (phi(0) = 2/3; 0: exact interpolation)")
+      ->capture_default_str();
   cmd->add_option("--clean-report", a->clean_report,
                   "The markers clean report of MARKERS: the samples its gaps filled get a lower confidence in the fits "
                   "(Park's and the rigs' skeleton), those far from a seen sample none in the RBF residual (a departure "
