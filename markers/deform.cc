@@ -133,6 +133,7 @@ MarkerSkin build_marker_skin(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3
   skin.marker_count = static_cast<int>(reference_markers.rows());
   skin.quadratic_ridge = o.quadratic_ridge;
   skin.rbf_ridge = o.rbf_ridge;
+  skin.rbf_min_confidence = o.rbf_min_confidence;
   skin.outlier_factor = o.outlier_factor;
   skin.outlier_floor = o.outlier_floor;
   for (Eigen::Index j = 0; j < rest.rows(); ++j)
@@ -176,14 +177,16 @@ Eigen::Matrix<double, 3, 10> fit_quadratic(const Eigen::MatrixXd& Q, const Eigen
   return H.ldlt().solve(rhs).transpose();
 }
 
-// Eq. 7 over the inliers (w = 1): RBF weights interpolating the residual there (exactly when the
-// ridge is 0); outliers get none.
+// Eq. 7 over the members with w > 0 (the inliers, and with a confidence, those trusted enough): RBF
+// weights interpolating the residual there (exactly when the ridge is 0); the others get none. A
+// member's ridge is divided by its confidence c: a less certain residual is followed less closely.
 Eigen::MatrixX3d fit_rbf(const MarkerSkinPart& part, const Eigen::MatrixX3d& residual, const Eigen::VectorXd& w,
-                         double ridge) {
+                         const Eigen::VectorXd& c, double ridge) {
   std::vector<Eigen::Index> in;
   for (Eigen::Index k = 0; k < w.size(); ++k)
     if (w(k) > 0) in.push_back(k);
   const auto n = static_cast<Eigen::Index>(in.size());
+  if (n == 0) return Eigen::MatrixX3d::Zero(w.size(), 3);
   Eigen::MatrixXd Phi(n, n), R(n, 3);
   for (Eigen::Index a = 0; a < n; ++a) {
     R.row(a) = residual.row(in[static_cast<size_t>(a)]);
@@ -192,7 +195,7 @@ Eigen::MatrixX3d fit_rbf(const MarkerSkinPart& part, const Eigen::MatrixX3d& res
           (part.member_local.row(in[static_cast<size_t>(a)]) - part.member_local.row(in[static_cast<size_t>(b)])).norm() /
           part.dilation);
   }
-  Phi.diagonal().array() += ridge;
+  for (Eigen::Index a = 0; a < n; ++a) Phi(a, a) += ridge / c(in[static_cast<size_t>(a)]);
   const Eigen::MatrixXd sol = Phi.completeOrthogonalDecomposition().solve(R);
   Eigen::MatrixX3d out = Eigen::MatrixX3d::Zero(w.size(), 3);
   for (Eigen::Index a = 0; a < n; ++a) out.row(in[static_cast<size_t>(a)]) = sol.row(a);
@@ -212,46 +215,77 @@ Eigen::VectorXd inlier_weights(const Eigen::VectorXd& r, double factor, double f
 }
 
 RigidMotion fit_rigid_robust(const Eigen::MatrixX3d& A, const Eigen::MatrixX3d& B, double factor, double floor,
-                             Eigen::VectorXd* weights) {
+                             Eigen::VectorXd* weights, const Eigen::VectorXd& prior) {
+  const Eigen::VectorXd c = prior.size() == A.rows() ? prior : Eigen::VectorXd::Ones(A.rows());
   Eigen::VectorXd w = Eigen::VectorXd::Ones(A.rows());
-  RigidMotion g = fit_rigid_motion(A, B, w);
+  RigidMotion g = fit_rigid_motion(A, B, c);
   for (int round = 0; round < 3 && factor > 0; ++round) {
     const Eigen::VectorXd next = inlier_weights((apply(g, A) - B).rowwise().norm(), factor, floor);
     if (next == w) break;
     w = next;
-    g = fit_rigid_motion(A, B, w);
+    g = fit_rigid_motion(A, B, w.cwiseProduct(c));
   }
   if (weights) *weights = w;
   return g;
 }
 
-PartMotion fit_part_motion(const MarkerSkinPart& part, const Eigen::MatrixX3d& markers, MarkerSkinStage stage,
-                           const MarkerSkin& skin) {
+namespace {
+
+// A part's rigid and quadratic fit in one frame, before the RBF: the members weighed by their
+// confidence c, the outliers (w = 0) left out; each member's residual in local / scale units.
+struct PartFit {
+  PartMotion motion;
+  Eigen::MatrixX3d residual;
+  Eigen::VectorXd w, c;
+};
+
+PartFit fit_part(const MarkerSkinPart& part, const Eigen::MatrixX3d& markers, MarkerSkinStage stage, const MarkerSkin& skin,
+                 const Eigen::VectorXd& confidence) {
   const Eigen::Index m = static_cast<Eigen::Index>(part.members.size());
   Eigen::MatrixX3d C(m, 3);
   Eigen::MatrixXd Q(m, 10);
+  PartFit out;
+  out.c = Eigen::VectorXd::Ones(m);
   for (Eigen::Index k = 0; k < m; ++k) {
     C.row(k) = markers.row(part.members[static_cast<size_t>(k)]);
+    if (confidence.size()) out.c(k) = confidence(part.members[static_cast<size_t>(k)]);
     Q.row(k) = quadratic_vector(part.member_local.row(k).transpose() / part.scale).transpose();
   }
   // Markers that the part's motion does not explain (a wrong merge or a bad fill of the cleaning)
   // are left out of the fits, a few rounds (our addition; the paper's markers are checked by hand).
-  Eigen::VectorXd w = Eigen::VectorXd::Ones(m);
-  PartMotion out{Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), identity_quadratic(), Eigen::MatrixX3d::Zero(m, 3)};
-  Eigen::MatrixX3d residual;
+  out.w = Eigen::VectorXd::Ones(m);
+  out.motion = {Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), identity_quadratic(), Eigen::MatrixX3d::Zero(m, 3)};
   for (int round = 0; round < 4; ++round) {
-    const RigidMotion g = fit_rigid_motion(C, part.member_local, w);
-    out.R = g.R, out.t = g.t;
+    const RigidMotion g = fit_rigid_motion(C, part.member_local, out.w.cwiseProduct(out.c));
+    out.motion.R = g.R, out.motion.t = g.t;
     const Eigen::MatrixX3d local = apply(g, C) / part.scale;
-    if (stage != MarkerSkinStage::rigid) out.A = fit_quadratic(Q, local, w, skin.quadratic_ridge);
-    residual = local - Q * out.A.transpose();
-    const Eigen::VectorXd next = inlier_weights(residual.rowwise().norm() * part.scale, skin.outlier_factor,
+    if (stage != MarkerSkinStage::rigid) out.motion.A = fit_quadratic(Q, local, out.w.cwiseProduct(out.c), skin.quadratic_ridge);
+    out.residual = local - Q * out.motion.A.transpose();
+    const Eigen::VectorXd next = inlier_weights(out.residual.rowwise().norm() * part.scale, skin.outlier_factor,
                                                 skin.outlier_floor * part.scale);
-    if (next == w) break;
-    w = next;
+    if (next == out.w) break;
+    out.w = next;
   }
-  if (stage == MarkerSkinStage::full) out.rbf = fit_rbf(part, residual, w, skin.rbf_ridge);
   return out;
+}
+
+void add_part(Eigen::MatrixX3d& V, const MarkerSkinPart& part, const PartMotion& m) {
+  for (size_t k = 0; k < part.vertices.size(); ++k) {
+    const auto kk = static_cast<Eigen::Index>(k);
+    V.row(part.vertices[k]) += part.vertex_weight(kk) * part_position(part, m, part.vertex_local.row(kk).transpose()).transpose();
+  }
+}
+
+}  // namespace
+
+PartMotion fit_part_motion(const MarkerSkinPart& part, const Eigen::MatrixX3d& markers, MarkerSkinStage stage,
+                           const MarkerSkin& skin, const Eigen::VectorXd& confidence) {
+  PartFit f = fit_part(part, markers, stage, skin, confidence);
+  // A filled marker far from a seen sample is not interpolated: its residual is the cleaning's
+  // error more than the skin's.
+  if (stage == MarkerSkinStage::full)
+    f.motion.rbf = fit_rbf(part, f.residual, (f.c.array() < skin.rbf_min_confidence).select(0.0, f.w), f.c, skin.rbf_ridge);
+  return f.motion;
 }
 
 Eigen::Vector3d part_position(const MarkerSkinPart& part, const PartMotion& m, const Eigen::Vector3d& local) {
@@ -263,18 +297,26 @@ Eigen::Vector3d part_position(const MarkerSkinPart& part, const PartMotion& m, c
   return m.R.transpose() * (part.scale * x - m.t);
 }
 
-Eigen::MatrixX3d deform_by_markers(const MarkerSkin& skin, const Eigen::MatrixX3d& markers, MarkerSkinStage stage) {
+void check_confidence(const Eigen::VectorXd& confidence, Eigen::Index markers) {
+  if (confidence.size() == 0) return;
+  if (confidence.size() != markers)
+    throw InputError("markers: " + std::to_string(confidence.size()) + " confidences given for " + std::to_string(markers) + " markers");
+  for (Eigen::Index i = 0; i < confidence.size(); ++i)
+    if (!(confidence(i) > 0 && confidence(i) <= 1))
+      throw InputError("markers: the confidence of marker " + std::to_string(i) + " is " + std::to_string(confidence(i)) +
+                       ", not in (0, 1]");
+}
+
+Eigen::MatrixX3d deform_by_markers(const MarkerSkin& skin, const Eigen::MatrixX3d& markers, MarkerSkinStage stage,
+                                   const Eigen::VectorXd& confidence) {
   if (markers.rows() != skin.marker_count)
     throw InputError("markers: " + std::to_string(markers.rows()) + " markers given, the skin was built with " +
                      std::to_string(skin.marker_count));
   if (!markers.allFinite()) throw InputError("markers: every marker must be present (clean the capture first)");
+  check_confidence(confidence, markers.rows());
   Eigen::MatrixX3d V = Eigen::MatrixX3d::Zero(skin.vertex_count, 3);
   for (const MarkerSkinPart& part : skin.parts) {
-    const PartMotion m = fit_part_motion(part, markers, stage, skin);
-    for (size_t k = 0; k < part.vertices.size(); ++k) {
-      const auto kk = static_cast<Eigen::Index>(k);
-      V.row(part.vertices[k]) += part.vertex_weight(kk) * part_position(part, m, part.vertex_local.row(kk).transpose()).transpose();
-    }
+    add_part(V, part, fit_part_motion(part, markers, stage, skin, confidence));
   }
   return V;
 }

@@ -15,6 +15,10 @@
 // that the part's fit does not explain are left out (errors of the cleaning); a vertex ignores parts
 // with no member within reach (a quadratic extrapolates wildly far from its markers). The part
 // weights of vertices and markers are the caller's (markers/deform_evaluation.h: an SSD rig's).
+// Confidence (a departure, only when the caller gives one): a marker's confidence in (0, 1] weighs
+// it in the rigid and quadratic fits and divides its RBF ridge; a marker below rbf_min_confidence
+// (a sample the cleaning filled far from a seen one) is left out of the RBF residual, so the part's
+// fit and its trusted neighbours' residual place the skin there.
 #pragma once
 
 #include <Eigen/Core>
@@ -35,6 +39,9 @@ struct MarkerSkinOptions {
   double outlier_factor = 3, outlier_floor = 0.1;
   // A vertex leaves out the parts with no member within reach × the part's dilation (0: keep all).
   double reach = 1;
+  // With confidences: a marker below this is left out of the RBF residual; the others' ridge is
+  // rbf_ridge / confidence (1: only fully trusted markers are interpolated).
+  double rbf_min_confidence = 0.05;
 };
 
 // rigid: parts' rigid motion only; quadratic: plus A; full: plus the RBF residual (the paper's method).
@@ -56,6 +63,7 @@ struct MarkerSkin {
   int vertex_count = 0, marker_count = 0;
   double quadratic_ridge = MarkerSkinOptions().quadratic_ridge;
   double rbf_ridge = MarkerSkinOptions().rbf_ridge;
+  double rbf_min_confidence = MarkerSkinOptions().rbf_min_confidence;
   double outlier_factor = MarkerSkinOptions().outlier_factor, outlier_floor = MarkerSkinOptions().outlier_floor;
   std::vector<MarkerSkinPart> parts;  // parts without vertices are dropped
 };
@@ -77,22 +85,28 @@ struct PartMotion {
   Eigen::Matrix<double, 3, 10> A;
   Eigen::MatrixX3d rbf;
 };
+// confidence: #M in (0, 1] (empty: every marker 1, the paper's method).
 PartMotion fit_part_motion(const MarkerSkinPart& part, const Eigen::MatrixX3d& markers, MarkerSkinStage stage,
-                           const MarkerSkin& skin);
+                           const MarkerSkin& skin, const Eigen::VectorXd& confidence = Eigen::VectorXd());
 // Where the part puts a point given by its local reference position (eq. 8), in global coordinates.
 Eigen::Vector3d part_position(const MarkerSkinPart& part, const PartMotion& m, const Eigen::Vector3d& local);
 
-// The deformed mesh (#V by 3) for the markers of one frame (#M by 3, every marker present).
-// InputError when the marker count differs or a marker is not finite.
+// The deformed mesh (#V by 3) for the markers of one frame (#M by 3, every marker present), each
+// weighed by its confidence (#M in (0, 1]; empty: all 1, the paper's method).
+// InputError when the marker count differs, a marker is not finite or a confidence is outside (0, 1].
 Eigen::MatrixX3d deform_by_markers(const MarkerSkin& skin, const Eigen::MatrixX3d& markers,
-                                   MarkerSkinStage stage = MarkerSkinStage::full);
+                                   MarkerSkinStage stage = MarkerSkinStage::full,
+                                   const Eigen::VectorXd& confidence = Eigen::VectorXd());
+// InputError unless `confidence` is empty or #M values in (0, 1].
+void check_confidence(const Eigen::VectorXd& confidence, Eigen::Index markers);
 
 // 0/1 weights: 1 where r ≤ max(factor × median(r), floor); all 1 when factor ≤ 0, fewer than 4
 // residuals or fewer than 3 would stay.
 Eigen::VectorXd inlier_weights(const Eigen::VectorXd& r, double factor, double floor);
-// Kabsch (A → B) refitted on the inliers of its residuals (inlier_weights), up to 3 rounds.
+// Kabsch (A → B) refitted on the inliers of its residuals (inlier_weights), up to 3 rounds; each
+// point weighed by `prior` too (empty: 1).
 RigidMotion fit_rigid_robust(const Eigen::MatrixX3d& A, const Eigen::MatrixX3d& B, double factor, double floor,
-                             Eigen::VectorXd* weights = nullptr);
+                             Eigen::VectorXd* weights = nullptr, const Eigen::VectorXd& prior = Eigen::VectorXd());
 
 // The cubic B-spline of eq. 7 (support |r| < 2, φ(0) = 2/3).
 double cubic_bspline(double r);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <map>
 #include <numeric>
 
 #include "core/error.h"
@@ -33,6 +34,10 @@ int check_inputs(const std::vector<Eigen::MatrixX3d>& meshes, const MarkerData& 
   const int k = ratio < 1e6 ? static_cast<int>(std::lround(ratio)) : 0;
   if (k < 1 || std::abs(ratio - k) > 1e-6)
     throw InputError("markers deform: the capture rate (" + std::to_string(d.rate) + " Hz) must be a whole multiple of the mesh rate (" + std::to_string(o.mesh_rate) + ")");
+  if (o.confidence.size() && (o.confidence.rows() != d.frame_count() || o.confidence.cols() != d.marker_count()))
+    throw InputError("markers deform: the confidences are " + std::to_string(o.confidence.rows()) + " by " + std::to_string(o.confidence.cols()) +
+                     ", the capture has " + std::to_string(d.frame_count()) + " frames by " + std::to_string(d.marker_count()) + " markers");
+  for (Eigen::Index f = 0; f < o.confidence.rows(); ++f) check_confidence(o.confidence.row(f).transpose(), o.confidence.cols());
   const int expected = (static_cast<int>(meshes.size()) - 1) * k + 1;
   if (d.frame_count() != expected)
     throw InputError("markers deform: the capture has " + std::to_string(d.frame_count()) + " frames but " +
@@ -92,6 +97,11 @@ MethodError method_error(const std::string& name, const std::vector<Eigen::Matri
   return e;
 }
 
+// Row `frame` of the samples' confidence (empty when there is none).
+Eigen::VectorXd frame_confidence(const MarkerDeformOptions& o, int frame) {
+  return o.confidence.size() ? Eigen::VectorXd(o.confidence.row(frame).transpose()) : Eigen::VectorXd();
+}
+
 // SSD and MWE rigs fitted to the training meshes posed by the marker skeleton.
 void fit_rigs(MarkerDeformComparison& r, const std::vector<Eigen::MatrixX3d>& meshes, const MarkerData& d,
               const MarkerDeformOptions& o) {
@@ -99,7 +109,8 @@ void fit_rigs(MarkerDeformComparison& r, const std::vector<Eigen::MatrixX3d>& me
   ex.rest = meshes[0];
   const Eigen::MatrixX3d reference = marker_frame(d, 0);
   for (int k : r.train_meshes) {
-    ex.transforms.push_back(fit_marker_skeleton(reference, marker_frame(d, k * r.frames_per_mesh), r.part_markers, o.skin));
+    const int f = k * r.frames_per_mesh;
+    ex.transforms.push_back(fit_marker_skeleton(reference, marker_frame(d, f), r.part_markers, o.skin, frame_confidence(o, f)));
     ex.poses.push_back(meshes[static_cast<size_t>(k)]);
   }
   LbsFitOptions lo;
@@ -134,17 +145,43 @@ Eigen::MatrixX3d marker_frame(const MarkerData& d, int frame) {
   return P;
 }
 
+Eigen::MatrixXd filled_sample_confidence(const MarkerData& d, const std::vector<GapRecord>& gaps, double filled_weight,
+                                         double halflife) {
+  if (!(filled_weight > 0 && filled_weight <= 1)) throw InputError("the filled samples' weight must be in (0, 1], found " + std::to_string(filled_weight));
+  if (!(halflife > 0) || !std::isfinite(halflife)) throw InputError("the filled samples' half-life must be positive, found " + std::to_string(halflife));
+  std::map<std::string, int> column;
+  for (int i = 0; i < d.marker_count(); ++i) column[d.labels[static_cast<size_t>(i)]] = i;
+  Eigen::MatrixXd c = Eigen::MatrixXd::Ones(d.frame_count(), d.marker_count());
+  for (const GapRecord& g : gaps) {
+    const auto it = column.find(g.marker);
+    if (it == column.end()) throw InputError("cleaning report: gap of marker '" + g.marker + "', which the capture does not have");
+    if (g.first < 0 || g.last < g.first || g.last >= d.frame_count())
+      throw InputError("cleaning report: gap of marker '" + g.marker + "' over frames " + std::to_string(g.first) + "-" +
+                       std::to_string(g.last) + ", not within the capture's " + std::to_string(d.frame_count()) +
+                       " frames (a report of another capture?)");
+    for (int f = g.first; f <= g.last; ++f) {  // frames to the nearest sample seen, either side
+      const int before = g.first > 0 ? f - g.first + 1 : d.frame_count();
+      const int after = g.last + 1 < d.frame_count() ? g.last + 1 - f : d.frame_count();
+      c(f, it->second) = filled_weight * std::exp2(-(std::min(before, after) - 1) / halflife);
+    }
+  }
+  return c;
+}
+
 BoneTransforms fit_marker_skeleton(const Eigen::MatrixX3d& reference, const Eigen::MatrixX3d& markers,
-                                   const std::vector<std::vector<int>>& part_markers, const MarkerSkinOptions& o) {
+                                   const std::vector<std::vector<int>>& part_markers, const MarkerSkinOptions& o,
+                                   const Eigen::VectorXd& confidence) {
   BoneTransforms M;
   for (const auto& mem : part_markers) {
     Eigen::MatrixX3d A(static_cast<Eigen::Index>(mem.size()), 3), B(static_cast<Eigen::Index>(mem.size()), 3);
+    Eigen::VectorXd c = Eigen::VectorXd::Ones(static_cast<Eigen::Index>(mem.size()));
     for (size_t k = 0; k < mem.size(); ++k) {
       A.row(static_cast<Eigen::Index>(k)) = reference.row(mem[k]);
       B.row(static_cast<Eigen::Index>(k)) = markers.row(mem[k]);
+      if (confidence.size()) c(static_cast<Eigen::Index>(k)) = confidence(mem[k]);
     }
     const double scale = std::sqrt((A.rowwise() - A.colwise().mean()).rowwise().squaredNorm().mean());
-    const RigidMotion g = fit_rigid_robust(A, B, o.outlier_factor, o.outlier_floor * scale);
+    const RigidMotion g = fit_rigid_robust(A, B, o.outlier_factor, o.outlier_floor * scale, nullptr, c);
     Eigen::Affine3d T = Eigen::Affine3d::Identity();
     T.linear() = g.R;
     T.translation() = g.t;
@@ -188,13 +225,14 @@ MarkerDeformComparison compare_marker_skins(const std::vector<Eigen::MatrixX3d>&
   report_progress(progress, 0.7, "held-out frames");
   for (int k : r.test_meshes) r.test_frames.push_back(k * r.frames_per_mesh);
   auto at = [&](size_t k) { return marker_frame(d, r.test_frames[k]); };
+  auto trust = [&](size_t k) { return frame_confidence(o, r.test_frames[k]); };
   const std::pair<const char*, MarkerSkinStage> stages[] = {
       {"park", MarkerSkinStage::full}, {"park-quadratic", MarkerSkinStage::quadratic}, {"park-rigid", MarkerSkinStage::rigid}};
   for (const auto& [name, stage] : stages)
-    r.errors.push_back(method_error(name, truth, [&, st = stage](size_t k) { return deform_by_markers(r.skin, at(k), st); }));
+    r.errors.push_back(method_error(name, truth, [&, st = stage](size_t k) { return deform_by_markers(r.skin, at(k), st, trust(k)); }));
   for (const SkinningRig* rig : {&r.ssd, &r.mwe})
     r.errors.push_back(method_error(rig == &r.ssd ? "ssd" : "mwe", truth, [&](size_t k) {
-      return evaluate_rig(*rig, fit_marker_skeleton(reference, at(k), r.part_markers, o.skin));
+      return evaluate_rig(*rig, fit_marker_skeleton(reference, at(k), r.part_markers, o.skin, trust(k)));
     }));
   report_progress(progress, 1.0, "done");
   return r;

@@ -24,6 +24,7 @@
 
 #include "core/progress.h"
 #include "core/skeleton.h"
+#include "markers/clean.h"
 #include "markers/deform.h"
 #include "markers/marker_data.h"
 #include "skinning/skinning_rig.h"
@@ -38,7 +39,19 @@ struct MarkerDeformOptions {
   int max_influences = 4;             // SSD slots per vertex
   int weight_markers = 0;             // Park's vertex weights: from this many nearest markers (0: the SSD weights)
   unsigned seed = 1;
+  // Frames × markers in (0, 1] (filled_sample_confidence), or empty: every sample trusted (the
+  // paper). Weighs the samples in Park's fits and in the rigs' skeleton (the same for all methods).
+  Eigen::MatrixXd confidence;
 };
+
+// The confidence of each sample of a cleaned capture (frames × markers): 1 where the marker was
+// seen; in a gap the cleaning filled (`gaps`: CleanReport::gaps), filled_weight · 2^(−(d − 1) /
+// halflife), d the frames to the nearest sample seen (1 next to one): a filled sample's error grows
+// with the time since the marker was seen (docs/markers.md#confidence-of-filled-samples).
+// InputError (one line) for a gap of an unknown marker or outside the frames, a weight outside
+// (0, 1] or a half-life not positive.
+Eigen::MatrixXd filled_sample_confidence(const MarkerData& d, const std::vector<GapRecord>& gaps, double filled_weight,
+                                         double halflife);
 
 struct MethodError {
   std::string method;
@@ -58,8 +71,10 @@ struct MarkerDeformComparison {
 
 // Rigid maps reference → frame of each part from its markers (Kabsch, refitted without the outliers
 // as Park's parts are: o.outlier_factor, o.outlier_floor × the markers' RMS radius), as a skeleton.
+// confidence: #M (empty: all 1), weighing each marker in the fits.
 BoneTransforms fit_marker_skeleton(const Eigen::MatrixX3d& reference, const Eigen::MatrixX3d& markers,
-                                   const std::vector<std::vector<int>>& part_markers, const MarkerSkinOptions& o = {});
+                                   const std::vector<std::vector<int>>& part_markers, const MarkerSkinOptions& o = {},
+                                   const Eigen::VectorXd& confidence = Eigen::VectorXd());
 
 // The markers of one frame as #M by 3.
 Eigen::MatrixX3d marker_frame(const MarkerData& d, int frame);
@@ -69,7 +84,8 @@ Eigen::MatrixX3d marker_frame(const MarkerData& d, int frame);
 // frame f at mesh time f · mesh_rate / rate. InputError (one line) when: there are unlabelled
 // pieces or missing samples, the capture rate is not a whole multiple of the mesh rate, the frame
 // counts disagree, fewer than 3 meshes, or a reference marker is farther than max_marker_distance
-// from the reference mesh (markers of another mesh, or in another unit).
+// from the reference mesh (markers of another mesh, or in another unit), or options.confidence is
+// not empty and not frames × markers in (0, 1].
 MarkerDeformComparison compare_marker_skins(const std::vector<Eigen::MatrixX3d>& meshes, const Eigen::MatrixX3i& F,
                                             const MarkerData& markers, const MarkerDeformOptions& options = {},
                                             const ProgressCallback& progress = {});

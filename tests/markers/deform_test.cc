@@ -105,6 +105,64 @@ TEST(MarkerSkin, LeavesAMisplacedMarkerOutOfItsPartsFit) {
   EXPECT_GT(max_error(deform_by_markers(all, s.markers_moved, MarkerSkinStage::full), s.rest_moved), 10.0);
 }
 
+// Samples the cleaning filled, each off by a known 25 mm, with the outlier test off (most bad fills
+// are within its reach on the captures): trusted, the fits and the RBF carry their error into the
+// skin; with a low confidence the fits lean on the seen markers and the RBF leaves them out.
+TEST(MarkerSkin, LowConfidenceInFilledMarkersKeepsTheirErrorOutOfTheSkin) {
+  TwoParts s = two_parts();
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n(0, 1);
+  Eigen::VectorXd confidence = Eigen::VectorXd::Ones(s.markers.rows());
+  for (int i = 3; i < s.markers.rows(); i += 7) {  // 9 of the 60 markers
+    const Eigen::RowVector3d dir = Eigen::RowVector3d(n(rng), n(rng), n(rng)).normalized();
+    s.markers_moved.row(i) += 25 * dir;
+    confidence(i) = 0.01;  // below rbf_min_confidence: left out of the RBF
+  }
+  MarkerSkinOptions o = exact();
+  o.outlier_factor = 0;
+  const MarkerSkin skin = build_marker_skin(s.rest, s.markers, s.vertex_weights, s.marker_weights, o);
+  auto mean_error = [&](const Eigen::MatrixX3d& V) { return (V - s.rest_moved).rowwise().norm().mean(); };
+  const double trusted = mean_error(deform_by_markers(skin, s.markers_moved));
+  const double weighed = mean_error(deform_by_markers(skin, s.markers_moved, MarkerSkinStage::full, confidence));
+  EXPECT_GT(trusted, 2.0) << "the filled samples' error reaches the skin when trusted";
+  EXPECT_LT(weighed, 0.25 * trusted);
+  EXPECT_LT(weighed, 1.0);
+  // Every confidence 1 is the paper's method, exactly.
+  EXPECT_EQ(deform_by_markers(skin, s.markers_moved, MarkerSkinStage::full, Eigen::VectorXd::Ones(s.markers.rows())),
+            deform_by_markers(skin, s.markers_moved));
+  Eigen::VectorXd bad = confidence;
+  bad(4) = 0;
+  EXPECT_THROW(deform_by_markers(skin, s.markers_moved, MarkerSkinStage::full, bad), InputError);
+  EXPECT_THROW(deform_by_markers(skin, s.markers_moved, MarkerSkinStage::full, confidence.head(10)), InputError);
+}
+
+TEST(MarkerSkin, FilledSampleConfidenceHalvesWithTheFramesFromASeenSample) {
+  MarkerData d;
+  d.rate = 120;
+  d.labels = {"A", "B"};
+  d.xyz = Eigen::MatrixXd::Zero(20, 6);
+  // A: frames 5-9 filled (seen at 4 and 10); B: frames 15-19 (to the end: only frame 14 bounds it).
+  const Eigen::MatrixXd c = filled_sample_confidence(d, {{"A", 5, 9}, {"B", 15, 19}}, 0.2, 2);
+  const double expected_a[] = {0.2, 0.2 / std::sqrt(2.0), 0.1, 0.2 / std::sqrt(2.0), 0.2};
+  for (int f = 0; f < 20; ++f) {
+    EXPECT_NEAR(c(f, 0), f >= 5 && f <= 9 ? expected_a[f - 5] : 1.0, 1e-12) << f;
+    EXPECT_NEAR(c(f, 1), f >= 15 ? 0.2 * std::exp2(-(f - 15) / 2.0) : 1.0, 1e-12) << f;
+  }
+  auto refusal = [&](const std::vector<GapRecord>& gaps, double w = 0.1, double h = 10) {
+    try {
+      filled_sample_confidence(d, gaps, w, h);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(refusal({{"C", 3, 4}}).find("gap of marker 'C'"), std::string::npos);
+  EXPECT_NE(refusal({{"A", 18, 20}}).find("not within the capture's 20 frames"), std::string::npos);
+  EXPECT_NE(refusal({{"A", 6, 5}}).find("over frames 6-5"), std::string::npos);
+  EXPECT_NE(refusal({}, 0).find("weight"), std::string::npos);
+  EXPECT_NE(refusal({}, 0.1, 0).find("half-life"), std::string::npos);
+}
+
 TEST(MarkerSkin, RadialBasisResidualInterpolatesTheMarkersExactly) {
   const Eigen::MatrixX3d ref = random_points(50, {-150, -150, -150}, {150, 150, 150}, 4);
   Eigen::MatrixX3d now = ref;

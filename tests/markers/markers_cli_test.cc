@@ -28,6 +28,40 @@ int run(const std::string& args, std::string* err = nullptr) {
   return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
 }
 
+// markers deform --clean-report: a report that is not JSON, lacks the gaps, or names a marker or
+// frames the capture does not have ends with one line naming it, exit 2, nothing written (the
+// report is read before the meshes, so none are needed here).
+TEST(MarkersCli, DeformRefusesABadCleanReport) {
+  const fs::path dir = fs::temp_directory_path() / ("bodymodel_markers_report_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  MarkerData d;
+  d.rate = 120;
+  d.labels = {"A", "B", "C"};
+  d.xyz = Eigen::MatrixXd::Zero(10, 9);
+  write_markers(dir / "m.trc", d);
+  const std::pair<std::string, std::string> cases[] = {
+      {"{not json", "not a markers clean report"},
+      {"{\"merged\": 3}", "not a markers clean report"},
+      {"{\"gaps\": [{\"marker\": \"A\", \"first_frame\": 2}]}", "gap 0 is not"},
+      {"{\"gaps\": [{\"marker\": \"Z\", \"first_frame\": 2, \"last_frame\": 3}]}", "gap of marker 'Z'"},
+      {"{\"gaps\": [{\"marker\": \"B\", \"first_frame\": 8, \"last_frame\": 12}]}", "not within the capture's 10 frames"}};
+  for (const auto& [text, expected] : cases) {
+    write_text_file(dir / "report.json", text);
+    std::string err;
+    EXPECT_EQ(run("markers deform " + (dir / "m.trc").string() + " --meshes " + (dir / "none").string() + " --clean-report " +
+                      (dir / "report.json").string() + " --out " + (dir / "out").string(), &err), 2) << text;
+    EXPECT_NE(err.find(expected), std::string::npos) << err;
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+    EXPECT_FALSE(fs::exists(dir / "out"));
+  }
+  std::string err;
+  EXPECT_EQ(run("markers deform " + (dir / "m.trc").string() + " --meshes " + (dir / "none").string() + " --clean-report " +
+                    (dir / "missing.json").string() + " --out " + (dir / "out").string(), &err), 2);
+  EXPECT_NE(err.find("missing.json"), std::string::npos) << err;
+  fs::remove_all(dir);
+}
+
 TEST(MarkersCli, SimulateThenCleanWritesEveryMarkerAndAReport) {
   const fs::path dir = fs::temp_directory_path() / ("bodymodel_markers_cli_" + std::to_string(::getpid()));
   fs::remove_all(dir);

@@ -16,6 +16,7 @@
 #include "markers/simulate.h"
 #include "markers/trc.h"
 #include "tools/console.h"
+#include "tools/pipeline/marker_pictures.h"
 #include "tools/pipeline/output_folder.h"
 #include "tools/verb.h"
 #include "tools/verbs/skin_common.h"
@@ -158,7 +159,8 @@ void add_clean(CLI::App* group) {
 }
 
 struct DeformArgs {
-  std::string markers, out;
+  std::string markers, out, clean_report;
+  double filled_weight = 0.1, filled_halflife = 10;
   std::vector<std::string> meshes;  // one folder, or the frame files in order
   double unit_mm = 1000;
   int write_every = 0;
@@ -181,13 +183,16 @@ std::string deform_table(const MarkerDeformComparison& r) {
 void run_deform(const DeformArgs& a) {
   if (!(a.unit_mm > 0)) throw InputError("--unit-mm must be positive");
   const MarkerData markers = read_markers(a.markers);
+  MarkerDeformOptions o = a.o;
+  if (!a.clean_report.empty())
+    o.confidence = filled_sample_confidence(markers, read_clean_gaps(a.clean_report), a.filled_weight, a.filled_halflife);
   MeshSequence seq = a.meshes.size() == 1 && std::filesystem::is_directory(a.meshes[0])
                          ? read_mesh_sequence(a.meshes[0])
                          : read_mesh_files(std::vector<std::filesystem::path>(a.meshes.begin(), a.meshes.end()));
   for (auto& V : seq.frames) V *= a.unit_mm;
   StagedFolder out(a.out, a.force);
   ProgressBar bar("markers deform");
-  const MarkerDeformComparison r = compare_marker_skins(seq.frames, seq.F, markers, a.o, bar.callback());
+  const MarkerDeformComparison r = compare_marker_skins(seq.frames, seq.F, markers, o, bar.callback());
   bar.finish();
   nlohmann::json errors = nlohmann::json::object();
   std::string line;
@@ -195,15 +200,22 @@ void run_deform(const DeformArgs& a) {
     errors[e.method] = {{"mean_mm", e.mean}, {"max_mm", e.max}};
     line += fmt::format("{}{} {:.2f} / {:.1f}", line.empty() ? "" : ", ", e.method, e.mean, e.max);
   }
-  const nlohmann::json summary = {
+  nlohmann::json summary = {
       {"verb", "markers deform"}, {"markers", a.markers},
       {"meshes", a.meshes.size() == 1 ? nlohmann::json(a.meshes[0]) : nlohmann::json(a.meshes)}, {"parts", a.o.parts},
       {"mesh_rate", a.o.mesh_rate}, {"train_meshes", r.train_meshes}, {"test_meshes", r.test_meshes},
       {"test_frames", r.test_frames}, {"errors", errors}};
+  if (!a.clean_report.empty())
+    summary["confidence"] = {{"clean_report", a.clean_report}, {"filled_weight", a.filled_weight},
+                             {"filled_halflife", a.filled_halflife}, {"rbf_min_confidence", a.o.skin.rbf_min_confidence},
+                             {"filled_samples", (o.confidence.array() < 1).count()}};
   write_text_file(out / "deform.json", json_text(summary, 1) + "\n");
   write_text_file(out / "errors.csv", deform_table(r));
-  for (int f = 0; a.write_every > 0 && f < markers.frame_count(); f += a.write_every)
-    write_mesh(out / fmt::format("park_{:05d}.obj", f), deform_by_markers(r.skin, marker_frame(markers, f)) / a.unit_mm, seq.F);
+  for (int f = 0; a.write_every > 0 && f < markers.frame_count(); f += a.write_every) {
+    const Eigen::VectorXd trust = o.confidence.size() ? Eigen::VectorXd(o.confidence.row(f).transpose()) : Eigen::VectorXd();
+    const Eigen::MatrixX3d V = deform_by_markers(r.skin, marker_frame(markers, f), MarkerSkinStage::full, trust);
+    write_mesh(out / fmt::format("park_{:05d}.obj", f), V / a.unit_mm, seq.F);
+  }
   out.commit();
   info(fmt::format("{} held-out frames, mean / max vertex error (mm): {} → {}", r.test_frames.size(), line, a.out));
 }
@@ -225,6 +237,20 @@ void add_deform(CLI::App* group) {
   cmd->add_option("--unit-mm", a->unit_mm, "Millimetres per mesh unit (1000: metres)")->capture_default_str();
   cmd->add_option("--parts", a->o.parts, "Rigid parts (recovered from the training meshes)")->capture_default_str();
   cmd->add_option("--max-distance", a->o.max_marker_distance, "Largest distance (mm) of a reference marker from the mesh")->capture_default_str();
+  cmd->add_option("--rbf-ridge", a->o.skin.rbf_ridge, "Added to the RBF kernel matrix's diagonal (phi(0) = 2/3; 0: exact interpolation)")
+      ->capture_default_str();
+  cmd->add_option("--clean-report", a->clean_report,
+                  "The markers clean report of MARKERS: the samples its gaps filled get a lower confidence in the fits "
+                  "(Park's and the rigs' skeleton), those far from a seen sample none in the RBF residual (a departure "
+                  "from the paper; without it every sample is trusted)");
+  cmd->add_option("--filled-weight", a->filled_weight, "With --clean-report: a filled sample's weight next to a seen one, in (0, 1]")
+      ->capture_default_str();
+  cmd->add_option("--filled-halflife", a->filled_halflife,
+                  "With --clean-report: frames from the nearest seen sample over which a filled sample's weight halves")
+      ->capture_default_str();
+  cmd->add_option("--rbf-min-confidence", a->o.skin.rbf_min_confidence,
+                  "With --clean-report: samples of lower confidence are left out of the RBF residual")
+      ->capture_default_str();
   cmd->add_option("--write-every", a->write_every, "Write Park's mesh every N capture frames (0: none)")->capture_default_str();
   cmd->add_flag("--force", a->force, "Replace an existing output folder");
   cmd->callback([a] { run_deform(*a); });
