@@ -54,7 +54,9 @@ struct RegistrationJobOptions {
   // around the mean, model/model_shape_space.h): the shape fit moves its coefficients (sd units)
   // from its mean body. Not with learned_space.
   std::shared_ptr<const VertexShapeSpace> model_space;
-  double model_space_prior = ShapeFitOptions{}.space_prior_weight;  // as learned_space_prior
+  // As learned_space_prior. 10, not 1: better on every correspondence figure and in local folds
+  // on 8 FAUST meshes (docs/real-registration.md#the-model-in-the-loop).
+  double model_space_prior = 10.0;
 };
 
 // InputError naming the option when a value is out of range.
