@@ -42,7 +42,7 @@ struct RegistrationTemplate {
   // Or a linear space of vertex positions (e.g. a built model's shape space, core/shape_space.h):
   // the shape fit moves its coefficients (from learned_start, empty = its mean body, which the
   // template then is). Not with learned_space.
-  std::shared_ptr<const VertexShapeSpace> vertex_space;
+  std::shared_ptr<const VertexShapeSpace> vertex_space = nullptr;  // (initialised: braced lists may omit it)
 };
 
 struct RegistrationOptions {

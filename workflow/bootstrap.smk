@@ -28,7 +28,7 @@ LANDMARKS = config["landmarks"]
 SCALE = config.get("scale", 1)
 REGISTER_ARGS = config.get("register_args", "--jobs 1")
 SHAPE_SPACE = config.get("shape_space", "")               # round 1's prior (empty: macro sliders)
-MODEL_ARGS = config.get("model_args", "")                 # e.g. "--model-components 20 --model-prior 1"
+MODEL_ARGS = config.get("model_args", "")                 # e.g. "--model-components 30 --model-prior 1"
 # Population bodies: a synth-db --truth-only folder (population_db), or made here from `population`.
 POPULATION = config.get("population", "")
 POPULATION_DB = config.get("population_db", os.path.join(OUT, "population"))
