@@ -134,6 +134,39 @@ MakeHuman::Body shape_space_body(const MakeHuman& mh, const ShapeSpace& s, const
   return mh.body(p.macros, p.measure, p.shape, o);
 }
 
+void VertexShapeSpace::validate(const std::string& what) const {
+  const int nv = MakeHuman::kBodyVertexCount;
+  if (mean.rows() != nv || offsets.rows() != 3 * nv)
+    throw InputError(what + ": a vertex shape space needs " + std::to_string(nv) + " body vertices (MakeHuman's "
+                     "topology), found " + std::to_string(mean.rows()) + " (offsets " + std::to_string(offsets.rows()) +
+                     " rows)");
+  if (curvature.size() > 0 && (curvature.rows() != offsets.rows() || curvature.cols() != offsets.cols()))
+    throw InputError(what + ": the vertex shape space's curvature is not the size of its offsets");
+  if (!mean.allFinite() || !offsets.allFinite() || !curvature.allFinite()) throw InputError(what + ": a vertex shape space value is not finite");
+}
+
+Eigen::MatrixX3d vertex_space_body_vertices(const VertexShapeSpace& s, const Eigen::VectorXd& c) {
+  if (c.size() != 0 && c.size() != s.components())
+    throw InputError("vertex shape space: " + std::to_string(c.size()) + " coefficients for " +
+                     std::to_string(s.components()) + " components");
+  Eigen::MatrixX3d V = s.mean;
+  if (c.size() > 0) {
+    Eigen::VectorXd d = s.offsets * c;  // x, y, z per vertex
+    if (s.curvature.size() > 0) d += s.curvature * (0.5 * c.array().square()).matrix();
+    V += Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(d.data(), s.mean.rows(), 3);
+  }
+  return V;
+}
+
+MakeHuman::Body vertex_space_body(const MakeHuman& mh, const VertexShapeSpace& s, const Eigen::VectorXd& c) {
+  MakeHuman::Body b;
+  b.mesh.V = vertex_space_body_vertices(s, c);
+  b.mesh.F = mh.body_faces();
+  b.skeleton = mh.skeleton_from_body(b.mesh.V);
+  b.weights = mh.body_weights();
+  return b;
+}
+
 ShapeSpace learn_shape_space(const std::vector<std::string>& parameters, const Eigen::MatrixXd& X, int components,
                              const std::string& source, const std::vector<int>& male) {
   if (X.rows() < 2) throw InputError("shape space: needs at least 2 bodies, found " + std::to_string(X.rows()));

@@ -60,6 +60,29 @@ ShapeParameters shape_space_parameters(const MakeHuman& makehuman, const ShapeSp
 MakeHuman::Body shape_space_body(const MakeHuman& makehuman, const ShapeSpace& space,
                                  const Eigen::VectorXd& c);
 
+// A space of body shapes over the template's 13 380 body vertices, V(c) = mean + Σ_k c_k·offsets_k
+// (+ Σ_k ½c_k²·curvature_k when given: second order along each component, no cross terms), c in
+// the people's standard deviations (Gaussian prior ½‖c‖²). It is how a model the project built
+// (`bodymodel build`) serves as the registration's shape space: its PCA shape space linearised
+// around the mean body (model/model_shape_space.h). Its bodies are not MakeHuman builds: the
+// skeleton is placed from the vertices as MakeHuman's joints are (MakeHuman::skeleton_from_body)
+// and the weights are the template's.
+struct VertexShapeSpace {
+  Eigen::MatrixX3d mean;    // 13380 by 3, mm, MakeHuman's rest pose and frame (+y up)
+  Eigen::MatrixXd offsets;  // 3·13380 by K: column k = (x, y, z of vertex 0, vertex 1, …) of +1 sd
+  Eigen::MatrixXd curvature;  // empty, or as offsets: the second derivative along each component
+  std::string source;       // what it was made from (free text, e.g. the model file)
+  int components() const { return static_cast<int>(offsets.cols()); }
+  // InputError naming `what` when the sizes are not the body template's or a value is not finite.
+  void validate(const std::string& what) const;
+};
+// The body of coefficients c (components() values; empty = the mean body): vertices, the skeleton
+// placed from them (MakeHuman::skeleton_from_body), the template's weights; mm.
+MakeHuman::Body vertex_space_body(const MakeHuman& makehuman, const VertexShapeSpace& space,
+                                  const Eigen::VectorXd& c);
+// Its vertices alone (13380 by 3, mm).
+Eigen::MatrixX3d vertex_space_body_vertices(const VertexShapeSpace& space, const Eigen::VectorXd& c);
+
 // The parameter names of a MakeHuman with its modifiers loaded, in the order above: the macros
 // gender, age, muscle, weight, height, proportions, cup, firmness, then the measurement and the
 // body-shape modifiers.

@@ -27,10 +27,21 @@ void validate(const RegistrationJobOptions& o) {
     throw InputError(fmt::format("--pose-iterations must not be negative, got {}", o.pose_iterations));
   if (!(o.learned_space_prior >= 0) || !std::isfinite(o.learned_space_prior))
     throw InputError(fmt::format("--shape-space-prior must be a finite number ≥ 0, got {}", o.learned_space_prior));
+  if (!(o.model_space_prior >= 0) || !std::isfinite(o.model_space_prior))
+    throw InputError(fmt::format("--model-prior must be a finite number ≥ 0, got {}", o.model_space_prior));
+  if (o.learned_space && o.model_space) throw InputError("--shape-space and --model: give one shape space");
 }
 
 RegistrationTemplate registration_template(const RegistrationJobOptions& o) {
   MakeHuman mh = MakeHuman::load();
+  if (o.model_space) {
+    if (!o.shape_fit) throw InputError("a model's shape space (--model) needs the shape fit (drop --no-shape-fit)");
+    o.model_space->validate("--model shape space");
+    MakeHuman::Body body = vertex_space_body(mh, *o.model_space, Eigen::VectorXd());
+    RegistrationTemplate tpl{body.mesh, body.skeleton, body.weights, std::move(mh), MacroSettings{}, {}, {}};
+    tpl.vertex_space = o.model_space;
+    return tpl;
+  }
   if (o.learned_space) {
     if (!o.shape_fit) throw InputError("a learned shape space (--shape-space) needs the shape fit (drop --no-shape-fit)");
     o.learned_space->validate(mh, "shape space");
@@ -60,7 +71,7 @@ RegistrationSetup registration_setup(const RegistrationJobOptions& o) {
   r.fit_proportions = o.proportions;
   r.fit_shape = o.shape_fit;  // only read when the template has a shape space
   r.proportions_with_shape = o.proportions_with_shape;
-  r.shape.space_prior_weight = o.learned_space_prior;
+  r.shape.space_prior_weight = o.model_space ? o.model_space_prior : o.learned_space_prior;
   r.pose.max_icp_iterations = o.pose_iterations;
 
   // pose.parameters left empty means default_pose_parameters() (PoseFitOptions).
@@ -103,12 +114,44 @@ RegistrationJobResult run_registration_job(const RegistrationTemplate& tpl, cons
 }
 
 std::string registration_shape_json(const RegistrationResult& r) {
-  if (!r.shape) return {};
+  const std::vector<double> c(r.shape_coefficients.data(), r.shape_coefficients.data() + r.shape_coefficients.size());
+  if (!r.shape) return c.empty() ? std::string() : json_text(nlohmann::json{{"model_coefficients", c}}, 2) + "\n";
   nlohmann::json j = r.shape->to_json();
-  if (r.shape_coefficients.size() > 0)
-    j["shape_space_coefficients"] =
-        std::vector<double>(r.shape_coefficients.data(), r.shape_coefficients.data() + r.shape_coefficients.size());
+  if (!c.empty()) j["shape_space_coefficients"] = c;
   return json_text(j, 2) + "\n";
+}
+
+Eigen::MatrixX3d unpose_registration(const RegistrationResult& r, const SkinWeights& W) {
+  const Skeleton& sk0 = r.rest_skeleton;
+  if (W.rows() != r.V.rows() || W.cols() != sk0.bone_count() || int(r.pose.pose.rotations.size()) != sk0.bone_count())
+    throw InputError(fmt::format("unpose: {} vertices, {} weight rows, {} bones, {} weight columns, {} rotations",
+                                 r.V.rows(), W.rows(), sk0.bone_count(), W.cols(), r.pose.pose.rotations.size()));
+  // The skeleton pose_template posed: scaled about the root head.
+  const Eigen::RowVector3d o = sk0.heads.row(0);
+  Skeleton sk = sk0;
+  sk.heads = ((sk0.heads.rowwise() - o) * r.pose.scale).rowwise() + o;
+  sk.tails = ((sk0.tails.rowwise() - o) * r.pose.scale).rowwise() + o;
+  const BoneTransforms M = forward_kinematics(sk, r.pose.pose);
+  Eigen::MatrixX3d X(r.V.rows(), 3);
+  for (Eigen::Index v = 0; v < r.V.rows(); ++v) {
+    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d t = Eigen::Vector3d::Zero();
+    int dom = -1;
+    double wmax = -1;
+    for (SkinWeights::InnerIterator it(W, v); it; ++it) {
+      A += it.value() * M[it.col()].linear();
+      t += it.value() * M[it.col()].translation();
+      if (it.value() > wmax) wmax = it.value(), dom = int(it.col());
+    }
+    const Eigen::Vector3d y = r.V.row(v).transpose();
+    // A blend of rotations far apart shrinks (|det| ≪ 1): invert the dominant bone alone there.
+    if (dom >= 0 && std::abs(A.determinant()) > 0.05)
+      X.row(v) = (A.inverse() * (y - t)).transpose();
+    else
+      X.row(v) = dom >= 0 ? (M[dom].inverse() * y).transpose() : y.transpose();
+  }
+  if (!X.allFinite()) throw NumericalError("unpose: non-finite vertices");
+  return X;
 }
 
 }  // namespace bodymodel

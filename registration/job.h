@@ -53,6 +53,13 @@ struct RegistrationJobOptions {
   // Contacts: refuse non-rigid data pairs between body segments that do not touch on the
   // template (NonrigidOptions::contact_segments; off by default).
   bool contact_segments = NonrigidOptions{}.contact_segments;
+  // Or the shape space of a model the project built (`--model`: its PCA shape space linearised
+  // around the mean, model/model_shape_space.h): the shape fit moves its coefficients (sd units)
+  // from its mean body. Not with learned_space.
+  std::shared_ptr<const VertexShapeSpace> model_space;
+  // As learned_space_prior. 10, not 1: better on every correspondence figure and in local folds
+  // on 8 FAUST meshes (docs/real-registration.md#the-model-in-the-loop).
+  double model_space_prior = 10.0;
 };
 
 // InputError naming the option when a value is out of range.
@@ -87,7 +94,15 @@ RegistrationJobResult run_registration_job(const RegistrationTemplate& tpl, cons
                                            const std::string& what, const ProgressCallback& progress = {});
 
 // The fitted shape as JSON text (for NAME.shape.json): the macro sliders, and with a learned
-// space its coefficients under "shape_space_coefficients". Empty when there was no shape fit.
+// space its coefficients under "shape_space_coefficients"; with a model's space (no sliders) only
+// its coefficients, under "model_coefficients". Empty when there was no shape fit.
 std::string registration_shape_json(const RegistrationResult& r);
+
+// The registered vertices carried back to the template's rest pose: the inverse of the linear
+// blend skinning that posed the template (r.rest_skeleton scaled by r.pose.scale about its root,
+// r.pose.pose, `weights`), per vertex; where a vertex's blended map nearly degenerates (|det| <
+// 0.05) its dominant bone's map is inverted instead. The result keeps the person's size (the
+// pose fit's scale) and the non-rigid fit's detail: what a model of body shapes is built from.
+Eigen::MatrixX3d unpose_registration(const RegistrationResult& r, const SkinWeights& weights);
 
 }  // namespace bodymodel

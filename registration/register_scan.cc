@@ -12,14 +12,14 @@ namespace {
 ShapeFitResult shape_step(const MakeHuman& mh, const ShapeFitOptions& so, const MacroSettings& settings,
                           const Eigen::VectorXd& coefficients, const PoseFitResult& pose, const PointCloud& scan,
                           const std::vector<Landmark>& landmarks, ShapeFitSummary* ss) {
-  return so.space ? fit_shape_in_space(mh, coefficients, pose.scale, pose.pose, scan, landmarks, so, ss)
+  return so.space || so.vertex_space ? fit_shape_in_space(mh, coefficients, pose.scale, pose.pose, scan, landmarks, so, ss)
                   : fit_shape(mh, settings, pose.scale, pose.pose, scan, landmarks, so, ss);
 }
 
 // How far a shape fit moved the shape, in slider units (a learned space's sd times `unit`).
 double shape_moved(const ShapeFitOptions& so, const ShapeFitResult& sr, const MacroSettings& before,
                    const Eigen::VectorXd& coefficients_before, double unit) {
-  if (so.space) return unit * (sr.coefficients - coefficients_before).cwiseAbs().maxCoeff();
+  if (so.space || so.vertex_space) return unit * (sr.coefficients - coefficients_before).cwiseAbs().maxCoeff();
   double moved = 0;
   for (const auto& n : so.sliders) moved = std::max(moved, std::abs(macro_slider(sr.settings, n) - macro_slider(before, n)));
   return moved;
@@ -32,6 +32,17 @@ NonrigidRegistration nonrigid_solver(const RegistrationTemplate& tpl, const Mesh
   if (no.contact_segments && tpl.weights.rows() == tpl.mesh.V.rows())
     reg.set_segments(body_segments(tpl.skeleton, tpl.weights, tpl.mesh.F));
   return reg;
+}
+
+// The start of a shape fit in a learned or vertex space: the template's coefficients, else the
+// space's mean body (g = 0.5).
+Eigen::VectorXd start_coefficients(const RegistrationTemplate& tpl, const ShapeFitOptions& so) {
+  if (tpl.learned_start.size() > 0) return tpl.learned_start;
+  if (so.vertex_space) return Eigen::VectorXd::Zero(so.vertex_space->components());
+  if (!so.space) return {};
+  Eigen::VectorXd c = Eigen::VectorXd::Zero(so.space->dimension());
+  if (so.space->has_sex()) c[so.space->components()] = 0.5;
+  return c;
 }
 
 }  // namespace
@@ -122,20 +133,18 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
     so.unsigned_normals = po.unsigned_normals;
     MacroSettings settings = tpl.shape_start;
     so.space = tpl.learned_space.get();
-    Eigen::VectorXd coefficients = tpl.learned_start;
-    if (so.space && coefficients.size() == 0) {
-      coefficients = Eigen::VectorXd::Zero(so.space->dimension());
-      if (so.space->has_sex()) coefficients[so.space->components()] = 0.5;
-    }
+    so.vertex_space = tpl.vertex_space.get();
+    const bool in_space = so.space || so.vertex_space;
+    Eigen::VectorXd coefficients = start_coefficients(tpl, so);
     // "Moved" in slider units; a learned space's sd units are scaled to compare with the same bar.
-    const double unit = so.space ? options.shape_convergence / options.learned_space_convergence : 1.0;
+    const double unit = in_space ? options.shape_convergence / options.learned_space_convergence : 1.0;
     double moved_last = 0;
     for (int round = 0; round < rounds; ++round) {
       if (!given_start) fit_poses(round);
       ShapeFitSummary ss;
       ShapeFitResult sr = shape_step(mh, so, settings, coefficients, r.pose, scan, landmarks, &ss);
       const double moved = shape_moved(so, sr, settings, coefficients, unit);
-      if (so.space) coefficients = sr.coefficients;
+      if (in_space) coefficients = sr.coefficients;
       settings = sr.settings;
       r.pose.V = std::move(sr.V);
       r.pose.scale = sr.scale;
@@ -160,8 +169,8 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
       moved_last = moved;
       if (moved < options.shape_convergence) break;
     }
-    r.shape = settings;
-    if (so.space) r.shape_coefficients = coefficients;
+    if (!so.vertex_space) r.shape = settings;  // a vertex space's bodies have no sliders
+    if (in_space) r.shape_coefficients = coefficients;
     if (options.final_pose_fit && !given_start && moved_last >= options.shape_convergence) {
       fit_poses(rounds - 1);
     } else if (options.proportions_with_shape && !r.proportions.segment.empty() && !given_start) {
@@ -170,6 +179,7 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
     }
   }
   r.rest = rest;
+  r.rest_skeleton = skeleton;
   if (options.skip_nonrigid) {
     r.V = r.pose.V;
   } else {

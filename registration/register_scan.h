@@ -39,6 +39,10 @@ struct RegistrationTemplate {
   // people's mean body, which the template then is) instead of the macro sliders.
   std::shared_ptr<const ShapeSpace> learned_space;
   Eigen::VectorXd learned_start;
+  // Or a linear space of vertex positions (e.g. a built model's shape space, core/shape_space.h):
+  // the shape fit moves its coefficients (from learned_start, empty = its mean body, which the
+  // template then is). Not with learned_space.
+  std::shared_ptr<const VertexShapeSpace> vertex_space = nullptr;  // (initialised: braced lists may omit it)
 };
 
 struct RegistrationOptions {
@@ -107,8 +111,9 @@ struct RegistrationResult {
   PoseFitResult pose;     // scale, joint rotations and the posed template
   Proportions proportions;  // segment ratios applied to the template (empty if none)
   std::optional<MacroSettings> shape;  // fitted sliders (with a shape fit)
-  Eigen::VectorXd shape_coefficients;  // with a learned space: its fitted coefficients (sd)
+  Eigen::VectorXd shape_coefficients;  // with a learned or vertex space: its fitted coefficients (sd)
   Mesh rest;                // the rest template the pose was fitted on (shaped/proportioned, mm)
+  Skeleton rest_skeleton;   // its skeleton (unscaled, rest pose): with pose, what posed the template
 };
 
 // Registers `scan` (modified: normals checked/estimated) with `landmarks` (template vertex →

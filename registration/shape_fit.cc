@@ -31,20 +31,20 @@ class Problem {
   // Slider mode: `start` sliders. Space mode (o.space): `start_c` coefficients (empty = 0).
   Problem(const MakeHuman& mh, const MacroSettings& start, const Eigen::VectorXd& start_c, double scale,
           const Pose& pose, const ShapeFitOptions& o)
-      : mh_(mh), start_(start), pose_(pose), o_(o), space_(o.space) {
-    L_.sliders = space_ ? space_->dimension() : int(o.sliders.size());
+      : mh_(mh), start_(start), pose_(pose), o_(o), space_(o.space), vspace_(o.vertex_space) {
+    L_.sliders = space_ ? space_->dimension() : vspace_ ? vspace_->components() : int(o.sliders.size());
     L_.count = L_.sliders;
     if (o.fit_translation) L_.translation = L_.count, L_.count += 3;
     if (o.fit_scale) L_.scale = L_.count, L_.count += 1;
     theta0_.resize(L_.count);
-    if (space_) {
+    if (in_space()) {
       theta0_.head(L_.sliders) = Eigen::VectorXd::Zero(L_.sliders);
-      if (space_->has_sex()) theta0_[space_->components()] = 0.5;
+      if (space_ && space_->has_sex()) theta0_[space_->components()] = 0.5;
       if (start_c.size() > 0) theta0_.head(L_.sliders) = start_c;
       prior_centre_ = Eigen::VectorXd::Zero(L_.sliders);  // the people's mean
       // The components have the people's Gaussian; the sex slider g none (the data decide).
       prior_sqrt_ = Eigen::VectorXd::Constant(L_.sliders, std::sqrt(o.space_prior_weight));
-      if (space_->has_sex()) prior_sqrt_[space_->components()] = 0.0;
+      if (space_ && space_->has_sex()) prior_sqrt_[space_->components()] = 0.0;
     } else {
       for (int k = 0; k < L_.sliders; ++k) theta0_[k] = macro_slider(start, o.sliders[k]);
       prior_centre_ = theta0_.head(L_.sliders);
@@ -64,22 +64,25 @@ class Problem {
   // Bounds, finite-difference step and convergence of the shape parameters.
   // (A learned space's sex slider g, its last parameter, is a slider: [0, 1], the slider step.)
   int sex_index() const { return space_ && space_->has_sex() ? space_->components() : -1; }
-  bool is_slider(int k) const { return !space_ || (space_->has_sex() && k == space_->components()); }
+  bool is_slider(int k) const { return !in_space() || (space_ && space_->has_sex() && k == space_->components()); }
   double lower(int k) const { return is_slider(k) ? 0.0 : -o_.space_limit; }
   double upper(int k) const { return is_slider(k) ? 1.0 : o_.space_limit; }
   double fd_step(int k) const { return is_slider(k) ? o_.fd_step : o_.space_fd_step; }
-  double convergence() const { return space_ ? o_.space_convergence : o_.convergence; }
-  bool in_space() const { return space_ != nullptr; }
+  double convergence() const { return in_space() ? o_.space_convergence : o_.convergence; }
+  bool in_space() const { return space_ != nullptr || vspace_ != nullptr; }
   int builds = 0;
 
   MacroSettings settings(const Eigen::VectorXd& th) const {
     if (space_) return shape_space_parameters(mh_, *space_, th.head(L_.sliders)).macros;
+    if (vspace_) return start_;  // not a MakeHuman body: no sliders
     MacroSettings s = start_;
     for (int k = 0; k < L_.sliders; ++k) set_macro_slider(&s, o_.sliders[k], th[k]);
     return s;
   }
   MakeHuman::Body body(const Eigen::VectorXd& th) const {
-    return space_ ? shape_space_body(mh_, *space_, th.head(L_.sliders)) : mh_.body(settings(th));
+    if (space_) return shape_space_body(mh_, *space_, th.head(L_.sliders));
+    if (vspace_) return vertex_space_body(mh_, *vspace_, th.head(L_.sliders));
+    return mh_.body(settings(th));
   }
   double scale(const Eigen::VectorXd& th) const { return L_.scale >= 0 ? th[L_.scale] : scale_; }
   Pose pose(const MakeHuman::Body& b, const Eigen::VectorXd& th) const {
@@ -103,6 +106,7 @@ class Problem {
   Pose pose_;
   const ShapeFitOptions& o_;
   const ShapeSpace* space_;
+  const VertexShapeSpace* vspace_;
   Layout L_;
   Eigen::Vector3d anchor_;
   Eigen::VectorXd theta0_, prior_centre_, prior_sqrt_;
@@ -374,6 +378,7 @@ ShapeFitResult fit_shape(const MakeHuman& mh, const MacroSettings& start, double
   check_shape_inputs(start, scale, scan, o);
   ShapeFitOptions so = o;
   so.space = nullptr;
+  so.vertex_space = nullptr;
   Problem prob(mh, start, Eigen::VectorXd(), scale, pose, so);
   return run_shape_fit(prob, mh, scan, landmarks, so, summary);
 }
@@ -382,10 +387,13 @@ ShapeFitResult fit_shape_in_space(const MakeHuman& mh, const Eigen::VectorXd& st
                                   const Pose& pose, const PointCloud& scan,
                                   const std::vector<Landmark>& landmarks, const ShapeFitOptions& o,
                                   ShapeFitSummary* summary) {
-  if (!o.space) throw InputError("shape fit: fit_shape_in_space needs a shape space (ShapeFitOptions::space)");
-  if (start.size() != 0 && (start.size() != o.space->dimension() || !start.allFinite()))
+  if (!o.space == !o.vertex_space)
+    throw InputError("shape fit: fit_shape_in_space needs one shape space (ShapeFitOptions::space or vertex_space)");
+  if (o.vertex_space) o.vertex_space->validate("shape fit");
+  const int dimension = o.space ? o.space->dimension() : o.vertex_space->components();
+  if (start.size() != 0 && (start.size() != dimension || !start.allFinite()))
     throw InputError("shape fit: " + std::to_string(start.size()) + " start coefficients for a space of " +
-                     std::to_string(o.space->dimension()) + " coefficients, or not finite");
+                     std::to_string(dimension) + " coefficients, or not finite");
   ShapeFitOptions so = o;
   so.sliders.clear();
   check_shape_inputs(MacroSettings{}, scale, scan, so);

@@ -74,6 +74,10 @@ struct ShapeFitOptions {
   double space_fd_step = 0.05;       // sd
   double space_limit = 3.0;          // |c| bound, sd
   double space_convergence = 0.01;   // sd
+  // Or a linear space of vertex positions (core/shape_space.h; not owned), e.g. a model's shape
+  // space linearised around its mean: the same fit, prior and bounds as for `space` (its
+  // coefficients in sd, no sex slider); its bodies' skeletons are placed from their vertices.
+  const VertexShapeSpace* vertex_space = nullptr;
 };
 
 struct ShapeFitSummary {
@@ -103,9 +107,10 @@ ShapeFitResult fit_shape(const MakeHuman& mh, const MacroSettings& start, double
                          const Pose& pose, const PointCloud& scan,
                          const std::vector<Landmark>& landmarks,
                          const ShapeFitOptions& options = {}, ShapeFitSummary* summary = nullptr);
-// The same in the learned space options.space (required): `start` are its coefficients
-// (dimension() values; empty = its mean body, g = 0.5), also where the fit starts; the prior's
-// centre is the people's mean.
+// The same in the learned space options.space or the vertex space options.vertex_space (exactly
+// one): `start` are its coefficients (dimension() / components() values; empty = its mean body,
+// g = 0.5), also where the fit starts; the prior's centre is the people's mean. With a vertex
+// space the result's `settings` are MakeHuman's defaults (its bodies have no sliders).
 ShapeFitResult fit_shape_in_space(const MakeHuman& mh, const Eigen::VectorXd& start, double scale,
                                   const Pose& pose, const PointCloud& scan,
                                   const std::vector<Landmark>& landmarks,

@@ -132,6 +132,10 @@ std::string register_database_scan(const RegisterArgs& a, const RegistrationTemp
   write_mesh(out / (id + ".ply"), r.V, tpl.mesh.F);
   write_pose_csv(out / (id + ".pose.csv"), tpl.skeleton.names, rec);
   std::string shape_cols = ",0,0,,,,,,,";
+  if (!r.shape && r.shape_coefficients.size() > 0) {  // a model's space: no sliders
+    write_text_file(out / (id + ".shape.json"), registration_shape_json(r));
+    shape_cols = fmt::format(",{},{:.2f},,,,,,,", s.shape_rounds, s.shape_seconds);
+  }
   if (r.shape) {
     const MacroSettings& m = *r.shape;
     write_text_file(out / (id + ".shape.json"), registration_shape_json(r));
@@ -234,6 +238,11 @@ void run_register(RegisterArgs& a) {
   if (!a.no.shape_space.empty()) {
     settings["shape_space"] = file_fingerprint(a.no.shape_space);
     settings["shape_space_prior"] = a.job.learned_space_prior;
+  }
+  if (!a.no.model.empty()) {
+    settings["model"] = file_fingerprint(a.no.model);
+    settings["model_components"] = a.no.model_components;
+    settings["model_prior"] = a.job.model_space_prior;
   }
   ResumableFolder folder(out, "register.json", settings, a.force,
                          outputs_named({"registration.csv", "evaluation.csv"},

@@ -47,7 +47,7 @@ struct RegisterMeshArgs {
   std::string landmarks, out, up = "y", hand_stage = "off";
   double scale = 1.0;
   int jobs = 1, samples = MeshScanOptions{}.samples;
-  bool force = false, detail = false, keep_folds = false;
+  bool force = false, detail = false, keep_folds = false, rest = false;
 };
 
 std::string csv_header() {
@@ -100,8 +100,9 @@ std::string register_one_mesh(const RegisterMeshArgs& a, const RegistrationTempl
   rec.scale = r.pose.scale;
   rec.pose = r.pose.pose;
   write_mesh(out / (stem + ".ply"), r.V, tpl.mesh.F);
+  if (a.rest) write_mesh(out / (stem + ".rest.ply"), unpose_registration(r, tpl.weights), tpl.mesh.F);
   write_pose_csv(out / (stem + ".pose.csv"), tpl.skeleton.names, rec);
-  if (r.shape) write_text_file(out / (stem + ".shape.json"), registration_shape_json(r));
+  if (r.shape || r.shape_coefficients.size() > 0) write_text_file(out / (stem + ".shape.json"), registration_shape_json(r));
   write_text_file(
       out / (stem + ".register-mesh.csv"),
       fmt::format("{},{},{},{:.6f},{},{:.4f},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},"
@@ -143,6 +144,10 @@ void add_register_mesh_options(CLI::App* cmd, RegisterMeshArgs& a) {
   cmd->add_flag("--detail", a.detail,
                 "Detail transfer: also write OUT/<stem>.detail.npz (normal offsets of the "
                 "mid-edge subdivision, per triangle) and OUT/<stem>.detailed.ply");
+  cmd->add_flag("--rest", a.rest,
+                "Also write OUT/<stem>.rest.ply: the registration carried back to the template's rest pose by "
+                "inverting the skinning of its fitted pose (the person's size kept): what `build` makes a shape "
+                "model of, e.g. in the model loop (workflow/bootstrap.smk)");
   cmd->add_flag("--keep-folds", a.keep_folds,
                 "Do not smooth away triangles the non-rigid fit folded over (where the template "
                 "is finer than the mesh: eyelids, armpits), neither against the posed template "
@@ -201,6 +206,12 @@ void run_register_mesh(RegisterMeshArgs& a) {
     settings["shape_space"] = file_fingerprint(a.no.shape_space);
     settings["shape_space_prior"] = a.job.learned_space_prior;
   }
+  if (!a.no.model.empty()) {
+    settings["model"] = file_fingerprint(a.no.model);
+    settings["model_components"] = a.no.model_components;
+    settings["model_prior"] = a.job.model_space_prior;
+  }
+  if (a.rest) settings["rest"] = true;
   ResumableFolder folder(out, "register-mesh.json", settings, a.force,
                          outputs_named({"register-mesh.csv"}, {".ply", ".pose.csv", ".shape.json", ".register-mesh.csv",
                                                                ".detail.npz"}));
@@ -210,7 +221,7 @@ void run_register_mesh(RegisterMeshArgs& a) {
     const std::string& s = stems[k];
     return fs::exists(out / (s + ".ply")) && fs::exists(out / (s + ".pose.csv")) &&
            fs::exists(out / (s + ".register-mesh.csv")) &&
-           (!a.detail || fs::exists(out / (s + ".detail.npz")));
+           (!a.detail || fs::exists(out / (s + ".detail.npz"))) && (!a.rest || fs::exists(out / (s + ".rest.ply")));
   }, a.out);
   if (todo == 0) {
     rebuild_csv(out);
