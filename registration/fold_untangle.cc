@@ -102,7 +102,7 @@ Topology topology(const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& rest_V, con
     // facing along it, not the full margin; one the rest has just past perpendicular is counted
     // folded against another rest shape (the default body, the fitted one) and is turned back.
     t.area2(f) = n.norm() * ratio;
-    t.target(f) = std::clamp(cos_rest, 0.05, o.margin) * t.area2(f);
+    t.target(f) = std::clamp(cos_rest, std::min(0.05, o.margin), o.margin) * t.area2(f);
     edges += (V.row(F(f, 1)) - V.row(F(f, 0))).norm();
   }
   t.edge = F.rows() ? edges / double(F.rows()) : 1.0;

@@ -26,7 +26,8 @@ struct UntangleOptions {
   int rounds = 12;       // rounds of fold test and solve; round r grows the region by r more rings
   int solves = 3;        // solves per round, the ring normals recomputed between them
   // A triangle must face along its ring normal by at least this fraction of its area (its rest
-  // area scaled by the body's area ratio): well-shaped, not just barely unfolded.
+  // area scaled by the body's area ratio): well-shaped, not just barely unfolded. One that faces
+  // along its ring by less at rest (an eyelid's edge) keeps its rest cosine, at least 0.05.
   double margin = 0.2;
   double normal_weight = 1.0;    // anchor on motion along the vertex normal (per mm²)
   double tangent_weight = 0.3;   // anchor on any motion (per mm²): a slide along the surface is cheaper
