@@ -252,7 +252,8 @@ UntangleSummary untangle_local_folds(Eigen::MatrixX3d& V, const Eigen::MatrixX3d
     Eigen::MatrixX3d X = V;
     for (int k = 0; k < o.solves; ++k) solve_region(X, V0, region, F, t, o);
     std::vector<char> now = folded_now(X, F, t, o.rings);
-    if (count(now) < left) {
+    const double farthest = (X - V0).rowwise().norm().maxCoeff();
+    if (count(now) < left && farthest <= o.max_displacement) {
       V = X;
       folded = std::move(now);
       left = count(folded);

@@ -9,8 +9,9 @@
 // normal (the same direction the fold test compares with), against an anchor on each vertex's
 // motion along its normal (off the scan) and, weaker, across it (along the scan). The region
 // grows by one ring each round until no fold is left. Triangles the rest template itself has
-// facing against their ring (its ear rims, eyelid edges) are not counted by the fold test and
-// are not constrained here either: the registration keeps the template's own sharp features.
+// facing clearly against their ring (its ear rims, eyelid edges) are not counted by the fold
+// test and are not constrained here either: the registration keeps the template's own sharp
+// features. A solve that would move a vertex farther than a bound is refused.
 #pragma once
 
 #include <Eigen/Core>
@@ -33,6 +34,9 @@ struct UntangleOptions {
   double tangent_weight = 0.3;   // anchor on any motion (per mm²): a slide along the surface is cheaper
   double orientation_weight = 100.0;  // penalty on a triangle below the margin
   int max_region_vertices = 3000;     // larger regions are left alone (not a fold)
+  // A round's solve that moves any vertex farther than this from where it started (mesh units,
+  // mm) is refused: a fold is not worth dragging the surface off the scan (as the local repair).
+  double max_displacement = 30.0;
 };
 
 struct UntangleSummary {
@@ -46,7 +50,8 @@ struct UntangleSummary {
 
 // Untangles the local folds of V in place. V #V by 3 (a registration), rest_V #V by 3 (the
 // template at rest, its shaped body if the shape was fitted: the fold test's exemptions), F #F
-// by 3. A round's solve is kept only if it leaves fewer folds than before it. Throws InputError
+// by 3. A round's solve is kept only if it leaves fewer folds than before it and moves no vertex
+// farther than options.max_displacement from V as given. Throws InputError
 // when V and rest_V differ in size or F indexes outside them.
 UntangleSummary untangle_local_folds(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& rest_V,
                                      const Eigen::MatrixX3i& F, const UntangleOptions& options = {});

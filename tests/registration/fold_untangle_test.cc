@@ -106,6 +106,29 @@ TEST(UntangleLocalFolds, KeepsAFoldTheRestShapeHas) {
   EXPECT_EQ(against, 2);
 }
 
+// The displacement bound is a bound: a fold that needs a 2 mm move is left as it is when no
+// vertex may move 1 mm, and untangled when 3 mm are allowed.
+TEST(UntangleLocalFolds, RefusesASolveThatMovesAVertexFartherThanTheBound) {
+  const test::Limb limb = test::limb();
+  const Eigen::MatrixX3i& F = limb.mesh.F;
+  Eigen::MatrixX3d V = limb.mesh.V;
+  drag(V, vertex(30, 5), 12.0);
+  const Eigen::MatrixX3d V0 = V;
+  UntangleOptions o;
+  o.rounds = 3;  // every round is refused: three suffice to show it
+  o.max_displacement = 1.0;
+  const UntangleSummary refused = untangle_local_folds(V, limb.mesh.V, F, o);
+  EXPECT_EQ(refused.folded_before, 2);
+  EXPECT_EQ(refused.folded_after, 2);
+  EXPECT_EQ(refused.vertices_moved, 0);
+  EXPECT_EQ((V - V0).norm(), 0.0);
+  o.max_displacement = 3.0;
+  const UntangleSummary kept = untangle_local_folds(V, limb.mesh.V, F, o);
+  EXPECT_EQ(kept.folded_after, 0);
+  EXPECT_LE(kept.max_displacement, 3.0);
+  EXPECT_GT(kept.max_displacement, 1.0);
+}
+
 TEST(UntangleLocalFolds, RefusesMeshesOfAnotherSize) {
   const test::Limb limb = test::limb();
   Eigen::MatrixX3d V = limb.mesh.V.topRows(10);
