@@ -81,28 +81,44 @@ struct Topology {
   double edge = 1;           // mean edge length of V
 };
 
-Topology topology(const Eigen::MatrixX3d& V, const Eigen::MatrixX3d& rest_V, const Eigen::MatrixX3i& F,
+// Cosine of each triangle's normal with its ring normal in X.   #F
+Eigen::VectorXd ring_cosines(const Eigen::MatrixX3d& X, const Eigen::MatrixX3i& F, int rings) {
+  const Eigen::MatrixX3d S = ring_normals(X, F, rings);
+  Eigen::VectorXd c(F.rows());
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    const Eigen::RowVector3d n = (X.row(F(f, 1)) - X.row(F(f, 0))).cross(X.row(F(f, 2)) - X.row(F(f, 0)));
+    c(f) = n.normalized().dot(S.row(f).normalized());
+  }
+  return c;
+}
+
+Topology topology(const Eigen::MatrixX3d& V, const std::vector<Eigen::MatrixX3d>& rests, const Eigen::MatrixX3i& F,
                   const UntangleOptions& o) {
   Topology t;
   t.vertex_faces.resize(V.rows());
   for (Eigen::Index f = 0; f < F.rows(); ++f)
     for (int c = 0; c < 3; ++c) t.vertex_faces[F(f, c)].push_back(int(f));
-  const Eigen::MatrixX3d S_rest = ring_normals(rest_V, F, o.rings);
+  // Exempt only where every rest shape has the triangle facing clearly against its ring: a fold
+  // one shaped body has and another not (a blend of MakeHuman's targets) is not a feature.
+  Eigen::VectorXd least = Eigen::VectorXd::Constant(F.rows(), 1.0), most = -least;
+  for (const Eigen::MatrixX3d& R : rests) {
+    const Eigen::VectorXd c = ring_cosines(R, F, o.rings).unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
+    least = least.cwiseMin(c);
+    most = most.cwiseMax(c);
+  }
+  const Eigen::MatrixX3d& rest_V = rests.front();
   const double ratio = total_area2(V, F) / std::max(total_area2(rest_V, F), 1e-300);
   t.exempt.assign(F.rows(), 0);
   t.target.resize(F.rows());
   t.area2.resize(F.rows());
   double edges = 0;
   for (Eigen::Index f = 0; f < F.rows(); ++f) {
-    const Eigen::RowVector3d n =
-        (rest_V.row(F(f, 1)) - rest_V.row(F(f, 0))).cross(rest_V.row(F(f, 2)) - rest_V.row(F(f, 0)));
-    const double cos_rest = n.normalized().dot(S_rest.row(f).normalized());
-    t.exempt[f] = !(cos_rest >= -o.rest_fold_cos);
+    t.exempt[f] = most(f) < -o.rest_fold_cos;
     // A triangle nearly perpendicular to its ring at rest (an eyelid's edge) need only keep
-    // facing along it, not the full margin; one the rest has just past perpendicular is counted
+    // facing along it, not the full margin; one a rest shape has past perpendicular is counted
     // folded against another rest shape (the default body, the fitted one) and is turned back.
-    t.area2(f) = n.norm() * ratio;
-    t.target(f) = std::clamp(cos_rest, std::min(0.05, o.margin), o.margin) * t.area2(f);
+    t.area2(f) = (rest_V.row(F(f, 1)) - rest_V.row(F(f, 0))).cross(rest_V.row(F(f, 2)) - rest_V.row(F(f, 0))).norm() * ratio;
+    t.target(f) = std::clamp(least(f), std::min(0.05, o.margin), o.margin) * t.area2(f);
     edges += (V.row(F(f, 1)) - V.row(F(f, 0))).norm();
   }
   t.edge = F.rows() ? edges / double(F.rows()) : 1.0;
@@ -234,14 +250,17 @@ std::vector<char> folded_now(const Eigen::MatrixX3d& X, const Eigen::MatrixX3i& 
 
 }  // namespace
 
-UntangleSummary untangle_local_folds(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& rest_V,
+UntangleSummary untangle_local_folds(Eigen::MatrixX3d& V, const std::vector<Eigen::MatrixX3d>& rests,
                                      const Eigen::MatrixX3i& F, const UntangleOptions& o) {
-  if (V.rows() != rest_V.rows() || (F.size() > 0 && (F.maxCoeff() >= V.rows() || F.minCoeff() < 0)))
-    throw InputError("untangle_local_folds: V (" + std::to_string(V.rows()) + " rows) and rest_V (" +
-                     std::to_string(rest_V.rows()) + ") differ or F indexes outside them");
+  bool sizes = !rests.empty() && (F.size() == 0 || (F.maxCoeff() < V.rows() && F.minCoeff() >= 0));
+  for (const auto& R : rests) sizes = sizes && R.rows() == V.rows();
+  if (!sizes)
+    throw InputError("untangle_local_folds: V (" + std::to_string(V.rows()) + " rows) and " +
+                     std::to_string(rests.size()) + " rest shapes differ in size, none given, or F indexes outside them");
+  const Eigen::MatrixX3d& rest_V = rests.front();
   UntangleSummary s;
   s.folded_before = count(locally_folded_triangles(V, rest_V, F, o.rings));
-  const Topology t = topology(V, rest_V, F, o);
+  const Topology t = topology(V, rests, F, o);
   std::vector<char> folded = folded_now(V, F, t, o.rings);
   int left = count(folded);
   const Eigen::MatrixX3d V0 = V;
@@ -266,6 +285,11 @@ UntangleSummary untangle_local_folds(Eigen::MatrixX3d& V, const Eigen::MatrixX3d
   if (s.vertices_moved) s.mean_displacement /= s.vertices_moved;
   s.max_displacement = d.size() ? d.maxCoeff() : 0.0;
   return s;
+}
+
+UntangleSummary untangle_local_folds(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& rest_V,
+                                     const Eigen::MatrixX3i& F, const UntangleOptions& o) {
+  return untangle_local_folds(V, std::vector<Eigen::MatrixX3d>{rest_V}, F, o);
 }
 
 }  // namespace bodymodel

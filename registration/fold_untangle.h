@@ -15,6 +15,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <vector>
 
 namespace bodymodel {
 
@@ -54,6 +55,12 @@ struct UntangleSummary {
 // farther than options.max_displacement from V as given. Throws InputError
 // when V and rest_V differ in size or F indexes outside them.
 UntangleSummary untangle_local_folds(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& rest_V,
+                                     const Eigen::MatrixX3i& F, const UntangleOptions& options = {});
+// The same against several rest shapes of the template (e.g. the fitted body and the start
+// body): a triangle is left facing against its ring only where every one of them has it so, as
+// a triangle a shaped body folds and another does not is a fold of that blend, not a feature.
+// The summary's fold counts are against rests[0]. Throws InputError when `rests` is empty.
+UntangleSummary untangle_local_folds(Eigen::MatrixX3d& V, const std::vector<Eigen::MatrixX3d>& rests,
                                      const Eigen::MatrixX3i& F, const UntangleOptions& options = {});
 
 }  // namespace bodymodel

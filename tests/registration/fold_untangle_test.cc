@@ -106,6 +106,27 @@ TEST(UntangleLocalFolds, KeepsAFoldTheRestShapeHas) {
   EXPECT_EQ(against, 2);
 }
 
+// Against two rest shapes a feature is kept only where both have it: folded in one rest shape
+// and not in the other (a shaped body's blend), it is untangled like any fold.
+TEST(UntangleLocalFolds, KeepsOnlyFeaturesEveryRestShapeHas) {
+  const test::Limb limb = test::limb();
+  const Eigen::MatrixX3i& F = limb.mesh.F;
+  Eigen::MatrixX3d folded_rest = limb.mesh.V;
+  const int feature = vertex(15, 7);
+  drag(folded_rest, feature, 12.0);
+  for (const bool both : {true, false}) {
+    Eigen::MatrixX3d V = folded_rest;
+    const Eigen::MatrixX3d other = both ? folded_rest : limb.mesh.V;
+    const UntangleSummary s = untangle_local_folds(V, std::vector<Eigen::MatrixX3d>{folded_rest, other}, F);
+    EXPECT_EQ(s.folded_before, 0);  // counted against the first rest shape
+    EXPECT_EQ(count(locally_folded_triangles(V, other, F)), 0) << (both ? "both" : "one");
+    if (both) EXPECT_EQ((V - folded_rest).norm(), 0.0);
+    else EXPECT_GT(s.max_displacement, 1.0);
+  }
+  Eigen::MatrixX3d V = folded_rest;
+  EXPECT_THROW(untangle_local_folds(V, std::vector<Eigen::MatrixX3d>{}, F), InputError);
+}
+
 // The displacement bound is a bound: a fold that needs a 2 mm move is left as it is when no
 // vertex may move 1 mm, and untangled when 3 mm are allowed.
 TEST(UntangleLocalFolds, RefusesASolveThatMovesAVertexFartherThanTheBound) {
