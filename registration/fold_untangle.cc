@@ -102,7 +102,8 @@ Topology topology(const Eigen::MatrixX3d& V, const std::vector<Eigen::MatrixX3d>
   // one shaped body has and another not (a blend of MakeHuman's targets) is not a feature.
   Eigen::VectorXd least = Eigen::VectorXd::Constant(F.rows(), 1.0), most = -least;
   for (const Eigen::MatrixX3d& R : rests) {
-    const Eigen::VectorXd c = ring_cosines(R, F, o.rings).unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
+    const Eigen::VectorXd c =
+        ring_cosines(R, F, o.rings).unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
     least = least.cwiseMin(c);
     most = most.cwiseMax(c);
   }
@@ -117,7 +118,8 @@ Topology topology(const Eigen::MatrixX3d& V, const std::vector<Eigen::MatrixX3d>
     // A triangle nearly perpendicular to its ring at rest (an eyelid's edge) need only keep
     // facing along it, not the full margin; one a rest shape has past perpendicular is counted
     // folded against another rest shape (the default body, the fitted one) and is turned back.
-    t.area2(f) = (rest_V.row(F(f, 1)) - rest_V.row(F(f, 0))).cross(rest_V.row(F(f, 2)) - rest_V.row(F(f, 0))).norm() * ratio;
+    const Eigen::RowVector3d e1 = rest_V.row(F(f, 1)) - rest_V.row(F(f, 0));
+    t.area2(f) = e1.cross(rest_V.row(F(f, 2)) - rest_V.row(F(f, 0))).norm() * ratio;
     t.target(f) = std::clamp(least(f), std::min(0.05, o.margin), o.margin) * t.area2(f);
     edges += (V.row(F(f, 1)) - V.row(F(f, 0))).norm();
   }
@@ -256,7 +258,8 @@ UntangleSummary untangle_local_folds(Eigen::MatrixX3d& V, const std::vector<Eige
   for (const auto& R : rests) sizes = sizes && R.rows() == V.rows();
   if (!sizes)
     throw InputError("untangle_local_folds: V (" + std::to_string(V.rows()) + " rows) and " +
-                     std::to_string(rests.size()) + " rest shapes differ in size, none given, or F indexes outside them");
+                     std::to_string(rests.size()) +
+                     " rest shapes differ in size, none given, or F indexes outside them");
   const Eigen::MatrixX3d& rest_V = rests.front();
   UntangleSummary s;
   s.folded_before = count(locally_folded_triangles(V, rest_V, F, o.rings));

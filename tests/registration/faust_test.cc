@@ -74,8 +74,9 @@ TEST(FaustRegistration, HeldOutLandmarksSurfaceAndFoldsWithinBounds) {
   // As register-mesh: folds against the posed template, then local folds.
   unfold_triangles(r.V, r.pose.V, tpl.mesh.F);
   const LocalFoldRepairSummary lf = repair_local_folds(r.V, r.rest.V, tpl.mesh.F);
+  // Then the untangling, against the fitted and the start body as the job does.
   const UntangleSummary un =
-      untangle_local_folds(r.V, std::vector<Eigen::MatrixX3d>{r.rest.V, tpl.mesh.V}, tpl.mesh.F);  // as the job
+      untangle_local_folds(r.V, std::vector<Eigen::MatrixX3d>{r.rest.V, tpl.mesh.V}, tpl.mesh.F);
 
   // Held-out landmarks: the template's landmark vertex against the FAUST vertex the landmark
   // file names (the same body point on every FAUST mesh).
