@@ -2,6 +2,7 @@
 // (registration/job.h: the same template, options, fold repair and plausibility check).
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <map>
 #include <optional>
 #include <nlohmann/json.hpp>
@@ -13,6 +14,7 @@
 #include "python/common.h"
 #include "registration/evaluation.h"
 #include "registration/job.h"
+#include "registration/metrics.h"
 
 namespace bodymodel::py {
 
@@ -146,6 +148,11 @@ pyb::tuple register_one(const pyb::handle& points, const pyb::handle& normals, c
   d["seconds"] = s.seconds;
   d["folded_triangles_repaired"] = s.folded_triangles;
   d["local_folds_repaired"] = local_folds;
+  // As the verb's registration.csv: local folds left (against the fitted rest body) and the
+  // farthest the untangling moved a vertex (0 without repair_local_folds).
+  const std::vector<char> left = locally_folded_triangles(r.V, r.rest.V, tpl.mesh.F);
+  d["local_folds"] = int(std::count(left.begin(), left.end(), 1));
+  d["untangle_max_mm"] = job_result.untangle.max_displacement;
   d["shape_rounds"] = s.shape_rounds;
   d["shape_seconds"] = s.shape_seconds;
   if (r.shape) {

@@ -107,6 +107,12 @@ RegistrationJobResult run_registration_job(const RegistrationTemplate& tpl, cons
   // Folds the posed template itself carries (its skinning creases) are not flipped against it:
   // the local repair re-solves them from the rest template's shape.
   if (folds != FoldRepair::keep) out.local_folds_repaired = repair_local_folds(r.V, r.rest.V, tpl.mesh.F).folded_before;
+  // The Laplacian repair stops where its solves do not lower a region's count (a crumpled
+  // crease); the untangling solve moves what it left as little as it can until none is left.
+  // Exempt are only the sharp features both the fitted body and the start body have: a fitted
+  // blend of MakeHuman's targets can fold a pair of the head's triangles the template has not.
+  if (folds != FoldRepair::keep)
+    out.untangle = untangle_local_folds(r.V, std::vector<Eigen::MatrixX3d>{r.rest.V, tpl.mesh.V}, tpl.mesh.F);
   // Not a body (a sphere), or landmarks not its own: failed, nothing for the caller to write.
   const FitCheck fc = check_registration_fit(r.V, r.pose.V, r.rest.V, tpl.mesh.F, scan);
   if (!fc.plausible) throw InputError(what + ": registration failed: " + fc.reason);

@@ -13,6 +13,7 @@
 #include "core/makehuman.h"
 #include "core/shape_space.h"
 #include "core/progress.h"
+#include "registration/fold_untangle.h"
 #include "registration/landmarks.h"
 #include "registration/register_scan.h"
 #include "registration/scan.h"
@@ -22,8 +23,8 @@ namespace bodymodel {
 // What to do with triangles folded after the non-rigid fit.
 enum class FoldRepair {
   keep,   // leave them (diagnosis)
-  local,  // repair_local_folds from the rest template's shape
-  full,   // unfold_triangles against the posed template, then the local repair
+  local,  // repair_local_folds from the rest template's shape, then untangle_local_folds
+  full,   // unfold_triangles against the posed template, then the local repair and untangling
 };
 
 // The user-facing settings, named as the verbs' flags.
@@ -82,6 +83,10 @@ struct RegistrationJobResult {
   RegistrationResult registration;
   RegistrationSummary summary;
   int local_folds_repaired = 0;  // folds the local repair found (before it)
+  // The untangling after it (registration/fold_untangle.h): the local folds left (locally_folded_
+  // triangles against the fitted rest body; 0 unless its rounds ran out) and how far it moved
+  // vertices. All zero when folds are kept.
+  UntangleSummary untangle;
   std::string pose_joints;       // the parameterisation kept
 };
 

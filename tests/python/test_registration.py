@@ -40,6 +40,8 @@ def test_register_scan_matches_the_cli(db, tmp_path, cli):
     csv = dict(zip(head.split(","), row.split(",")))
     assert int(csv["points"]) == s["points"] == len(P) and int(csv["landmarks"]) == s["landmarks"] == len(lm)
     assert int(csv["nonrigid_iterations"]) == s["nonrigid_iterations"] == 8
+    # Local folds left as the verb counts them; no untangling without repair_local_folds.
+    assert int(csv["local_folds"]) == s["local_folds"] and float(csv["untangle_max_mm"]) == s["untangle_max_mm"] == 0
     for k in ("pose_rms_mm", "data_rms_mm", "landmark_rms_mm", "scale"):
         assert float(csv[k]) == pytest.approx(s[k], abs=1e-4 if k != "scale" else 1e-6), k
     # A registration, not just agreement: the template is on the scan (the synthetic scan's noise

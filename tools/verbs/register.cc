@@ -7,6 +7,7 @@
 // DB/truth/ (except the --start-from-truth diagnosis).
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -24,6 +25,7 @@
 #include "core/io/pose_csv.h"
 #include "model/database.h"
 #include "registration/job.h"
+#include "registration/metrics.h"
 #include "tools/console.h"
 #include "tools/pipeline/batch_jobs.h"
 #include "tools/pipeline/folder_settings.h"
@@ -80,7 +82,7 @@ std::string summary_header() {
          "pose_landmark_rms_mm,scale,nonrigid_iterations,data_rms_mm,landmark_rms_mm,"
          "matched_vertices,plane_matches,pose_seconds,nonrigid_seconds,seconds,pose_two_sided_mm,"
          "pose_joints,folded_triangles_repaired,shape_rounds,shape_seconds,shape_gender,shape_age,"
-         "shape_muscle,shape_weight,shape_height,shape_proportions,shape_cup\n";
+         "shape_muscle,shape_weight,shape_height,shape_proportions,shape_cup,local_folds,untangle_max_mm\n";
 }
 
 void rebuild_registration_csv(const fs::path& out) {
@@ -131,6 +133,7 @@ std::string register_database_scan(const RegisterArgs& a, const RegistrationTemp
   rec.pose = r.pose.pose;
   write_mesh(out / (id + ".ply"), r.V, tpl.mesh.F);
   write_pose_csv(out / (id + ".pose.csv"), tpl.skeleton.names, rec);
+  const std::vector<char> local = locally_folded_triangles(r.V, r.rest.V, tpl.mesh.F);
   std::string shape_cols = ",0,0,,,,,,,";
   if (!r.shape && r.shape_coefficients.size() > 0) {  // a model's space: no sliders
     write_text_file(out / (id + ".shape.json"), registration_shape_json(r));
@@ -146,13 +149,14 @@ std::string register_database_scan(const RegisterArgs& a, const RegistrationTemp
   write_text_file(
       out / (id + ".summary.csv"),
       fmt::format("{},{},{},{},{},{:.4f},{:.4f},{:.6f},{},{:.4f},{:.4f},{},{},{:.2f},{:.2f},"
-                  "{:.2f},{:.3f},{},{}{}\n",
+                  "{:.2f},{:.3f},{},{}{},{},{:.3f}\n",
                   csv_field(id), scan.P.rows(), s.scan.normals_estimated ? 1 : 0, landmarks.size(),
                   s.pose.icp_iterations, s.pose.rms, s.pose.landmark_rms, r.pose.scale,
                   s.nonrigid.iterations, s.nonrigid.data_rms, s.nonrigid.landmark_rms,
                   s.nonrigid.matched_vertices, s.nonrigid.plane_matches, s.pose.seconds,
                   s.nonrigid.seconds, s.seconds, s.pose.two_sided_mm,
-                  job.pose_joints, s.folded_triangles, shape_cols));
+                  job.pose_joints, s.folded_triangles, shape_cols,
+                  std::count(local.begin(), local.end(), 1), job.untangle.max_displacement));
   return s.scan.normals_estimated ? id + ": the scan has no normals; estimated them (unoriented)"
                                   : std::string();
 }
@@ -234,6 +238,9 @@ void run_register(RegisterArgs& a) {
       {"repair_local_folds", a.repair_local_folds}};
   // Only when on, so folders made before the option resume as they were.
   if (a.job.contact_segments) settings["contact_segments"] = true;
+  // The untangling of local folds changed these results and added columns to registration.csv:
+  // such a folder registered before it is refused (or replaced with --force), not mixed.
+  if (a.repair_local_folds) settings["untangle_folds"] = true;
   // Only when given, so folders made before the option resume as they were.
   if (!a.no.shape_space.empty()) {
     settings["shape_space"] = file_fingerprint(a.no.shape_space);

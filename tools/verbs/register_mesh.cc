@@ -8,6 +8,7 @@
 // REG/<stem>.detail.npz and the detailed mesh REG/<stem>.detailed.ply.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <filesystem>
 
 #include "core/error.h"
@@ -21,6 +22,7 @@
 #include "registration/detail_transfer.h"
 #include "registration/job.h"
 #include "registration/mesh_scan.h"
+#include "registration/metrics.h"
 #include "core/io/pose_csv.h"
 #include "tools/console.h"
 #include "tools/pipeline/batch_jobs.h"
@@ -54,7 +56,7 @@ std::string csv_header() {
   return "mesh,scan_points,landmarks,scale,pose_icp_iterations,pose_rms_mm,nonrigid_iterations,"
          "data_rms_mm,landmark_rms_mm,registered_to_scan_mm,scan_to_registered_mm,"
          "two_sided_mm,registered_to_scan_p95_mm,scan_to_registered_p95_mm,folded_triangles,"
-         "flipped_against_scan,detail_scan_to_registered_mm,seconds\n";
+         "flipped_against_scan,detail_scan_to_registered_mm,seconds,local_folds,untangle_max_mm\n";
 }
 
 void rebuild_csv(const fs::path& out) {
@@ -88,6 +90,8 @@ std::string register_one_mesh(const RegisterMeshArgs& a, const RegistrationTempl
   const RegistrationResult& r = job.registration;
   const RegistrationSummary& s = job.summary;
   const MeshScanDistance d = mesh_scan_distance(r.V, tpl.mesh.F, mesh, &r.pose.V);
+  const std::vector<char> local = locally_folded_triangles(r.V, r.rest.V, tpl.mesh.F);
+  const int local_folds = int(std::count(local.begin(), local.end(), 1));
   double detail_distance = -1;
   if (a.detail) {
     const SurfaceDetail detail = capture_detail(r.V, tpl.mesh.F, scan_copy);
@@ -106,16 +110,17 @@ std::string register_one_mesh(const RegisterMeshArgs& a, const RegistrationTempl
   write_text_file(
       out / (stem + ".register-mesh.csv"),
       fmt::format("{},{},{},{:.6f},{},{:.4f},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},"
-                  "{:.4f},{},{},{:.4f},{:.2f}\n",
+                  "{:.4f},{},{},{:.4f},{:.2f},{},{:.3f}\n",
                   csv_field(stem), scan.P.rows(), landmarks.size(), r.pose.scale, s.pose.icp_iterations,
                   s.pose.rms, s.nonrigid.iterations, s.nonrigid.data_rms, s.nonrigid.landmark_rms,
                   d.registered_to_scan_mean, d.scan_to_registered_mean, d.two_sided_mean,
                   d.registered_to_scan_p95, d.scan_to_registered_p95, d.folded_triangles,
-                  d.flipped_against_scan, detail_distance, s.seconds));
+                  d.flipped_against_scan, detail_distance, s.seconds, local_folds,
+                  job.untangle.max_displacement));
   return fmt::format("{}: two-sided distance {:.2f} mm (registered→scan {:.2f}, "
-                     "scan→registered {:.2f}), {} folded triangles, {:.0f} s",
+                     "scan→registered {:.2f}), {} folded triangles, {} local folds, {:.0f} s",
                      stem, d.two_sided_mean, d.registered_to_scan_mean,
-                     d.scan_to_registered_mean, d.folded_triangles, s.seconds);
+                     d.scan_to_registered_mean, d.folded_triangles, local_folds, s.seconds);
 }
 
 }  // namespace
@@ -201,6 +206,9 @@ void run_register_mesh(RegisterMeshArgs& a) {
   // Only when on, so folders made before the option resume as they were.
   if (a.job.contact_segments) settings["contact_segments"] = true;
   if (a.job.hand_stage) settings["hand_stage"] = "on";
+  // The untangling of local folds changed the results and added columns to register-mesh.csv:
+  // a folder registered before it is refused (or replaced with --force), not mixed.
+  if (!a.keep_folds) settings["untangle_folds"] = true;
   // Only when given, so folders made before the option resume as they were.
   if (!a.no.shape_space.empty()) {
     settings["shape_space"] = file_fingerprint(a.no.shape_space);
