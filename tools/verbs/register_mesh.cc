@@ -46,7 +46,7 @@ struct RegisterMeshArgs {
   }();
   cli::NegatedRegistrationFlags no;
   std::vector<std::string> meshes;
-  std::string landmarks, out, up = "y", hand_stage = "off";
+  std::string landmarks, out, up = "y", hand_stage = "on";
   double scale = 1.0;
   int jobs = 1, samples = MeshScanOptions{}.samples;
   bool force = false, detail = false, keep_folds = false, rest = false;
@@ -158,7 +158,7 @@ void add_register_mesh_options(CLI::App* cmd, RegisterMeshArgs& a) {
                 "is finer than the mesh: eyelids, armpits), neither against the posed template "
                 "nor local folds (a triangle facing against its 2-ring, unlike at rest)");
   cmd->add_option("--hand-stage", a.hand_stage, "As `register --hand-stage`: 'on' fits the wrists again, then one grasp per hand, one curl per finger and the "
-                  "thumbs, after the body; 'off' (the default here) one grasp rotation per hand, fitted with the body")
+                  "thumbs, after the body; 'off' one grasp rotation per hand, fitted with the body")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   cmd->add_option("--pose-iterations", a.job.pose_iterations,
@@ -205,7 +205,7 @@ void run_register_mesh(RegisterMeshArgs& a) {
       {"pose_iterations", a.job.pose_iterations}, {"up", a.up}};
   // Only when on, so folders made before the option resume as they were.
   if (a.job.contact_segments) settings["contact_segments"] = true;
-  if (a.job.hand_stage) settings["hand_stage"] = "on";
+  settings["hand_stage"] = a.hand_stage;
   // The untangling of local folds changed the results and added columns to register-mesh.csv:
   // a folder registered before it is refused (or replaced with --force), not mixed.
   if (!a.keep_folds) settings["untangle_folds"] = true;
