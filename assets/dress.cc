@@ -2,7 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/LU>
 #include <algorithm>
+#include <cmath>
 #include <map>
 
 #include "core/error.h"
@@ -181,24 +183,92 @@ int ClipPenetration::frames_over(double limit) const {
   return n;
 }
 
+namespace {
+
+// The part's rest vertices with the frame's bind-space corrections of that part added.
+Eigen::MatrixX3d corrected_rest(const DressedPart& p, int part, const ClipCorrections* c, size_t frame) {
+  Eigen::MatrixX3d V = p.V;
+  if (!c || frame >= c->frames.size()) return V;
+  for (const GarmentCorrection& g : c->frames[frame])
+    if (g.part == part)
+      for (size_t i = 0; i < g.vertex.size(); ++i) V.row(g.vertex[i]) += g.delta.row(static_cast<Eigen::Index>(i));
+  return V;
+}
+
+// Blended linear part Σ_j w_j R_j of row `i`'s skinning transform.
+Eigen::Matrix3d blended_linear(const SkinWeights& W, int i, const BoneTransforms& M) {
+  Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+  for (SkinWeights::InnerIterator it(W, i); it; ++it) A += it.value() * M[it.col()].linear();
+  return A;
+}
+
+}  // namespace
+
 ClipPenetration clip_penetration(const std::vector<DressedPart>& parts, const Eigen::MatrixX3d& skin_rest,
                                  const Eigen::MatrixX3i& skin_F, const SkinWeights& skin_W,
                                  const std::vector<char>& hidden, const std::vector<BoneTransforms>& frames,
-                                 double depth_mm) {
+                                 double depth_mm, const ClipCorrections* corrections) {
   ClipPenetration c;
-  std::vector<const DressedPart*> garments;
-  for (const DressedPart& p : parts)
-    if (p.garment) garments.push_back(&p), c.garments.push_back(p.name);
+  std::vector<int> garments;
+  for (size_t k = 0; k < parts.size(); ++k)
+    if (parts[k].garment) garments.push_back(static_cast<int>(k)), c.garments.push_back(parts[k].name);
   const Eigen::Index F = static_cast<Eigen::Index>(frames.size()), G = static_cast<Eigen::Index>(garments.size());
   c.fraction.setZero(F, G);
   c.max_depth_mm.setZero(F, G);
   for (Eigen::Index f = 0; f < F; ++f) {
     const Eigen::MatrixX3d body = linear_blend_skinning(skin_rest, skin_W, frames[f]);
     for (Eigen::Index g = 0; g < G; ++g) {
-      const Eigen::MatrixX3d X = linear_blend_skinning(garments[g]->V, garments[g]->weights, frames[f]);
-      const Penetration p = penetration_of(body_distance(X, body, skin_F, hidden), depth_mm);
-      c.fraction(f, g) = p.fraction;
-      c.max_depth_mm(f, g) = p.max_depth;
+      const DressedPart& p = parts[garments[g]];
+      const Eigen::MatrixX3d X =
+          linear_blend_skinning(corrected_rest(p, garments[g], corrections, f), p.weights, frames[f]);
+      const Penetration pen = penetration_of(body_distance(X, body, skin_F, hidden), depth_mm);
+      c.fraction(f, g) = pen.fraction;
+      c.max_depth_mm(f, g) = pen.max_depth;
+    }
+  }
+  return c;
+}
+
+ClipCorrections clip_corrections(const std::vector<DressedPart>& parts, const Eigen::MatrixX3d& skin_rest,
+                                 const Eigen::MatrixX3i& skin_F, const SkinWeights& skin_W,
+                                 const std::vector<char>& hidden, const std::vector<BoneTransforms>& frames,
+                                 const ClipCorrectionOptions& options) {
+  ClipCorrections c;
+  ClipPenetration& u = c.uncorrected;
+  std::vector<int> garments;
+  for (size_t k = 0; k < parts.size(); ++k)
+    if (parts[k].garment) garments.push_back(static_cast<int>(k)), u.garments.push_back(parts[k].name);
+  const Eigen::Index F = static_cast<Eigen::Index>(frames.size()), G = static_cast<Eigen::Index>(garments.size());
+  u.fraction.setZero(F, G);
+  u.max_depth_mm.setZero(F, G);
+  c.frames.resize(frames.size());
+  for (Eigen::Index f = 0; f < F; ++f) {
+    const Eigen::MatrixX3d body = linear_blend_skinning(skin_rest, skin_W, frames[f]);
+    for (Eigen::Index g = 0; g < G; ++g) {
+      const DressedPart& p = parts[garments[g]];
+      const Eigen::MatrixX3d X = linear_blend_skinning(p.V, p.weights, frames[f]);
+      const Penetration pen = penetration_of(body_distance(X, body, skin_F, hidden), options.depth_mm);
+      u.fraction(f, g) = pen.fraction;
+      u.max_depth_mm(f, g) = pen.max_depth;
+      if (pen.penetrating == 0) continue;
+      const PushOutResult r = push_garment_out(X, p.F, body, skin_F, hidden, options.push, options.depth_mm);
+      GarmentCorrection gc;
+      gc.part = garments[g];
+      std::vector<Eigen::RowVector3d> d;
+      for (Eigen::Index i = 0; i < X.rows(); ++i) {
+        const Eigen::Vector3d posed = (r.V.row(i) - X.row(i)).transpose();
+        if (posed.norm() < options.min_move_mm) continue;
+        const Eigen::Matrix3d A = blended_linear(p.weights, static_cast<int>(i), frames[f]);
+        if (std::abs(A.determinant()) < 0.1) continue;
+        gc.vertex.push_back(static_cast<int>(i));
+        d.push_back(A.partialPivLu().solve(posed).transpose());
+      }
+      if (gc.vertex.empty()) continue;
+      gc.delta.resize(static_cast<Eigen::Index>(d.size()), 3);
+      for (size_t i = 0; i < d.size(); ++i) gc.delta.row(static_cast<Eigen::Index>(i)) = d[i];
+      ++c.garment_frames;
+      c.vertices += static_cast<long long>(d.size());
+      c.frames[f].push_back(std::move(gc));
     }
   }
   return c;

@@ -94,9 +94,40 @@ struct ClipPenetration {
   // Frames where some garment has more than `limit` of its vertices deeper than depth_mm.
   int frames_over(double limit) const;
 };
+struct ClipCorrections;
 ClipPenetration clip_penetration(const std::vector<DressedPart>& parts, const Eigen::MatrixX3d& skin_rest,
                                  const Eigen::MatrixX3i& skin_F, const SkinWeights& skin_W,
                                  const std::vector<char>& hidden, const std::vector<BoneTransforms>& frames,
-                                 double depth_mm = 2.0);
+                                 double depth_mm = 2.0, const ClipCorrections* corrections = nullptr);
+
+// Per-frame garment corrections (docs/assets.md#penetration), what a skinned glb can play as
+// morph targets: in each frame every garment, posed as the glb plays it, is pushed out of the
+// posed body (push_garment_out, as at rest) when some vertex over visible skin is deeper than
+// depth_mm, and each moved vertex's posed displacement c is taken back to bind space through its
+// blended skinning transform, d = (Σ_j w_j R_j)⁻¹ c. Linear blend skinning is affine per vertex,
+// so skinning V + d gives exactly the pushed positions at that frame; between frames a player
+// blends the neighbouring corrections (not measured). A vertex whose blended transform is
+// near-singular (|det| < 0.1, opposite rotations blended) is left uncorrected.
+struct GarmentCorrection {
+  int part = 0;               // index into the parts
+  std::vector<int> vertex;    // rows of that part, increasing
+  Eigen::MatrixX3d delta;     // bind-space displacement (mm), one row per vertex
+};
+struct ClipCorrections {
+  std::vector<std::vector<GarmentCorrection>> frames;  // per frame: the garments corrected
+  ClipPenetration uncorrected;   // clip_penetration without the corrections (measured on the way)
+  int garment_frames = 0;        // corrected garment-frames
+  long long vertices = 0;        // stored displacements over all frames
+};
+struct ClipCorrectionOptions {
+  PushOutOptions push;           // as at rest: 1 mm clearance
+  double depth_mm = 2.0;         // a garment-frame is corrected when a vertex is deeper than this
+  double min_move_mm = 0.001;    // smaller displacements are not stored
+};
+// Arguments as clip_penetration's.
+ClipCorrections clip_corrections(const std::vector<DressedPart>& parts, const Eigen::MatrixX3d& skin_rest,
+                                 const Eigen::MatrixX3i& skin_F, const SkinWeights& skin_W,
+                                 const std::vector<char>& hidden, const std::vector<BoneTransforms>& frames,
+                                 const ClipCorrectionOptions& options = {});
 
 }  // namespace bodymodel

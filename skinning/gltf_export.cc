@@ -63,6 +63,38 @@ class BufferBuilder {
     return static_cast<int>(model_->accessors.size()) - 1;
   }
 
+  // A float VEC3 accessor of `count` zeros but for the `values` (3 per index) at `indices`
+  // (strictly increasing): a sparse accessor without a buffer view; min and max cover the zeros.
+  int sparse_vec3(size_t count, const std::vector<uint32_t>& indices, const std::vector<float>& values) {
+    tinygltf::Accessor a;
+    a.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+    a.type = TINYGLTF_TYPE_VEC3;
+    a.count = count;
+    a.minValues.assign(3, 0.0);
+    a.maxValues.assign(3, 0.0);
+    for (size_t i = 0; i < values.size(); ++i) {
+      a.minValues[i % 3] = std::min(a.minValues[i % 3], double(values[i]));
+      a.maxValues[i % 3] = std::max(a.maxValues[i % 3], double(values[i]));
+    }
+    if (!indices.empty()) {
+      a.sparse.isSparse = true;
+      a.sparse.count = static_cast<int>(indices.size());
+      if (count <= 65536) {
+        const std::vector<uint16_t> i16(indices.begin(), indices.end());
+        a.sparse.indices.bufferView = view(i16.data(), i16.size() * 2, 0);
+        a.sparse.indices.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
+      } else {
+        a.sparse.indices.bufferView = view(indices.data(), indices.size() * 4, 0);
+        a.sparse.indices.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+      }
+      a.sparse.indices.byteOffset = 0;
+      a.sparse.values.bufferView = view(values.data(), values.size() * 4, 0);
+      a.sparse.values.byteOffset = 0;
+    }
+    model_->accessors.push_back(a);
+    return static_cast<int>(model_->accessors.size()) - 1;
+  }
+
  private:
   tinygltf::Model* model_;
 };
@@ -285,6 +317,47 @@ void add_joints_and_weights(BufferBuilder& buf, tinygltf::Primitive& prim, const
                                               TINYGLTF_TYPE_VEC4, n, TINYGLTF_TARGET_ARRAY_BUFFER);
 }
 
+// The level's morph targets as sparse POSITION targets of `prim` (scaled to metres), the mesh's
+// default weights (0) and the targets' names (extras.targetNames, read by three.js and Blender).
+void add_morph_targets(BufferBuilder& buf, tinygltf::Primitive& prim, tinygltf::Mesh& mesh, const GltfLevel& l,
+                       double s) {
+  if (l.targets.empty()) return;
+  tinygltf::Value::Array names;
+  for (const GltfMorphTarget& t : l.targets) {
+    std::vector<uint32_t> idx(t.vertex.begin(), t.vertex.end());
+    std::vector<float> values(3 * idx.size());
+    for (size_t i = 0; i < idx.size(); ++i)
+      for (int d = 0; d < 3; ++d) values[3 * i + d] = static_cast<float>(t.delta(static_cast<Eigen::Index>(i), d) * s);
+    prim.targets.push_back({{"POSITION", buf.sparse_vec3(static_cast<size_t>(l.V.rows()), idx, values)}});
+    names.emplace_back(t.name);
+  }
+  mesh.weights.assign(l.targets.size(), 0.0);
+  mesh.extras = tinygltf::Value(tinygltf::Value::Object{{"targetNames", tinygltf::Value(names)}});
+}
+
+// The morph targets' checks: indices strictly increasing within the level, finite deltas, and
+// the weights (when given) one row per animation frame and one column per target.
+void check_morph_targets(const GltfLevel& l, const GltfAnimation* animation) {
+  for (const GltfMorphTarget& t : l.targets) {
+    if (static_cast<Eigen::Index>(t.vertex.size()) != t.delta.rows())
+      throw InputError("glTF export: morph target '" + t.name + "' of '" + l.name + "' has " +
+                       std::to_string(t.vertex.size()) + " vertices and " + std::to_string(t.delta.rows()) + " deltas");
+    for (size_t i = 0; i < t.vertex.size(); ++i)
+      if (t.vertex[i] < 0 || t.vertex[i] >= l.V.rows() || (i && t.vertex[i] <= t.vertex[i - 1]))
+        throw InputError("glTF export: morph target '" + t.name + "' of '" + l.name +
+                         "': vertex indices must increase strictly within [0, " + std::to_string(l.V.rows()) +
+                         "), found " + std::to_string(t.vertex[i]) + " at " + std::to_string(i));
+    check_finite(t.delta, "morph target '" + t.name + "'");
+  }
+  if (l.target_weights.size() == 0) return;
+  const Eigen::Index T = animation ? static_cast<Eigen::Index>(animation->frames.size()) : 0;
+  if (l.target_weights.rows() != T || l.target_weights.cols() != static_cast<Eigen::Index>(l.targets.size()))
+    throw InputError("glTF export: morph weights of '" + l.name + "' are " + std::to_string(l.target_weights.rows()) +
+                     " by " + std::to_string(l.target_weights.cols()) + ", expected #frames " + std::to_string(T) +
+                     " by #targets " + std::to_string(l.targets.size()));
+  check_finite(l.target_weights, "morph weights of '" + l.name + "'");
+}
+
 // The joint nodes 0..B-1, the skin with its inverse bind matrices, the mesh nodes B..B+L-1 (one
 // per level of detail, mesh k on node B + k, all with skin 0) and the scene (with a common root
 // node B + L when the skeleton has several roots).
@@ -409,7 +482,8 @@ JointTracks joint_tracks(const Skeleton& skeleton, const GltfAnimation& animatio
 // The animation: one linear sampler per joint rotation (and per moving joint's translation) over
 // the shared frame times.
 void add_animation(tinygltf::Model& model, BufferBuilder& buf, const Skeleton& skeleton, const GltfAnimation& animation,
-                   const GltfExportOptions& options, double s, GltfExportSummary& sum) {
+                   const std::vector<GltfLevel>& levels, const GltfExportOptions& options, double s,
+                   GltfExportSummary& sum) {
   const int B = skeleton.bone_count();
   const int T = static_cast<int>(animation.frames.size());
   if (!(animation.frame_time > 0) || !std::isfinite(animation.frame_time))
@@ -422,12 +496,12 @@ void add_animation(tinygltf::Model& model, BufferBuilder& buf, const Skeleton& s
                                  static_cast<size_t>(T), 0, {double(times.front())}, {double(times.back())});
   tinygltf::Animation anim;
   anim.name = animation.name;
-  auto add = [&](int node, const std::vector<float>& values, int type, const char* path) {
+  auto add = [&](int node, const std::vector<float>& values, int type, const char* path, size_t per_key = 1) {
     tinygltf::AnimationSampler sampler;
     sampler.input = input;
     sampler.interpolation = "LINEAR";
     sampler.output = buf.accessor(values.data(), values.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT, type,
-                                  static_cast<size_t>(T), 0);
+                                  static_cast<size_t>(T) * per_key, 0);
     anim.samplers.push_back(sampler);
     tinygltf::AnimationChannel ch;
     ch.sampler = static_cast<int>(anim.samplers.size()) - 1;
@@ -439,6 +513,15 @@ void add_animation(tinygltf::Model& model, BufferBuilder& buf, const Skeleton& s
     add(b, tracks.rot[static_cast<size_t>(b)], TINYGLTF_TYPE_VEC4, "rotation");
     if (tracks.moves[static_cast<size_t>(b)]) add(b, tracks.tra[static_cast<size_t>(b)], TINYGLTF_TYPE_VEC3, "translation");
   }
+  // Morph weights: the level's node (B + k), all targets' weights key by key.
+  for (size_t k = 0; k < levels.size(); ++k) {
+    const Eigen::MatrixXd& w = levels[k].target_weights;
+    if (w.size() == 0) continue;
+    std::vector<float> values;
+    for (Eigen::Index t = 0; t < w.rows(); ++t)
+      for (Eigen::Index j = 0; j < w.cols(); ++j) values.push_back(static_cast<float>(w(t, j)));
+    add(B + static_cast<int>(k), values, TINYGLTF_TYPE_SCALAR, "weights", static_cast<size_t>(w.cols()));
+  }
   model.animations.push_back(anim);
 }
 
@@ -447,7 +530,7 @@ void add_animation(tinygltf::Model& model, BufferBuilder& buf, const Skeleton& s
 std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const Eigen::MatrixX3d& N_in,
                                const Skeleton& skeleton, const SkinWeights& W, const GltfAnimation* animation,
                                const GltfExportOptions& options, GltfExportSummary* summary) {
-  GltfLevel level{options.mesh_name, V, F, N_in, W, options.parts};
+  GltfLevel level{options.mesh_name, V, F, N_in, W, options.parts, {}, {}};
   return skinned_lods_gltf_bytes({level}, skeleton, animation, options, summary);
 }
 
@@ -459,6 +542,7 @@ std::string skinned_lods_gltf_bytes(const std::vector<GltfLevel>& levels, const 
   std::vector<Eigen::MatrixX3d> normals;
   for (const GltfLevel& l : levels) {
     check_skinned_inputs(l.V, l.F, skeleton, l.W, options);
+    check_morph_targets(l, animation);
     normals.push_back(checked_normals(l.V, l.F, l.N));
   }
   const int B = skeleton.bone_count();
@@ -483,6 +567,7 @@ std::string skinned_lods_gltf_bytes(const std::vector<GltfLevel>& levels, const 
     add_joints_and_weights(buf, prim, l.W, n, B, sum);
     tinygltf::Mesh mesh;
     mesh.name = l.name;
+    add_morph_targets(buf, prim, mesh, l, s);
     if (l.parts.empty()) {
       add_indices(buf, prim, l.F);
       mesh.primitives.push_back(prim);
@@ -497,7 +582,7 @@ std::string skinned_lods_gltf_bytes(const std::vector<GltfLevel>& levels, const 
   add_skeleton_and_scene(model, buf, skeleton, s, names);
 
   // ---- animation ----
-  if (animation && !animation->frames.empty()) add_animation(model, buf, skeleton, *animation, options, s, sum);
+  if (animation && !animation->frames.empty()) add_animation(model, buf, skeleton, *animation, levels, options, s, sum);
 
   // ---- serialise ----
   std::ostringstream out;

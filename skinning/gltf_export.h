@@ -78,6 +78,15 @@ std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i
                                const GltfExportOptions& options = {},
                                GltfExportSummary* summary = nullptr);
 
+// A morph target of a level: `vertex` (strictly increasing rows of the level's V) moved by
+// `delta` (input units). glTF adds the targets BEFORE skinning, so the deltas are in bind space.
+// Written as a sparse accessor without a buffer view: only the listed vertices are stored.
+struct GltfMorphTarget {
+  std::string name;
+  std::vector<int> vertex;
+  Eigen::MatrixX3d delta;               // one row per listed vertex
+};
+
 // One mesh of a multi-mesh export: a level of detail of one character (same skeleton).
 struct GltfLevel {
   std::string name;                     // the mesh and its node
@@ -86,6 +95,11 @@ struct GltfLevel {
   Eigen::MatrixX3d N;
   SkinWeights W;
   std::vector<GltfMaterialPart> parts;
+  // Morph targets (every primitive of the mesh gets them all; extras.targetNames gives their
+  // names) and, with an animation, their weights per key: #frames by #targets, written as a
+  // `weights` channel on the level's node (LINEAR between keys). Empty = no channel (weights 0).
+  std::vector<GltfMorphTarget> targets;
+  Eigen::MatrixXd target_weights;
 };
 
 // Several skinned meshes sharing one skeleton, skin and animation (levels of detail): mesh k on

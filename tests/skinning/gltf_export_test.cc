@@ -317,8 +317,8 @@ TEST(GltfExport, MaterialPartsBecomePrimitivesSharingTheVertices) {
 TEST(GltfExport, LevelsShareOneSkinAndTheirMaterials) {
   const Character c = make_character();
   const int nf = static_cast<int>(c.F.rows()), B = c.skeleton.bone_count();
-  GltfLevel full{"lod0", c.V, c.F, {}, c.W, {{"skin", 0, 100, {0.8, 0.6, 0.5}, 0.7}, {"cloth", 100, nf - 100, {0.2, 0.3, 0.5}, 0.9}}};
-  GltfLevel coarse{"lod1", c.V, c.F.topRows(150), {}, c.W, {{"skin", 0, 100, {0.8, 0.6, 0.5}, 0.7}, {"cloth", 100, 50, {0.2, 0.3, 0.5}, 0.9}}};
+  GltfLevel full{"lod0", c.V, c.F, {}, c.W, {{"skin", 0, 100, {0.8, 0.6, 0.5}, 0.7}, {"cloth", 100, nf - 100, {0.2, 0.3, 0.5}, 0.9}}, {}, {}};
+  GltfLevel coarse{"lod1", c.V, c.F.topRows(150), {}, c.W, {{"skin", 0, 100, {0.8, 0.6, 0.5}, 0.7}, {"cloth", 100, 50, {0.2, 0.3, 0.5}, 0.9}}, {}, {}};
   GltfExportSummary sum;
   const tinygltf::Model m = load(skinned_lods_gltf_bytes({full, coarse}, c.skeleton, nullptr, {}, &sum));
   ASSERT_EQ(m.meshes.size(), 2u);
@@ -341,6 +341,75 @@ TEST(GltfExport, LevelsShareOneSkinAndTheirMaterials) {
   EXPECT_THROW(skinned_lods_gltf_bytes({}, c.skeleton), InputError);
   coarse.W = c.W.topRows(10);
   EXPECT_THROW(skinned_lods_gltf_bytes({full, coarse}, c.skeleton), InputError);   // checked level by level
+}
+
+// Morph targets: sparse accessors without a buffer view holding only the listed vertices (scaled to
+// metres, min and max covering the zeros), every primitive with every target, the mesh's default
+// weights and target names, and a `weights` channel on the level's node (#frames × #targets
+// values); bad indices or weights are refused.
+TEST(GltfExport, MorphTargetsAreSparseAndPlayedByAWeightsChannel) {
+  const Character c = make_character();
+  const int nf = static_cast<int>(c.F.rows()), B = c.skeleton.bone_count();
+  GltfLevel full{"lod0", c.V, c.F, {}, c.W, {{"skin", 0, 100, {0.8, 0.6, 0.5}, 0.7}, {"cloth", 100, nf - 100, {0.2, 0.3, 0.5}, 0.9}}, {}, {}};
+  Eigen::MatrixX3d d(3, 3);
+  d << 1, 2, 3, -4, 5, 6, 7, -8, 9;
+  full.targets = {{"frame_1", {3, 10, 50}, d}, {"frame_2", {7}, Eigen::MatrixX3d::Constant(1, 3, 0.5)}};
+  full.target_weights = Eigen::MatrixXd::Zero(3, 2);
+  full.target_weights(1, 0) = full.target_weights(2, 1) = 1;
+  std::mt19937 rng(3);
+  GltfAnimation anim;
+  for (int t = 0; t < 3; ++t) anim.frames.push_back(forward_kinematics(c.skeleton, random_pose(rng)));
+  const tinygltf::Model m = load(skinned_lods_gltf_bytes({full}, c.skeleton, &anim));
+  const tinygltf::Mesh& mesh = m.meshes.at(0);
+  ASSERT_EQ(mesh.primitives.size(), 2u);
+  for (const tinygltf::Primitive& p : mesh.primitives) ASSERT_EQ(p.targets.size(), 2u);
+  EXPECT_EQ(mesh.weights, std::vector<double>({0.0, 0.0}));
+  EXPECT_EQ(mesh.extras.Get("targetNames").Get(1).Get<std::string>(), "frame_2");
+  const tinygltf::Accessor& a = m.accessors.at(static_cast<size_t>(mesh.primitives[1].targets[0].at("POSITION")));
+  EXPECT_EQ(a.bufferView, -1);
+  EXPECT_EQ(a.count, static_cast<size_t>(c.V.rows()));
+  ASSERT_TRUE(a.sparse.isSparse);
+  ASSERT_EQ(a.sparse.count, 3);
+  EXPECT_EQ(a.sparse.indices.componentType, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT);
+  const auto bytes = [&](int view, int offset) {
+    const tinygltf::BufferView& bv = m.bufferViews.at(static_cast<size_t>(view));
+    return m.buffers[0].data.data() + bv.byteOffset + offset;
+  };
+  const auto* idx = reinterpret_cast<const uint16_t*>(bytes(a.sparse.indices.bufferView, a.sparse.indices.byteOffset));
+  const auto* val = reinterpret_cast<const float*>(bytes(a.sparse.values.bufferView, a.sparse.values.byteOffset));
+  EXPECT_EQ(std::vector<int>(idx, idx + 3), std::vector<int>({3, 10, 50}));
+  for (int i = 0; i < 3; ++i)
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(val[3 * i + k], 0.001 * d(i, k), 1e-9);
+  ASSERT_EQ(a.minValues.size(), 3u);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(a.minValues[k], std::vector<double>({-0.004, -0.008, 0.0})[k], 1e-9);
+  EXPECT_NEAR(a.maxValues[0], 0.007, 1e-9);
+  // The weights channel: LINEAR, on the mesh node, the keys' weights in order.
+  int channels = 0;
+  for (const tinygltf::AnimationChannel& ch : m.animations.at(0).channels) {
+    if (ch.target_path != "weights") continue;
+    ++channels;
+    EXPECT_EQ(ch.target_node, B);
+    const tinygltf::AnimationSampler& s = m.animations[0].samplers.at(static_cast<size_t>(ch.sampler));
+    EXPECT_EQ(s.interpolation, "LINEAR");
+    const tinygltf::Accessor& o = m.accessors.at(static_cast<size_t>(s.output));
+    ASSERT_EQ(o.count, 6u);
+    const auto* w = reinterpret_cast<const float*>(bytes(o.bufferView, static_cast<int>(o.byteOffset)));
+    EXPECT_EQ(std::vector<float>(w, w + 6), std::vector<float>({0, 0, 1, 0, 0, 1}));
+  }
+  EXPECT_EQ(channels, 1);
+  // Refused: indices not increasing, out of range, deltas not matching, weights of the wrong shape.
+  GltfLevel bad = full;
+  bad.targets[0].vertex = {10, 3, 50};
+  EXPECT_THROW(skinned_lods_gltf_bytes({bad}, c.skeleton, &anim), InputError);
+  bad = full;
+  bad.targets[1].vertex = {static_cast<int>(c.V.rows())};
+  EXPECT_THROW(skinned_lods_gltf_bytes({bad}, c.skeleton, &anim), InputError);
+  bad = full;
+  bad.targets[1].vertex = {1, 2};
+  EXPECT_THROW(skinned_lods_gltf_bytes({bad}, c.skeleton, &anim), InputError);
+  bad = full;
+  bad.target_weights = Eigen::MatrixXd::Zero(2, 2);
+  EXPECT_THROW(skinned_lods_gltf_bytes({bad}, c.skeleton, &anim), InputError);
 }
 
 TEST(GltfExport, KhronosValidatorReportsNoErrors) {
@@ -366,8 +435,12 @@ TEST(GltfExport, KhronosValidatorReportsNoErrors) {
   write_skinned_gltf(parts, c.V, c.F, {}, c.skeleton, c.W, &anim, two);  // two materials
   const auto levels = dir / "levels.glb";   // two levels of detail sharing the skin and materials
   {
-    GltfLevel full{"lod0", c.V, c.F, {}, c.W, two.parts}, coarse{"lod1", c.V, c.F.topRows(150), {}, c.W, two.parts};
+    GltfLevel full{"lod0", c.V, c.F, {}, c.W, two.parts, {}, {}}, coarse{"lod1", c.V, c.F.topRows(150), {}, c.W, two.parts, {}, {}};
     coarse.parts[1].triangle_count = 50;
+    // The full level with two sparse morph targets played by a weights channel.
+    full.targets = {{"a", {3, 10, 50}, Eigen::MatrixX3d::Constant(3, 3, 2.0)}, {"b", {7}, Eigen::MatrixX3d::Constant(1, 3, -1.0)}};
+    full.target_weights = Eigen::MatrixXd::Zero(4, 2);
+    full.target_weights(1, 0) = full.target_weights(2, 1) = 1;
     const std::string bytes = skinned_lods_gltf_bytes({full, coarse}, c.skeleton, &anim);
     write_text_file(levels, bytes);
   }

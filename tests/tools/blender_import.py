@@ -27,11 +27,18 @@ for path in files:
             "bones": len(armatures[0].data.bones) if armatures else 0, "armatures": len(armatures),
             "actions": [{"name": a.name, "frame_range": list(a.frame_range), "fcurves": len(a.fcurves)}
                         for a in bpy.data.actions], "meshes": [], "materials": []}
+    # Blender 3.4 imports a skinned node whose mesh has morph targets (LOD0 with the garment
+    # corrections) as an EMPTY with the node's name and extras plus a mesh object named after the
+    # glTF mesh ("dressed_LOD0.001", data "dressed_LOD0"): such a mesh takes its empty's "lod".
+    empty_lod = {o.name: o.get("lod") for o in objects if o.type == 'EMPTY' and o.get("lod") is not None}
+    for o in objects:
+        if o.type == 'MESH' and o.get("lod") is None and o.data.name in empty_lod:
+            o["lod"] = empty_lod[o.data.name]
     for o in objects:
         if o.type != 'MESH':
             continue
         info["meshes"].append({
-            "name": o.name, "lod": o.get("lod"), "triangles": sum(len(p.vertices) - 2 for p in o.data.polygons),
+            "name": o.name, "lod": o.get("lod"), "shape_keys": len(o.data.shape_keys.key_blocks) if o.data.shape_keys else 0, "triangles": sum(len(p.vertices) - 2 for p in o.data.polygons),
             "vertices": len(o.data.vertices), "materials": [m.name for m in o.data.materials if m],
             "armature_modifiers": sum(m.type == 'ARMATURE' and m.object is not None for m in o.modifiers)})
     for m in bpy.data.materials:

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstring>
 #include <cstdlib>
 #include <filesystem>
 #include <regex>
@@ -35,6 +36,7 @@
 #include "support/browser.h"
 #include "support/makehuman_assets.h"
 #include "support/run_cli.h"
+#include "tools/pipeline/animate_job.h"
 #include "tools/pipeline/crowd_viewer.h"
 #include "tools/pipeline/outfit_job.h"
 
@@ -67,6 +69,44 @@ std::string validator_env() {
   if (const char* m = std::getenv("BODYMODEL_GLTF_VALIDATOR"); m && *m) return std::string("NODE_PATH=") + m + " ";
   if (fs::exists("npm/node_modules/gltf-validator")) return "NODE_PATH=" + fs::absolute("npm/node_modules").string() + " ";
   return "";
+}
+
+// The float values of a float accessor (dense, or sparse over zeros without a buffer view).
+std::vector<float> accessor_floats(const tinygltf::Model& m, int index) {
+  const tinygltf::Accessor& a = m.accessors.at(static_cast<size_t>(index));
+  const size_t n = a.count * static_cast<size_t>(tinygltf::GetNumComponentsInType(static_cast<uint32_t>(a.type)));
+  std::vector<float> out(n, 0.f);
+  const auto at = [&](int view, size_t offset) {
+    const tinygltf::BufferView& bv = m.bufferViews.at(static_cast<size_t>(view));
+    return m.buffers.at(static_cast<size_t>(bv.buffer)).data.data() + bv.byteOffset + offset;
+  };
+  if (a.bufferView >= 0) std::memcpy(out.data(), at(a.bufferView, a.byteOffset), 4 * n);
+  if (!a.sparse.isSparse) return out;
+  const size_t c = n / a.count;
+  const unsigned char* idx = at(a.sparse.indices.bufferView, static_cast<size_t>(a.sparse.indices.byteOffset));
+  const float* val = reinterpret_cast<const float*>(at(a.sparse.values.bufferView, static_cast<size_t>(a.sparse.values.byteOffset)));
+  for (int k = 0; k < a.sparse.count; ++k) {
+    const size_t i = a.sparse.indices.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT
+                         ? reinterpret_cast<const uint16_t*>(idx)[k]
+                         : reinterpret_cast<const uint32_t*>(idx)[k];
+    for (size_t d = 0; d < c; ++d) out[c * i + d] = val[c * static_cast<size_t>(k) + d];
+  }
+  return out;
+}
+
+// The `weights` channel of node `node`: #keys by #targets (empty when there is none).
+Eigen::MatrixXf morph_weights(const tinygltf::Model& m, int node, size_t targets) {
+  if (targets == 0) return {};
+  for (const tinygltf::Animation& an : m.animations)
+    for (const tinygltf::AnimationChannel& ch : an.channels)
+      if (ch.target_node == node && ch.target_path == "weights") {
+        const std::vector<float> w = accessor_floats(m, an.samplers.at(static_cast<size_t>(ch.sampler)).output);
+        Eigen::MatrixXf out(static_cast<Eigen::Index>(w.size() / targets), static_cast<Eigen::Index>(targets));
+        for (Eigen::Index t = 0; t < out.rows(); ++t)
+          for (Eigen::Index k = 0; k < out.cols(); ++k) out(t, k) = w[static_cast<size_t>(t) * targets + k];
+        return out;
+      }
+  return {};
 }
 
 // Two characters (a woman, a man) dressed with levels of detail, walking: made once for the tests.
@@ -119,6 +159,27 @@ const std::vector<DressedLods>& dressed_pair() {
     out.push_back(std::move(d));
   }
   return out;
+}
+
+// The full level as the glb should play it at key t: every part skinned, each garment pushed out
+// of the posed body where the measure finds it inside (push_garment_out, as clip_corrections does
+// before baking the push as a morph target). `moved` (optional) gets the largest push (mm).
+void played_full_level(const DressedLods& d, size_t t, Eigen::MatrixX3d& V, Eigen::MatrixX3i& F, double* moved = nullptr) {
+  const BoneTransforms& M = d.frames[t];
+  const Eigen::MatrixX3d body = linear_blend_skinning(d.ch.lbs.rest, skin_weights_of(d.ch.lbs), M);
+  posed_level(d.r.parts, M, V, F);
+  Eigen::Index v0 = 0;
+  for (const DressedPart& p : d.r.parts) {
+    if (p.garment) {
+      const Eigen::MatrixX3d X = V.middleRows(v0, p.V.rows());
+      if (penetration_of(body_distance(X, body, d.ch.F, d.r.hidden)).penetrating > 0) {
+        const Eigen::MatrixX3d pushed = push_garment_out(X, p.F, body, d.ch.F, d.r.hidden).V;
+        if (moved) *moved = std::max(*moved, (pushed - X).rowwise().norm().maxCoeff());
+        V.middleRows(v0, p.V.rows()) = pushed;
+      }
+    }
+    v0 += p.V.rows();
+  }
 }
 
 TEST(OutfitLods, LevelsFitTheirBudgetsCarryWeightsAndDeformWithTheFullBody) {
@@ -243,9 +304,95 @@ TEST(OutfitLods, LevelsFitTheirBudgetsCarryWeightsAndDeformWithTheFullBody) {
   EXPECT_NE(text.find(pair[1].glb.string() + ": errors 0 "), std::string::npos) << text;
 }
 
+// The per-frame garment corrections as the glb plays them: LOD0 read back with tinygltf, its
+// sparse morph targets weighted by the `weights` channel at each key and skinned with the stored
+// joints and weights, lies within 0.01 mm of the garments pushed out of the posed body at that key
+// (push_garment_out on the posed garment and body, as clip_corrections does) and of the other
+// parts as skinned; each key selects one target (one-hot), LOD1 and LOD2 have none, and the
+// penetration as played has no frame over the bound.
+TEST(OutfitLods, ClipCorrectionsPlayAsMorphTargetsAtEveryKey) {
+  const std::vector<DressedLods>& pair = dressed_pair();
+  if (pair.empty()) GTEST_SKIP() << "makehuman/assets not found";
+  int corrected_keys = 0;
+  for (const DressedLods& d : pair) {
+    const DressedCharacterResult& r = d.r;
+    SCOPED_TRACE(d.glb.string());
+    tinygltf::Model m;
+    tinygltf::TinyGLTF loader;
+    std::string err, warn;
+    ASSERT_TRUE(loader.LoadBinaryFromFile(&m, &err, &warn, d.glb.string())) << err;
+    const int B = d.ch.skeleton.bone_count();
+    const tinygltf::Mesh& mesh = m.meshes.at(0);
+    const size_t K = mesh.primitives.at(0).targets.size();
+    EXPECT_EQ(static_cast<int>(K), r.morph_targets);
+    if (K == 0) {   // nothing to correct (the man's casual suit): no weights channel either
+      EXPECT_EQ(r.uncorrected.fraction.maxCoeff(), r.penetration.fraction.maxCoeff());
+      continue;
+    }
+    for (const tinygltf::Primitive& p : mesh.primitives) ASSERT_EQ(p.targets.size(), K);
+    for (size_t k = 1; k < m.meshes.size(); ++k) EXPECT_TRUE(m.meshes[k].primitives.at(0).targets.empty());
+    const tinygltf::Primitive& p0 = mesh.primitives[0];
+    const std::vector<float> pos = accessor_floats(m, p0.attributes.at("POSITION"));
+    const std::vector<float> wts = accessor_floats(m, p0.attributes.at("WEIGHTS_0"));
+    const tinygltf::Accessor& ja = m.accessors.at(static_cast<size_t>(p0.attributes.at("JOINTS_0")));
+    const tinygltf::BufferView& jv = m.bufferViews.at(static_cast<size_t>(ja.bufferView));
+    const unsigned char* jb = m.buffers[0].data.data() + jv.byteOffset + ja.byteOffset;
+    const size_t n = pos.size() / 3;
+    std::vector<std::vector<float>> targets;
+    size_t stored = 0;
+    for (size_t k = 0; k < K; ++k) {
+      const tinygltf::Accessor& a = m.accessors.at(static_cast<size_t>(p0.targets[k].at("POSITION")));
+      EXPECT_TRUE(a.sparse.isSparse && a.bufferView < 0) << "target " << k << " is stored dense";
+      stored += static_cast<size_t>(a.sparse.count);
+      targets.push_back(accessor_floats(m, p0.targets[k].at("POSITION")));
+    }
+    const Eigen::MatrixXf w = morph_weights(m, B, K);
+    ASSERT_EQ(w.rows(), static_cast<Eigen::Index>(d.frames.size()));
+    double worst = 0, worst_garment_move = 0;
+    for (size_t t = 0; t < d.frames.size(); ++t) {
+      const BoneTransforms& M = d.frames[t];
+      EXPECT_LE(w.row(static_cast<Eigen::Index>(t)).sum(), 1.f + 1e-6f);
+      EXPECT_TRUE(w.row(static_cast<Eigen::Index>(t)).maxCoeff() == 0.f || w.row(static_cast<Eigen::Index>(t)).maxCoeff() == 1.f);
+      corrected_keys += w.row(static_cast<Eigen::Index>(t)).sum() > 0.5f;
+      Eigen::MatrixX3d expected;
+      Eigen::MatrixX3i F;
+      played_full_level(d, t, expected, F, &worst_garment_move);
+      ASSERT_EQ(static_cast<size_t>(expected.rows()), n);
+      for (size_t v = 0; v < n; ++v) {
+        Eigen::Vector3d rest;
+        for (int c = 0; c < 3; ++c) {
+          double x = pos[3 * v + c];
+          for (size_t k = 0; k < K; ++k) x += w(static_cast<Eigen::Index>(t), static_cast<Eigen::Index>(k)) * targets[k][3 * v + c];
+          rest(c) = 1000.0 * x;   // metres → mm
+        }
+        Eigen::Vector3d x = Eigen::Vector3d::Zero();
+        for (int j = 0; j < 4; ++j) {
+          const int bone = ja.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ? jb[4 * v + j]
+                                                                                     : reinterpret_cast<const uint16_t*>(jb)[4 * v + j];
+          x += wts[4 * v + j] * (M[static_cast<size_t>(bone)] * rest);
+        }
+        worst = std::max(worst, (x - expected.row(static_cast<Eigen::Index>(v)).transpose()).norm());
+      }
+    }
+    std::printf("%s: %zu morph targets over %zu keys, %zu displacements stored (%zu vertices), garments moved up to "
+                "%.1f mm; LOD0 as played within %.4f mm of the pushed positions; frames over the bound %d "
+                "(without the corrections %d), worst %.2f %% (%.2f %%)\n",
+                d.glb.parent_path().filename().string().c_str(), K, d.frames.size(), stored, n, worst_garment_move, worst,
+                r.penetration.frames_over(r.limit), r.uncorrected.frames_over(r.limit),
+                100 * r.penetration.fraction.maxCoeff(), 100 * r.uncorrected.fraction.maxCoeff());
+    EXPECT_LT(worst, 0.01);
+    EXPECT_GT(worst_garment_move, 1.0);   // the corrections move something: the comparison is not trivial
+    EXPECT_LT(stored, n * K / 5);          // sparse: a fraction of the vertices per target
+    EXPECT_EQ(r.penetration.frames_over(r.limit), 0);
+    EXPECT_LE(r.penetration.fraction.maxCoeff(), r.uncorrected.fraction.maxCoeff());
+  }
+  EXPECT_GT(corrected_keys, 0) << "no frame needed a correction: the test checks nothing";
+}
+
 // Debian's Blender imports each glb with its three levels (the nodes' "lod" extras), every
-// material as written (base colour, roughness), the armature and the clip; the full level as
-// Blender skins it at every key of the clip lies on our own skinning of that key. Skipped, saying
+// material as written (base colour, roughness), the armature and the clip (with the garment
+// corrections as animated shape keys); the full level as Blender skins it at every key of the
+// clip lies on our own skinning of that key, corrections included. Skipped, saying
 // why, when blender is not installed (scripts/setup.sh installs it).
 TEST(OutfitLods, BlenderImportsLevelsMaterialsAndTheClip) {
   const std::vector<DressedLods>& pair = dressed_pair();
@@ -270,9 +417,12 @@ TEST(OutfitLods, BlenderImportsLevelsMaterialsAndTheClip) {
     EXPECT_EQ(b["result"], nlohmann::json::array({"FINISHED"}));
     EXPECT_EQ(b["armatures"], 1);
     EXPECT_EQ(b["bones"], d.ch.skeleton.bone_count());
-    ASSERT_EQ(b["actions"].size(), 1u);
-    EXPECT_NEAR(b["actions"][0]["frame_range"][1].get<double>(), (keys - 1) * step * b["fps"].get<double>(), 1e-3);
-    EXPECT_GT(b["actions"][0]["fcurves"].get<int>(), 0);
+    // The armature's action, and the shape keys' when the glb has garment corrections (morph targets).
+    ASSERT_EQ(b["actions"].size(), d.r.morph_targets > 0 ? 2u : 1u) << b["actions"].dump();
+    for (const nlohmann::json& a : b["actions"]) {
+      EXPECT_NEAR(a["frame_range"][1].get<double>(), (keys - 1) * step * b["fps"].get<double>(), 1e-3) << a.dump();
+      EXPECT_GT(a["fcurves"].get<int>(), 0) << a.dump();
+    }
     // The levels: triangles as written, each deformed by the armature, the parts' materials.
     const int triangles[3] = {triangle_count(d.r.parts), triangle_count(d.r.lods[0]), triangle_count(d.r.lods[1])};
     ASSERT_EQ(b["meshes"].size(), 3u);
@@ -282,6 +432,8 @@ TEST(OutfitLods, BlenderImportsLevelsMaterialsAndTheClip) {
       EXPECT_EQ(m["triangles"].get<int>(), triangles[lod]) << "LOD" << lod;
       EXPECT_EQ(m["armature_modifiers"].get<int>(), 1) << "LOD" << lod;
       if (lod == 0) EXPECT_EQ(m["materials"].size(), d.r.parts.size());
+      // The garment corrections as shape keys (a basis and one a target) on LOD0 only.
+      EXPECT_EQ(m["shape_keys"].get<int>(), lod == 0 && d.r.morph_targets > 0 ? d.r.morph_targets + 1 : 0) << "LOD" << lod;
     }
     // Materials: Blender's base colour and roughness are the glb's factors.
     tinygltf::Model g;
@@ -311,9 +463,9 @@ TEST(OutfitLods, BlenderImportsLevelsMaterialsAndTheClip) {
       const float* xyz = reinterpret_cast<const float*>(raw.data());
       for (Eigen::Index v = 0; v < n; ++v)
         for (int c = 0; c < 3; ++c) blender(v, c) = 1000.0 * xyz[3 * v + c];
-      Eigen::MatrixX3d ours;
+      Eigen::MatrixX3d ours;   // with the garment corrections Blender plays as shape keys
       Eigen::MatrixX3i F;
-      posed_level(d.r.parts, d.frames[static_cast<size_t>(k)], ours, F);
+      played_full_level(d, static_cast<size_t>(k), ours, F);
       ASSERT_GE(n, ours.rows() / 2);
       for (const SurfaceLocation& l : locate_on_surface(blender, ours, F)) worst = std::max(worst, l.distance);
       for (const SurfaceLocation& l : locate_on_surface(blender, rest, rest_F)) moved = std::max(moved, l.distance);
@@ -349,8 +501,22 @@ TEST(OutfitLods, ThreeJsLoadsThePicksAndDrawsEveryLevel) {
   const std::string title = m[1];
   std::printf("%s\n", title.c_str());
   ASSERT_TRUE(std::regex_search(title, m, std::regex("ok levels=(\\d+) skinned=(\\d+) animations=(\\d+) "
-                                                     "picked=(-?\\d+),(-?\\d+),(-?\\d+) drawn=(\\d+),(\\d+),(\\d+)")))
+                                                     "picked=(-?\\d+),(-?\\d+),(-?\\d+) drawn=(\\d+),(\\d+),(\\d+) "
+                                                     "morphs=(\\d+) influence=([0-9.]+)")))
       << title;
+  // The morph targets three.js made of the corrections, and their weights at 0.5 s (keys every
+  // 0.2 s: half of key 2's and half of key 3's, as the glb's weights channel gives them).
+  EXPECT_EQ(std::stoi(m[10]), pair[0].r.morph_targets);
+  {
+    tinygltf::Model g;
+    tinygltf::TinyGLTF loader;
+    std::string err, warn;
+    ASSERT_TRUE(loader.LoadBinaryFromFile(&g, &err, &warn, pair[0].glb.string())) << err;
+    const Eigen::MatrixXf w = morph_weights(g, pair[0].ch.skeleton.bone_count(), static_cast<size_t>(pair[0].r.morph_targets));
+    ASSERT_GT(pair[0].r.morph_targets, 0);   // the woman's garment needs corrections (ClipCorrections* test)
+    ASSERT_GE(w.rows(), 4);
+    EXPECT_NEAR(std::stod(m[11]), 0.5 * (w.row(2).sum() + w.row(3).sum()), 1e-3);
+  }
   EXPECT_EQ(std::stoi(m[1]), 3);
   size_t primitives = 0;
   for (const auto* level : {&pair[0].r.parts, &pair[0].r.lods[0], &pair[0].r.lods[1]}) primitives += level->size();

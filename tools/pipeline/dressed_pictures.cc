@@ -215,8 +215,9 @@ std::string dressed_crowd_html(const fs::path& out, const DressedCrowdPictures& 
   b += "</div>\n";
   b += html_table_from_csv(out / "crowd" / "outfits.csv", "crowd/outfits.csv");
   b += "<p>Per character: the outfit drawn (asset:colour), the frames where the body pokes through a garment "
-       "(over 2 mm on more than 1 % of its vertices) and the glb's size. Each character's <code>anim/dressed.glb"
-       "</code> holds it dressed, its three levels of detail and the clip.</p>\n";
+       "(over 2 mm on more than 1 % of its vertices) as its glb plays them, the glb's size, the same frames without "
+       "the per-frame garment corrections and the number of morph targets holding them. Each character's "
+       "<code>anim/dressed.glb</code> holds it dressed, its three levels of detail and the clip.</p>\n";
   std::error_code ec;
   // crowd writes the page without the three.js modules it imports when they are not installed.
   if (fs::is_regular_file(out / "crowd" / "crowd.html", ec) && fs::is_directory(out / "crowd" / "three", ec))

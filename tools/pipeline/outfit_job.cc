@@ -108,13 +108,43 @@ GltfLevel dressed_level(const std::string& name, const std::vector<DressedPart>&
   return l;
 }
 
-// The levels (the full one first) as one glb sharing the skeleton and the clip.
+// The clip corrections as morph targets of the full level (its parts concatenated in order): one
+// target per frame with a correction, weight 1 at that frame's key and 0 at the others.
+void add_clip_targets(GltfLevel& l, const std::vector<DressedPart>& parts, const ClipCorrections& c) {
+  std::vector<int> first(parts.size() + 1, 0);
+  for (size_t k = 0; k < parts.size(); ++k) first[k + 1] = first[k] + static_cast<int>(parts[k].V.rows());
+  std::vector<size_t> keyed;
+  for (size_t f = 0; f < c.frames.size(); ++f) {
+    if (c.frames[f].empty()) continue;
+    GltfMorphTarget t;
+    t.name = fmt::format("frame_{}", f);
+    Eigen::Index n = 0;
+    for (const GarmentCorrection& g : c.frames[f]) n += g.delta.rows();
+    t.delta.resize(n, 3);
+    n = 0;
+    for (const GarmentCorrection& g : c.frames[f]) {   // parts in increasing order, rows increasing
+      for (int v : g.vertex) t.vertex.push_back(first[g.part] + v);
+      t.delta.middleRows(n, g.delta.rows()) = g.delta;
+      n += g.delta.rows();
+    }
+    l.targets.push_back(std::move(t));
+    keyed.push_back(f);
+  }
+  if (l.targets.empty()) return;
+  l.target_weights.setZero(static_cast<Eigen::Index>(c.frames.size()), static_cast<Eigen::Index>(keyed.size()));
+  for (size_t k = 0; k < keyed.size(); ++k) l.target_weights(static_cast<Eigen::Index>(keyed[k]), k) = 1;
+}
+
+// The levels (the full one first) as one glb sharing the skeleton and the clip; the clip
+// corrections (when given) as morph targets of the full level.
 size_t write_dressed_glb(const fs::path& path, const std::vector<const std::vector<DressedPart>*>& levels,
-                         const Skeleton& skeleton, const std::vector<BoneTransforms>& frames, double frame_time) {
+                         const Skeleton& skeleton, const std::vector<BoneTransforms>& frames, double frame_time,
+                         const ClipCorrections* corrections) {
   std::vector<GltfLevel> meshes;
   for (size_t k = 0; k < levels.size(); ++k)
     meshes.push_back(dressed_level(levels.size() == 1 ? "dressed" : fmt::format("dressed_LOD{}", k), *levels[k],
                                    skeleton.bone_count()));
+  if (corrections && !frames.empty()) add_clip_targets(meshes[0], *levels[0], *corrections);
   GltfAnimation clip;
   clip.frame_time = frame_time;
   clip.frames = frames;
@@ -154,7 +184,13 @@ nlohmann::json outfit_json(const DressedCharacterResult& r) {
                            {"limit", r.limit},
                            {"frames", r.penetration.fraction.rows()},
                            {"frames_over_limit", r.penetration.frames_over(r.limit)},
-                           {"worst_fraction", r.penetration.fraction.size() ? r.penetration.fraction.maxCoeff() : 0.0}}},
+                           {"worst_fraction", r.penetration.fraction.size() ? r.penetration.fraction.maxCoeff() : 0.0},
+                           {"uncorrected_frames_over_limit", r.uncorrected.frames_over(r.limit)},
+                           {"uncorrected_worst_fraction",
+                            r.uncorrected.fraction.size() ? r.uncorrected.fraction.maxCoeff() : 0.0}}},
+          {"clip_corrections", {{"morph_targets", r.morph_targets},
+                                {"garment_frames", r.corrected_garment_frames},
+                                {"vertices", r.corrected_vertices}}},
           {"lod_triangles", lod_triangles},
           {"glb_bytes", r.glb_bytes}};
 }
@@ -176,21 +212,37 @@ DressedCharacterResult write_dressed_character(const OutfitKit& kit, const Chara
   for (size_t k = 0; k < r.drawn.items.size(); ++k) d.parts[k + 1].colour = r.drawn.items[k].colour;
   for (DressedPart& p : d.parts) p.weights = largest_weights(p.weights, 4);
   r.parts = std::move(d.parts);
+  r.hidden = d.hidden;
   if (kit.lods) r.lods = dressed_lods(kit, r.parts, d, male);
   const std::vector<BoneTransforms> measured =
       frames.empty() ? std::vector<BoneTransforms>{BoneTransforms(ch.skeleton.bone_count(), Eigen::Affine3d::Identity())}
                      : frames;
-  r.penetration = clip_penetration(r.parts, ch.lbs.rest, ch.F, W, d.hidden, measured, r.depth_mm);
+  std::optional<ClipCorrections> corr;
+  if (kit.clip_corrections && !frames.empty()) {
+    ClipCorrectionOptions co;
+    co.push = kit.dress.push;
+    co.depth_mm = r.depth_mm;
+    corr = clip_corrections(r.parts, ch.lbs.rest, ch.F, W, d.hidden, measured, co);
+    r.uncorrected = corr->uncorrected;
+    r.corrected_garment_frames = corr->garment_frames;
+    r.corrected_vertices = corr->vertices;
+    for (const auto& f : corr->frames) r.morph_targets += !f.empty();
+  }
+  r.penetration = clip_penetration(r.parts, ch.lbs.rest, ch.F, W, d.hidden, measured, r.depth_mm, corr ? &*corr : nullptr);
+  if (!corr) r.uncorrected = r.penetration;
   std::vector<const std::vector<DressedPart>*> levels = {&r.parts};
   for (const auto& l : r.lods) levels.push_back(&l);
-  r.glb_bytes = write_dressed_glb(dir / "dressed.glb", levels, ch.skeleton, frames, frame_time);
+  r.glb_bytes = write_dressed_glb(dir / "dressed.glb", levels, ch.skeleton, frames, frame_time, corr ? &*corr : nullptr);
   std::string csv = "frame";
   for (const std::string& g : r.penetration.garments) csv += fmt::format(",{0}_inside_fraction,{0}_max_depth_mm", g);
+  for (const std::string& g : r.penetration.garments) csv += fmt::format(",{0}_uncorrected_inside_fraction", g);
   csv += "\n";
   for (Eigen::Index f = 0; f < r.penetration.fraction.rows(); ++f) {
     csv += std::to_string(f);
     for (Eigen::Index g = 0; g < r.penetration.fraction.cols(); ++g)
       csv += fmt::format(",{:.5f},{:.2f}", r.penetration.fraction(f, g), r.penetration.max_depth_mm(f, g));
+    for (Eigen::Index g = 0; g < r.penetration.fraction.cols(); ++g)
+      csv += fmt::format(",{:.5f}", r.uncorrected.fraction(f, g));
     csv += "\n";
   }
   write_text_file(dir / "penetration.csv", csv);

@@ -40,6 +40,10 @@ struct OutfitKit {
   int lod1_triangles = 8000, lod2_triangles = 2000;
   double lod1_error_mm = 4, lod2_error_mm = 12;   // how far a simplified vertex may leave the part
   std::map<std::string, Asset> proxies;  // by name; read by load_outfit_kit with the helpers
+  // With a clip: each frame's garments pushed out of the posed skin (clip_corrections, assets/dress.h)
+  // and baked into LOD0 as morph targets, one per corrected frame, selected by a `weights`
+  // channel (docs/assets.md#penetration). LOD1 and LOD2 are not corrected. false = the rest fix only.
+  bool clip_corrections = true;
 };
 
 // `outfits` = a JSON file or "default". Reads every asset the file names (InputError "'FILE':
@@ -57,7 +61,12 @@ struct DressedCharacterResult {
   DrawnOutfit drawn;
   std::vector<DressedPart> parts;        // at rest; the drawn colours
   std::vector<std::vector<DressedPart>> lods;  // levels 1, 2 (empty when kit.lods is false)
-  ClipPenetration penetration;           // per frame (the rest pose when there is no clip)
+  ClipPenetration penetration;           // per frame (the rest pose when there is no clip), as the glb plays it
+  ClipPenetration uncorrected;           // the same without the clip corrections (= penetration without them)
+  std::vector<char> hidden;              // the skin vertices the outfit hides (#skin), as measured
+  int morph_targets = 0;                 // LOD0's targets (frames with a correction)
+  int corrected_garment_frames = 0;
+  long long corrected_vertices = 0;      // displacements stored over all targets
   double depth_mm = 2.0, limit = 0.01;   // the bound reported: frames over `limit` at depth_mm
   size_t glb_bytes = 0;
 };
@@ -66,7 +75,8 @@ struct DressedCharacterResult {
 // dressed in the outfit drawn for (male, seed), posed by `frames` (bone maps, as animated.glb;
 // empty = the rest pose only). Writes DIR/dressed.glb (with the clip when there are frames; with
 // kit.lods one mesh node per level, "dressed_LOD0".."dressed_LOD2", sharing the skin),
-// DIR/outfit.json (what was drawn, colours) and DIR/penetration.csv (per frame and garment).
+// DIR/outfit.json (what was drawn, colours) and DIR/penetration.csv (per frame and garment: as
+// the glb plays it, then without the clip corrections).
 DressedCharacterResult write_dressed_character(const OutfitKit& kit, const CharacterRigFile& ch, bool male,
                                                uint64_t seed, const std::vector<BoneTransforms>& frames,
                                                double frame_time, const std::filesystem::path& dir);
