@@ -16,10 +16,8 @@ namespace bodymodel {
 
 namespace {
 
-int count(const std::vector<char>& v) {
-  int n = 0;
-  for (char c : v) n += c != 0;
-  return n;
+int count(const std::vector<char>& flags) {
+  return static_cast<int>(std::ranges::count_if(flags, [](char c) { return c != 0; }));
 }
 
 // A vertex's motion from x0: along its normal n at weight wn, any direction at weight wt.
