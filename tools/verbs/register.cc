@@ -236,21 +236,10 @@ void run_register(RegisterArgs& a) {
       {"shape_fit", a.job.shape_fit},       {"proportions", a.job.proportions},
       {"proportions_with_shape", a.job.proportions_with_shape}, {"start_from_truth", a.start_from_truth},
       {"repair_local_folds", a.repair_local_folds}};
-  // Only when on, so folders made before the option resume as they were.
-  if (a.job.contact_segments) settings["contact_segments"] = true;
   // The untangling of local folds changed these results and added columns to registration.csv:
   // such a folder registered before it is refused (or replaced with --force), not mixed.
   if (a.repair_local_folds) settings["untangle_folds"] = true;
-  // Only when given, so folders made before the option resume as they were.
-  if (!a.no.shape_space.empty()) {
-    settings["shape_space"] = file_fingerprint(a.no.shape_space);
-    settings["shape_space_prior"] = a.job.learned_space_prior;
-  }
-  if (!a.no.model.empty()) {
-    settings["model"] = file_fingerprint(a.no.model);
-    settings["model_components"] = a.no.model_components;
-    settings["model_prior"] = a.job.model_space_prior;
-  }
+  add_shared_registration_settings(settings, a.job, a.no);
   ResumableFolder folder(out, "register.json", settings, a.force,
                          outputs_named({"registration.csv", "evaluation.csv"},
                                        {".ply", ".pose.csv", ".shape.json", ".summary.csv"}));

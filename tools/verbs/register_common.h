@@ -7,12 +7,15 @@
 #include <memory>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 #include "core/io/shape_space_file.h"
 #include "core/makehuman.h"
 #include "model/model_file.h"
 #include "model/model_shape_space.h"
 #include "registration/job.h"
 #include "tools/console.h"
+#include "tools/pipeline/folder_settings.h"
 
 namespace bodymodel::cli {
 
@@ -105,6 +108,23 @@ inline void apply_registration_flags(RegistrationJobOptions& job, const NegatedR
   if (!no.model.empty()) {
     if (!no.shape_space.empty()) throw InputError("--shape-space and --model: give one shape space");
     job.model_space = read_model_shape_space(no.model, no.model_components);
+  }
+}
+
+
+// The resumable folder's settings both registration verbs share; each is recorded only when
+// given or on, so folders made before the option resume as they were.
+inline void add_shared_registration_settings(nlohmann::json& settings, const RegistrationJobOptions& job,
+                                             const NegatedRegistrationFlags& no) {
+  if (job.contact_segments) settings["contact_segments"] = true;
+  if (!no.shape_space.empty()) {
+    settings["shape_space"] = file_fingerprint(no.shape_space);
+    settings["shape_space_prior"] = job.learned_space_prior;
+  }
+  if (!no.model.empty()) {
+    settings["model"] = file_fingerprint(no.model);
+    settings["model_components"] = no.model_components;
+    settings["model_prior"] = job.model_space_prior;
   }
 }
 

@@ -203,22 +203,11 @@ void run_register_mesh(RegisterMeshArgs& a) {
       {"pose_only", a.job.pose_only}, {"keep_folds", a.keep_folds},
       {"proportions", a.job.proportions}, {"shape_fit", a.job.shape_fit},
       {"pose_iterations", a.job.pose_iterations}, {"up", a.up}};
-  // Only when on, so folders made before the option resume as they were.
-  if (a.job.contact_segments) settings["contact_segments"] = true;
   settings["hand_stage"] = a.hand_stage;
   // The untangling of local folds changed the results and added columns to register-mesh.csv:
   // a folder registered before it is refused (or replaced with --force), not mixed.
   if (!a.keep_folds) settings["untangle_folds"] = true;
-  // Only when given, so folders made before the option resume as they were.
-  if (!a.no.shape_space.empty()) {
-    settings["shape_space"] = file_fingerprint(a.no.shape_space);
-    settings["shape_space_prior"] = a.job.learned_space_prior;
-  }
-  if (!a.no.model.empty()) {
-    settings["model"] = file_fingerprint(a.no.model);
-    settings["model_components"] = a.no.model_components;
-    settings["model_prior"] = a.job.model_space_prior;
-  }
+  add_shared_registration_settings(settings, a.job, a.no);
   if (a.rest) settings["rest"] = true;
   ResumableFolder folder(out, "register-mesh.json", settings, a.force,
                          outputs_named({"register-mesh.csv"}, {".ply", ".pose.csv", ".shape.json", ".register-mesh.csv",
