@@ -23,6 +23,7 @@ struct Surface {
   Eigen::MatrixX3d X0;       // reference positions
   std::vector<std::vector<int>> nbr;
   std::vector<std::vector<int>> wide;  // the 2·k nearest, for estimates when neighbours are missing
+  std::vector<std::vector<int>> part;  // markers rigid with it (find_parts), steadiest first; may be empty
   Eigen::VectorXd spacing;   // mean distance to the neighbours (eq. 3)
   int size() const { return static_cast<int>(columns.size()); }
 };
@@ -117,6 +118,41 @@ bool estimate(const Surface& s, const Eigen::MatrixXd& X, int i, int t, Eigen::V
   return true;
 }
 
+// The std over the frames where both are seen of the distance between markers i and j of X, and
+// how many frames that is.
+double distance_spread(const Eigen::MatrixXd& X, int i, int j, int& n) {
+  double sum = 0, sum2 = 0;
+  n = 0;
+  for (int t = 0; t < X.rows(); ++t) {
+    if (!present(X, t, i) || !present(X, t, j)) continue;
+    const double d = (at(X, t, i) - at(X, t, j)).norm();
+    sum += d, sum2 += d * d, ++n;
+  }
+  return n > 1 ? std::sqrt(std::max(0.0, sum2 / n - (sum / n) * (sum / n))) : 1e300;
+}
+
+// Rigid parts from the capture itself (as Park & Hodgins and Kirk et al. segment markers): marker
+// i's part is the markers among its 5·k nearest whose distance to it varies by at most
+// part_rigidity (std over at least a tenth of the frames, both seen), the steadiest first. Unlike
+// the one-ring, which must surround the marker, the part need only move with it: a hand's markers
+// predict each other while the forearm and the hip move against them.
+void find_parts(Surface& s, const CleanOptions& o, const Eigen::MatrixXd& X) {
+  s.part.assign(s.size(), {});
+  if (o.part_rigidity <= 0) return;
+  const PointIndex index(s.X0);
+  const int min_frames = std::max(12, static_cast<int>(X.rows()) / 10);
+  tbb::parallel_for(0, s.size(), [&](int i) {
+    std::vector<std::pair<double, int>> steady;
+    for (int j : index.knn(s.X0.row(i).transpose(), 5 * o.neighbours + 1)) {
+      int n = 0;
+      const double spread = j == i ? 1e300 : distance_spread(X, i, j, n);
+      if (n >= min_frames && spread <= o.part_rigidity) steady.emplace_back(spread, j);
+    }
+    std::sort(steady.begin(), steady.end());
+    for (size_t k = 0; k < steady.size() && static_cast<int>(k) < o.part_size; ++k) s.part[i].push_back(steady[k].second);
+  });
+}
+
 // Marker i at frame t moved rigidly with its neighbours from the nearest frames before and after
 // where it was seen (weighted by closeness in time): the local shape of a recent frame is nearer
 // the current one than the reference pose's. The reference-frame estimate when neither serves.
@@ -141,6 +177,40 @@ bool anchored_estimate(const Surface& s, const Eigen::MatrixXd& X, int i, int t,
     sum += w * (m.R * at(X, a, i) + m.t), wsum += w;
   }
   if (wsum == 0) return estimate(s, X, i, t, out);
+  out = sum / wsum;
+  return true;
+}
+
+// Marker i at frame t moved with its rigid part (at least 3 members seen at t, not on one line)
+// from the nearest frames before and after where it was seen, else from the reference frame
+// (false: the part cannot say).
+bool part_estimate(const Surface& s, const Eigen::MatrixXd& X, int i, int t, Eigen::Vector3d& out) {
+  const int T = static_cast<int>(X.rows());
+  int before = t - 1, after = t + 1;
+  while (before >= 0 && !present(X, before, i)) --before;
+  while (after < T && !present(X, after, i)) ++after;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  double wsum = 0;
+  auto from = [&](int a) {  // a < 0: the reference frame
+    std::vector<int> q;
+    for (int j : s.part[i])
+      if (present(X, t, j) && (a < 0 || present(X, a, j))) q.push_back(j);
+    if (q.size() < 3) return;
+    Eigen::MatrixX3d A(q.size(), 3), B(q.size(), 3);
+    for (size_t k = 0; k < q.size(); ++k) {
+      A.row(k) = a < 0 ? Eigen::RowVector3d(s.X0.row(q[k])) : Eigen::RowVector3d(at(X, a, q[k]).transpose());
+      B.row(k) = at(X, t, q[k]).transpose();
+    }
+    if (!well_spread(A)) return;
+    const RigidMotion m = fit_rigid_motion(A, B);
+    const Eigen::Vector3d x = a < 0 ? Eigen::Vector3d(s.X0.row(i).transpose()) : at(X, a, i);
+    const double w = a < 0 ? 1.0 : 1.0 / std::abs(t - a);
+    sum += w * (m.R * x + m.t), wsum += w;
+  };
+  if (before >= 0) from(before);
+  if (after < T) from(after);
+  if (wsum == 0) from(-1);
+  if (wsum == 0) return false;
   out = sum / wsum;
   return true;
 }
@@ -347,10 +417,12 @@ long fill_from_models(const Surface& s, const std::vector<Model>& models, const 
     int n = 0;
     for (const auto& [model, member] : holders[i])
       if (reconstruct(models[model], from, t, member, e)) sum += e, ++n;
-    // Half the PCA models' estimate, half the rigid motion of the neighbours from the nearest
-    // frames where the marker was seen (our addition: it follows short gaps more closely).
-    if (anchored_estimate(s, from, i, t, e)) {
-      sum = n == 0 ? e : Eigen::Vector3d(0.5 * (sum / n + e));
+    // A quarter the PCA models' estimate, three quarters the rigid motion from the nearest frames
+    // where the marker was seen, of its rigid part where it has one, else of its one-ring (our
+    // addition: it follows short gaps more closely, and near hands and hips the models, fitted on
+    // frames where the whole one-ring is seen, are often far off; half and half filled worse).
+    if (part_estimate(s, from, i, t, e) || anchored_estimate(s, from, i, t, e)) {
+      sum = n == 0 ? e : Eigen::Vector3d(0.25 * (sum / n) + 0.75 * e);
       n = 1;
     }
     if (n == 0) {
@@ -542,6 +614,101 @@ int model_round(const MarkerData& c, const Surface& s, const CleanOptions& o, co
   return merged;
 }
 
+// Where piece p sits in the reference frame (false: it cannot say): its own rigid part, the markers
+// of X whose distance to it varies least over the piece (std at most piece_rigidity, seen over most of
+// it, at most part_size of those within 3 spacings of it at its first frame), carries it back rigidly
+// to their reference positions (mean over at most 16 of its frames). Unlike a prediction of the
+// missing marker, this needs no frame where the marker was seen.
+bool piece_reference(const Surface& s, const CleanOptions& o, const MarkerData& c, const Eigen::MatrixXd& X, const Piece& p,
+                     double reach, Eigen::Vector3d& q) {
+  const int n = static_cast<int>(p.frames.size());
+  std::vector<std::pair<double, int>> steady;
+  for (int j = 0; j < s.size(); ++j) {
+    const int t0 = p.frames[0];
+    if (!present(X, t0, j) || (at(X, t0, j) - c.at(t0, p.column)).norm() > reach) continue;
+    double sum = 0, sum2 = 0;
+    int k = 0;
+    for (int t : p.frames) {
+      if (!present(X, t, j)) continue;
+      const double d = (at(X, t, j) - c.at(t, p.column)).norm();
+      sum += d, sum2 += d * d, ++k;
+    }
+    if (k < 0.8 * n) continue;
+    const double spread = std::sqrt(std::max(0.0, sum2 / k - (sum / k) * (sum / k)));
+    if (spread <= o.piece_rigidity) steady.emplace_back(spread, j);
+  }
+  std::sort(steady.begin(), steady.end());
+  if (steady.size() > static_cast<size_t>(o.part_size)) steady.resize(o.part_size);
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  int m = 0;
+  const int step = std::max(1, n / 16);
+  for (int f = 0; f < n; f += step) {
+    const int t = p.frames[f];
+    std::vector<int> J;
+    for (const auto& [spread, j] : steady)
+      if (present(X, t, j)) J.push_back(j);
+    if (J.size() < 3) continue;
+    Eigen::MatrixX3d A(J.size(), 3), B(J.size(), 3);
+    for (size_t k = 0; k < J.size(); ++k) A.row(k) = at(X, t, J[k]).transpose(), B.row(k) = s.X0.row(J[k]);
+    if (!well_spread(B)) continue;
+    const RigidMotion back = fit_rigid_motion(A, B);
+    sum += back.R * c.at(t, p.column) + back.t, ++m;
+  }
+  if (m == 0) return false;
+  q = sum / m;
+  return true;
+}
+
+// Our addition: the pieces left of at least 12 frames (0.1 s at 120 Hz: enough to tell which
+// markers move rigidly with it) go to the marker whose reference position is nearest the piece's
+// (piece_reference), among the markers missing over the whole piece and not refused by it, when
+// that is within model_tolerance · spacing and every other marker is `ambiguity` times farther.
+// Near hands and hips the one-ring's motion, the filled trajectory and the models can all be far
+// off over a long hole; the piece's own part is not.
+int part_round(const MarkerData& c, const Surface& s, const CleanOptions& o, Pieces& ps, Eigen::MatrixXd& X, CleanReport& r) {
+  if (o.part_rigidity <= 0) return 0;
+  Eigen::VectorXd sorted = s.spacing;
+  std::sort(sorted.data(), sorted.data() + sorted.size());
+  const double reach = 3 * sorted(sorted.size() / 2);
+  std::vector<int> choice(ps.list.size(), -1);
+  std::vector<double> dist(ps.list.size(), 0);
+  tbb::parallel_for(size_t(0), ps.list.size(), [&](size_t k) {
+    const Piece& p = ps.list[k];
+    Eigen::Vector3d q;
+    if (ps.done[k] || p.frames.size() < 12 || !piece_reference(s, o, c, X, p, reach, q)) return;
+    double best = 1e300, second = 1e300;
+    int bi = -1;
+    for (int i = 0; i < s.size(); ++i) {
+      const double d = (s.X0.row(i).transpose() - q).norm();
+      bool free = std::find(p.refused.begin(), p.refused.end(), i) == p.refused.end();
+      for (int t : p.frames) free = free && !present(X, t, i);
+      if (free && d < best) {
+        second = std::min(second, best), best = d, bi = i;
+      } else {
+        second = std::min(second, d);
+      }
+    }
+    if (bi >= 0 && best <= o.model_tolerance * s.spacing(bi) && second >= o.ambiguity * best) choice[k] = bi, dist[k] = best;
+  });
+  // The surest first: of two pieces that want one marker over the same frames, the nearer wins.
+  std::vector<size_t> order(ps.list.size());
+  for (size_t k = 0; k < order.size(); ++k) order[k] = k;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return dist[a] < dist[b]; });
+  int merged = 0;
+  for (size_t k : order) {
+    const int i = choice[k];
+    if (i < 0) continue;
+    const Piece& p = ps.list[k];
+    bool missing = true;
+    for (int t : p.frames) missing = missing && !present(X, t, i);
+    if (!missing) continue;
+    for (int t : p.frames) X.block<1, 3>(t, 3 * i) = c.xyz.block<1, 3>(t, 3 * p.column);
+    ps.done[k] = 1, ps.marker[k] = i, ++merged;
+    r.merges.push_back({c.labels[p.column], c.labels[s.columns[i]], p.frames.front(), p.frames.back(), dist[k]});
+  }
+  return merged;
+}
+
 // The neighbourhood models of the merged trajectories, after taking out the merges they disagree with.
 Neighbourhoods checked_neighbourhoods(const MarkerData& c, const Surface& s, const CleanOptions& o, Pieces& ps,
                                       std::vector<char>& checked, Eigen::MatrixXd& X, CleanReport& r) {
@@ -576,7 +743,7 @@ void smooth(const Surface& s, const CleanOptions& o, Eigen::MatrixXd& Y) {
 
 CleanResult clean_markers(const MarkerData& capture, const CleanOptions& o, const std::function<void(double)>& progress) {
   check_marker_data(capture, "markers clean input");
-  const Surface s = build_surface(capture, o);
+  Surface s = build_surface(capture, o);
   CleanResult out;
   CleanReport& r = out.report;
   r.markers = s.size();
@@ -585,8 +752,19 @@ CleanResult clean_markers(const MarkerData& capture, const CleanOptions& o, cons
   r.gaps_before = count_gaps(X, s.size());
   Pieces ps = collect_pieces(capture);
   r.pieces = static_cast<int>(ps.list.size());
-  const Predictor rigid = [&](int i, int t, Eigen::Vector3d& e) { return anchored_estimate(s, X, i, t, e); };
-  for (int pass = 0; pass < 2; ++pass) merge_round(capture, s, o, rigid, ps, X, r);
+  find_parts(s, o, X);  // from the labelled samples (each marker's first run)
+  // Half the one-ring's motion, half the marker's rigid part's where it has one (either alone
+  // misleads now and then: the average made the fewest wrong merges).
+  const Predictor rigid = [&](int i, int t, Eigen::Vector3d& e) {
+    Eigen::Vector3d ring, part;
+    const bool has_ring = anchored_estimate(s, X, i, t, ring), has_part = part_estimate(s, X, i, t, part);
+    e = has_ring && has_part ? Eigen::Vector3d(0.5 * (ring + part)) : has_ring ? ring : part;
+    return has_ring || has_part;
+  };
+  for (int pass = 0; pass < 2; ++pass) {
+    merge_round(capture, s, o, rigid, ps, X, r);
+    find_parts(s, o, X);  // from the merged trajectories: more frames
+  }
   std::vector<char> checked;
   Neighbourhoods nb = checked_neighbourhoods(capture, s, o, ps, checked, X, r);
   Eigen::MatrixXd Y = fill_holes(s, nb, X, r);
@@ -599,6 +777,12 @@ CleanResult clean_markers(const MarkerData& capture, const CleanOptions& o, cons
   for (int round = 0; round < o.rounds; ++round) {
     if (progress) progress(0.2 + 0.6 * (round + 1) / (o.rounds + 1));
     if (merge_round(capture, s, o, filled, ps, X, r) == 0) break;
+    nb = checked_neighbourhoods(capture, s, o, ps, checked, X, r);
+    Y = fill_holes(s, nb, X, r);
+  }
+  for (int round = 0; round < o.part_rounds; ++round) {
+    if (part_round(capture, s, o, ps, X, r) == 0) break;
+    find_parts(s, o, X);
     nb = checked_neighbourhoods(capture, s, o, ps, checked, X, r);
     Y = fill_holes(s, nb, X, r);
   }

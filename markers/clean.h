@@ -5,12 +5,15 @@
 // a1 · the mean neighbour distance at the piece's first frame, and a2 · it over the whole piece,
 // never overlapping the marker's own samples); holes are filled from a PCA model of each marker's
 // neighbourhood in its local frame, fitted to the neighbours present (averaged over the models
-// of the marker and of its neighbours, and with the neighbours' rigid motion from the nearest frames
-// where the marker was seen); the trajectories are smoothed in the local frame. Pieces left are
+// of the marker and of its neighbours, and with its rigid part's or neighbours' rigid motion from the
+// nearest frames where the marker was seen); the trajectories are smoothed in the local frame. Pieces left are
 // matched again against the filled trajectories (`rounds`), and the holes filled again. A merged
 // piece the marker's neighbourhood models (fitted on the merged data, the piece's own sample left
 // out of each estimate) put farther than model_tolerance · spacing is taken out again. The pieces
-// still left are then matched by those models alone (`model_rounds`).
+// still left are then matched by those models alone (`model_rounds`). Rigid parts found from the
+// capture itself (markers whose mutual distances stay nearly fixed) predict a missing marker beside
+// its one-ring, and place each long piece left in the reference frame by the markers moving with it,
+// which names its marker (`part_rounds`).
 // Approximations: the marker surface's one-ring is the k nearest markers in the reference frame
 // (the paper built it by hand); frames with fewer than 3 visible neighbours, after a second pass
 // that lets filled neighbours count, are filled by linear interpolation in time (reported apart).
@@ -32,6 +35,10 @@ struct CleanOptions {
   double piece_tolerance = 0.6;       // a2 of the paper
   double ambiguity = 2;               // a piece another marker explains within this factor stays unmerged
   double rigidity = 0.1;              // a neighbour's distance may vary by this fraction of itself (std over time)
+  double part_rigidity = 9;           // mm: markers whose distance varies less (std over time) share a rigid part (0 = no parts)
+  double piece_rigidity = 15;         // mm: the same for a piece and the markers moving with it (longer: looser)
+  int part_size = 10;                 // a marker's rigid part: at most this many of its nearest markers
+  int part_rounds = 2;                // rounds matching the pieces left by their own rigid part (0 = none)
   int min_piece = 1;                  // shorter pieces are left unmerged (too short to tell whose they are)
   int rounds = 2;                     // merges against the filled trajectories (then filled again)
   double model_tolerance = 0.35;      // a merge its neighbourhood models put farther than this · spacing is undone (0 = never)

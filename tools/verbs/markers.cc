@@ -152,6 +152,17 @@ void add_clean(CLI::App* group) {
                   "Undo a merge the neighbourhood models put farther than this · mean neighbour distance, when another "
                   "marker's models explain the piece better (0 = never)")
       ->capture_default_str();
+  cmd->add_option("--part-rigidity", a->o.part_rigidity,
+                  "Markers whose distance varies by less (mm, std over time) share a rigid part, which predicts a "
+                  "missing marker before its neighbours do (0 = no parts)")
+      ->capture_default_str();
+  cmd->add_option("--piece-rigidity", a->o.piece_rigidity,
+                  "The same for a piece left and the markers moving with it (mm), which place it in the reference frame")
+      ->capture_default_str();
+  cmd->add_option("--part-size", a->o.part_size, "Largest rigid part of a marker (its steadiest nearby markers)")->capture_default_str();
+  cmd->add_option("--part-rounds", a->o.part_rounds,
+                  "Rounds matching the pieces left by where their own rigid part puts them in the reference frame (0 = none)")
+      ->capture_default_str();
   cmd->add_option("--model-rounds", a->o.model_rounds, "Rounds matching the pieces left by the neighbourhood models (0 = none)")
       ->capture_default_str();
   cmd->add_option("--smooth", a->o.smooth_iterations, "Smoothing passes in the local frame (0 = none)")->capture_default_str();
