@@ -94,7 +94,7 @@ void smooth_remaining_folds(Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, cons
     verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
     Eigen::MatrixX3d W = V;
     for (int i : verts) {
-      if (nbr[i].empty()) continue;
+      if (nbr[i].empty() || std::find(o.pinned.begin(), o.pinned.end(), i) != o.pinned.end()) continue;
       Eigen::RowVector3d mean = Eigen::RowVector3d::Zero();
       for (int j : nbr[i]) mean += V.row(j);
       const Eigen::RowVector3d target = 0.5 * V.row(i) + 0.5 * mean / double(nbr[i].size());
@@ -152,6 +152,8 @@ FoldRepairSummary repair_folds_impl(Eigen::MatrixX3d& V, const Eigen::MatrixX3d&
           for (int j : nbr[i]) grown[j] = 1;
       in.swap(grown);
     }
+    for (int i : o.pinned)
+      if (i >= 0 && i < n) in[i] = 0;
     // Connected regions, each solved on its own.
     std::fill(comp_of.begin(), comp_of.end(), -1);
     int components = 0;

@@ -47,6 +47,9 @@ struct FoldRepairOptions {
   // (a heavy body's crotch, the sternum between strong pectorals) where the Laplacian solve from
   // the reference either leaves the crease or moves the surface tens of mm. 0 = none.
   int smoothing_steps = 0;
+  // Vertices never re-solved (they glue a region like its border): a registration's landmark
+  // vertices, placed on purpose where the reference's local shape would put them elsewhere.
+  std::vector<int> pinned;
 };
 
 struct FoldRepairSummary {

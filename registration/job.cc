@@ -21,6 +21,8 @@ void validate(const RegistrationJobOptions& o) {
     throw InputError("--pose-joints: expected 'segment', 'bone' or 'best', got '" + o.pose_joints + "'");
   if (o.fast_steps < 1) throw InputError(fmt::format("--fast-steps must be at least 1, got {}", o.fast_steps));
   if (!(o.fast_k_end > 0)) throw InputError(fmt::format("--fast-stiffness-end must be positive, got {}", o.fast_k_end));
+  if (!(o.landmark_floor >= 0) || !std::isfinite(o.landmark_floor))
+    throw InputError(fmt::format("--landmark-floor must be a finite number ≥ 0, got {}", o.landmark_floor));
   if (!(o.transform_length > 0))
     throw InputError(fmt::format("--transform-length must be positive, got {}", o.transform_length));
   if (o.pose_iterations < 0)
@@ -65,6 +67,7 @@ RegistrationSetup registration_setup(const RegistrationJobOptions& o) {
   r.nonrigid.schedule = o.schedule == "paper" ? NonrigidSchedule::paper : NonrigidSchedule::fast;
   r.nonrigid.fast_steps = o.fast_steps;
   r.nonrigid.fast_k_end = o.fast_k_end;
+  r.nonrigid.landmark_floor = o.landmark_floor;
   r.nonrigid.normalization_length = o.transform_length;
   r.nonrigid.contact_segments = o.contact_segments;
   r.skip_nonrigid = o.pose_only;

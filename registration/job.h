@@ -32,6 +32,7 @@ struct RegistrationJobOptions {
   std::string schedule = "fast";  // non-rigid stiffness schedule: "paper" or "fast"
   int fast_steps = NonrigidOptions{}.fast_steps;
   double fast_k_end = NonrigidOptions{}.fast_k_end;
+  double landmark_floor = NonrigidOptions{}.landmark_floor;
   double transform_length = NonrigidOptions{}.normalization_length;
   bool pose_only = false;    // stop after the pose fit (no post-steps either)
   bool proportions = true;   // segment proportions from the landmarks

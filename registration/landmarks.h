@@ -36,4 +36,12 @@ int template_landmark_vertex(const LandmarkTable& table, const std::string& name
 void check_landmarks(const std::vector<Landmark>& landmarks, int vertex_count,
                      const std::string& what = "landmarks");
 
+// The template vertices the landmarks pull, in order.
+inline std::vector<int> landmark_vertices(const std::vector<Landmark>& landmarks) {
+  std::vector<int> out;
+  out.reserve(landmarks.size());
+  for (const Landmark& l : landmarks) out.push_back(l.vertex);
+  return out;
+}
+
 }  // namespace bodymodel

@@ -146,7 +146,7 @@ InverseCorrespondences inverse_correspondences(const Eigen::MatrixX3d& V,
 }
 
 int repair_flipped_triangles(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_ref,
-                             const Eigen::MatrixX3i& F, int rings, int passes) {
+                             const Eigen::MatrixX3i& F, int rings, int passes, const std::vector<int>& pinned) {
   if (V_ref.rows() != V.rows()) throw InputError("repair_flipped_triangles: V and V_ref differ in size");
   // The single fold repair (core/fold_repair.h): the reference's local shape, rotated and scaled
   // to the region's border, kept only where it leaves fewer flipped triangles; no region size cap
@@ -155,6 +155,7 @@ int repair_flipped_triangles(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_ref,
   o.rings = rings;
   o.passes = passes;
   o.max_region_vertices = int(V.rows());
+  o.pinned = pinned;
   return repair_folds(V, V_ref, F, o).flipped_before;
 }
 
@@ -420,7 +421,7 @@ Eigen::MatrixX3d NonrigidRegistration::fit(const Eigen::MatrixX3d& V_init,
   bool have_factor = false;
   for (size_t step = 0; step < betas.size(); ++step) {
     report_progress(progress, double(step) / double(betas.size()), "non-rigid fit");
-    const double beta = betas[step], gamma = o.landmark_factor * beta, alpha = o.alpha;
+    const double beta = betas[step], gamma = std::max(o.landmark_factor * beta, o.landmark_floor), alpha = o.alpha;
     const Eigen::MatrixX3d VN = vertex_normals(V, I.F);
     auto tc = std::chrono::steady_clock::now();
     const InverseCorrespondences corr = inverse_correspondences(V, VN, scan, scan_index, o, labels.segments ? &labels : nullptr);

@@ -45,6 +45,10 @@ struct NonrigidOptions {
   int t_max = 1500;
   double alpha = 1.0;
   double landmark_factor = 2.0;        // γ = landmark_factor·β
+  // γ never below this (0: the paper's γ = 2β to the end). As β falls the landmarks weigh as
+  // little as a couple of data points, and where the template's face differs from the scan's the
+  // point-to-plane data term lets the nose slide along the surface.
+  double landmark_floor = 0.0;
   // Fast schedule: geometric β from k0 to fast_k_end in fast_steps solves (correspondences
   // recomputed before every solve). The benchmark compares it with `paper`.
   int fast_steps = 40;
@@ -150,10 +154,13 @@ InverseCorrespondences inverse_correspondences(const Eigen::MatrixX3d& V,
 // grown by `rings` vertex rings, are re-solved so that their vertices' umbrella-Laplacian
 // coordinates equal V_ref's (the region takes the reference's local shape, glued to the
 // unchanged vertices around it). Repeats up to `passes` times while flipped triangles remain.
-// Returns the number of triangles flipped against V_ref before the repair.
+// Returns the number of triangles flipped against V_ref before the repair. `pinned` vertices
+// (the landmarks' vertices) keep their place: the fit put them where the reference's shape
+// would not, and re-solving them slid the nose tip 10 mm off its landmark on FAUST.
 //   V #V by 3 (modified in place), V_ref #V by 3, F #F by 3.
 int repair_flipped_triangles(Eigen::MatrixX3d& V, const Eigen::MatrixX3d& V_ref,
-                             const Eigen::MatrixX3i& F, int rings = 2, int passes = 3);
+                             const Eigen::MatrixX3i& F, int rings = 2, int passes = 3,
+                             const std::vector<int>& pinned = {});
 
 // Solver object: built once per template (cotangent weights of the *original* template,
 // symbolic factorisation), then fit() to any number of scans. Not thread-safe: use one object

@@ -189,7 +189,7 @@ RegistrationResult register_scan(const RegistrationTemplate& tpl, PointCloud& sc
     if (options.repair_flipped_rings > 0)
       sum.folded_triangles =
           repair_flipped_triangles(r.V, r.pose.V, tpl.mesh.F, options.repair_flipped_rings,
-                                   options.repair_flipped_passes);
+                                   options.repair_flipped_passes, landmark_vertices(landmarks));
   }
   if (!r.V.allFinite()) throw NumericalError(what + ": registration produced non-finite vertices");
   sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -251,6 +251,34 @@ TEST(RepairFlippedTriangles, UnfoldsADeepDentWithTheRegistrationsPasses) {
   EXPECT_LT(moved_far, 1e-12);  // the lower half is far from the dent: nothing moves there
 }
 
+// A landmark vertex the fit pulled 15 mm out of the reference's surface, beside a fold (a
+// neighbour pushed across it): re-solving the region from the reference takes the landmark back
+// into the sphere; pinned, it stays where the fit put it and the fold is still removed.
+TEST(RepairFlippedTriangles, KeepsPinnedLandmarkVertices) {
+  const Mesh sphere = test::icosphere(100.0, 3);
+  Eigen::Index p = 0;
+  sphere.V.col(2).maxCoeff(&p);
+  const Eigen::MatrixX2i E = unique_edges(sphere.F);
+  int q = -1;
+  for (Eigen::Index e = 0; e < E.rows() && q < 0; ++e)
+    if (E(e, 0) == p || E(e, 1) == p) q = E(e, 0) == p ? E(e, 1) : E(e, 0);
+  ASSERT_GE(q, 0);
+  Eigen::MatrixX3d V = sphere.V;
+  V(p, 2) += 15.0;
+  V(q, 0) = 2.0 * sphere.V(p, 0) - sphere.V(q, 0);  // across the pole
+  V(q, 1) = 2.0 * sphere.V(p, 1) - sphere.V(q, 1);
+  const int before = count_flipped_triangles(V, sphere.V, sphere.F);
+  ASSERT_GT(before, 0);
+  const RegistrationOptions o;
+  Eigen::MatrixX3d free = V, pinned = V;
+  repair_flipped_triangles(free, sphere.V, sphere.F, o.repair_flipped_rings, o.repair_flipped_passes);
+  repair_flipped_triangles(pinned, sphere.V, sphere.F, o.repair_flipped_rings, o.repair_flipped_passes,
+                           {int(p)});
+  EXPECT_GT((free.row(p) - V.row(p)).norm(), 5.0);  // unpinned, the landmark is lost
+  EXPECT_EQ((pinned.row(p) - V.row(p)).norm(), 0.0);
+  EXPECT_EQ(count_flipped_triangles(pinned, sphere.V, sphere.F), 0);
+}
+
 TEST(NonrigidRegistration, BadInput) {
   Mesh sphere = test::icosphere(100.0, 2);
   NonrigidRegistration reg(sphere);

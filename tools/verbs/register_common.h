@@ -36,6 +36,10 @@ inline void add_registration_flags(CLI::App* cmd, RegistrationJobOptions& job, N
   cmd->add_option("--fast-stiffness-end", job.fast_k_end,
                   "Final smoothness weight β of the fast schedule (starts at k0 = 3000)")
       ->capture_default_str();
+  cmd->add_option("--landmark-floor", job.landmark_floor,
+                  "Smallest landmark weight γ of the non-rigid fit (γ = 2β otherwise falls with the stiffness β, "
+                  "and the landmarks then weigh as little as two data points)")
+      ->capture_default_str();
   cmd->add_flag("--pose-only", job.pose_only, "Stop after the skeleton pose fit");
   cmd->add_flag("--no-proportions", no.no_proportions,
                 "Keep the template's limb proportions (global scale only) instead of stretching "
@@ -117,6 +121,7 @@ inline void apply_registration_flags(RegistrationJobOptions& job, const NegatedR
 inline void add_shared_registration_settings(nlohmann::json& settings, const RegistrationJobOptions& job,
                                              const NegatedRegistrationFlags& no) {
   if (job.contact_segments) settings["contact_segments"] = true;
+  if (job.landmark_floor > 0) settings["landmark_floor"] = job.landmark_floor;
   if (!no.shape_space.empty()) {
     settings["shape_space"] = file_fingerprint(no.shape_space);
     settings["shape_space_prior"] = job.learned_space_prior;
