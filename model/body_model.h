@@ -31,6 +31,8 @@ inline constexpr int kModelFormatVersion = 2;
 // 3: the bases quantised to 8 or 16 bits (model/model_file.h, model/quantise.h); written only
 // when asked for, so float32 files stay readable by programs that predate it.
 inline constexpr int kQuantisedModelFormatVersion = 3;
+// 4: quantised with per-column widths other than 8 and 16 bits, bit-packed (model/model_file.h).
+inline constexpr int kPackedModelFormatVersion = 4;
 
 // One PCA model with its labels.
 struct SubModel {

@@ -78,25 +78,37 @@ Eigen::SparseMatrix<double, Eigen::RowMajor> get_sparse(const Npz& z, const std:
   return M;
 }
 
+// Per-column bits of a basis stored with `o` (empty `given`: all o.basis_bits).
+Eigen::VectorXi column_bits_of(const ModelFileOptions& o, const Eigen::VectorXi& given, Eigen::Index K) {
+  return given.size() > 0 ? given : Eigen::VectorXi(Eigen::VectorXi::Constant(K, o.basis_bits));
+}
+
+bool byte_aligned(const Eigen::VectorXi& bits) { return ((bits.array() == 8) || (bits.array() == 16)).all(); }
+
 // The bases are most of the file (D by K): float32 (relative precision 6e-8, far below what
-// decoding resolves; see model_file.h) or quantised codes with their scales.
+// decoding resolves; see model_file.h) or quantised codes with their scales: int8 / int16 arrays
+// when every column is 8 or 16 bits (format 3), otherwise one bit-packed uint8 array (format 4).
 void put_basis(Npz& z, const std::string& key, const Eigen::MatrixXd& B, const ModelFileOptions& o,
                const Eigen::VectorXi& column_bits) {
+  if (o.omit_bases) return;
   if (o.basis_bits == 32) {
     z.put_float32(key, B);
     return;
   }
-  const Eigen::VectorXi bits =
-      column_bits.size() > 0 ? column_bits : Eigen::VectorXi(Eigen::VectorXi::Constant(B.cols(), o.basis_bits));
+  const Eigen::VectorXi bits = column_bits_of(o, column_bits, B.cols());
   QuantisedBasis q = quantise_basis(B, bits, o.block_rows);
-  for (int b : {8, 16}) {
-    std::vector<Eigen::Index> cols;
-    for (Eigen::Index k = 0; k < bits.size(); ++k)
-      if (bits(k) == b) cols.push_back(k);
-    if (cols.empty()) continue;
-    Eigen::MatrixXi C(q.codes.rows(), static_cast<Eigen::Index>(cols.size()));
-    for (size_t j = 0; j < cols.size(); ++j) C.col(static_cast<Eigen::Index>(j)) = q.codes.col(cols[j]);
-    z.put_small_int(key + (b == 8 ? "_codes" : "_codes16"), C, b / 8);
+  if (byte_aligned(bits)) {
+    for (int b : {8, 16}) {
+      std::vector<Eigen::Index> cols;
+      for (Eigen::Index k = 0; k < bits.size(); ++k)
+        if (bits(k) == b) cols.push_back(k);
+      if (cols.empty()) continue;
+      Eigen::MatrixXi C(q.codes.rows(), static_cast<Eigen::Index>(cols.size()));
+      for (size_t j = 0; j < cols.size(); ++j) C.col(static_cast<Eigen::Index>(j)) = q.codes.col(cols[j]);
+      z.put_small_int(key + (b == 8 ? "_codes" : "_codes16"), C, b / 8);
+    }
+  } else {
+    z.put_bytes(key + "_packed", pack_codes(q.codes, bits));
   }
   z.put(key + "_column_bits", bits);
   z.put_float32(key + "_scales", q.scales);
@@ -104,27 +116,33 @@ void put_basis(Npz& z, const std::string& key, const Eigen::MatrixXd& B, const M
   z.put(key + "_column_norms", q.column_norms);
 }
 
-// A basis stored either way; quantised ones are checked (model/quantise.h) before decoding.
-Eigen::MatrixXd get_basis(const Npz& z, const std::string& key, const std::string& what) {
-  if (!z.has(key + "_column_bits")) return z.matrix(key);
-  QuantisedBasis q;
-  q.bits = z.int_vector(key + "_column_bits");
-  Eigen::MatrixXi parts[2];  // the 8-bit and the 16-bit columns
+// The width of an array as read ('|i1', '<i2') or, for an archive made in memory, as it will be written.
+std::string dtype_of(const Npz& z, const std::string& name) {
+  if (!z.has(name)) return "missing";
+  const NpyArray& a = z.arrays().at(name);
+  return !a.dtype.empty()           ? a.dtype
+         : a.is_float               ? "<f8"
+         : a.store_uint8            ? "|u1"
+         : a.store_int_bytes == 1   ? "|i1"
+         : a.store_int_bytes == 2   ? "<i2"
+                                    : "<i4";
+}
+
+// Format 3: the 8-bit and the 16-bit columns in two arrays, in column order.
+Eigen::MatrixXi get_byte_codes(const Npz& z, const std::string& key, const std::string& what,
+                               const Eigen::VectorXi& bits) {
+  for (Eigen::Index k = 0; k < bits.size(); ++k)
+    if (bits(k) != 8 && bits(k) != 16)
+      throw InputError(fmt::format("{}: '{}_column_bits' element {} is {} bits and there is no '{}_packed' "
+                                   "(only 8 and 16 bits are stored unpacked)",
+                                   what, key, k, bits(k), key));
+  Eigen::MatrixXi parts[2];
   Eigen::Index rows = -1, used[2] = {0, 0};
   for (int p = 0; p < 2; ++p) {
     const std::string name = key + (p == 0 ? "_codes" : "_codes16");
-    const Eigen::Index want = (q.bits.array() == (p == 0 ? 8 : 16)).count();
+    const Eigen::Index want = (bits.array() == (p == 0 ? 8 : 16)).count();
     if (want == 0) continue;
-    // The width as read ('|i1', '<i2') or, for an archive made in memory, as it will be written.
-    std::string dtype = "missing";
-    if (z.has(name)) {
-      const NpyArray& a = z.arrays().at(name);
-      dtype = !a.dtype.empty()            ? a.dtype
-              : a.is_float                ? "<f8"
-              : a.store_int_bytes == 1    ? "|i1"
-              : a.store_int_bytes == 2    ? "<i2"
-                                          : "<i4";
-    }
+    const std::string dtype = dtype_of(z, name);
     if (dtype != (p == 0 ? "|i1" : "<i2"))
       throw InputError(fmt::format("{}: '{}' is '{}', expected {} ({} columns of '{}_column_bits' say {} bits)", what,
                                    name, dtype, p == 0 ? "int8 ('|i1')" : "int16 ('<i2')",
@@ -135,16 +153,34 @@ Eigen::MatrixXd get_basis(const Npz& z, const std::string& key, const std::strin
                                    what, name, parts[p].rows(), parts[p].cols(), want, key));
     rows = parts[p].rows();
   }
-  q.codes.resize(std::max<Eigen::Index>(rows, 0), q.bits.size());
-  for (Eigen::Index k = 0; k < q.bits.size(); ++k) {
-    const int p = q.bits(k) == 8 ? 0 : 1;
-    if (q.bits(k) == 8 || q.bits(k) == 16) q.codes.col(k) = parts[p].col(used[p]++);
+  Eigen::MatrixXi codes(std::max<Eigen::Index>(rows, 0), bits.size());
+  for (Eigen::Index k = 0; k < bits.size(); ++k) {
+    const int p = bits(k) == 8 ? 0 : 1;
+    if (bits(k) == 8 || bits(k) == 16) codes.col(k) = parts[p].col(used[p]++);
+  }
+  return codes;
+}
+
+// A basis stored either way; quantised ones are checked (model/quantise.h) before decoding. D:
+// the template's encoding size (the rows of a packed basis).
+Eigen::MatrixXd get_basis(const Npz& z, const std::string& key, const std::string& what, int D) {
+  if (!z.has(key + "_column_bits")) return z.matrix(key);
+  QuantisedBasis q;
+  q.bits = z.int_vector(key + "_column_bits");
+  std::string codes_name;
+  if (z.has(key + "_packed")) {
+    codes_name = key + "_packed";
+    if (const std::string dtype = dtype_of(z, codes_name); dtype != "|u1")
+      throw InputError(fmt::format("{}: '{}' is '{}', expected uint8 ('|u1') bit-packed codes", what, codes_name, dtype));
+    q.codes = unpack_codes(z.arrays().at(codes_name).i64, D, q.bits, what, codes_name);
+  } else {
+    q.codes = get_byte_codes(z, key, what, q.bits);
   }
   q.scales = z.matrix(key + "_scales");
   const double block_rows = z.scalar(key + "_block_rows");
   q.block_rows = std::isfinite(block_rows) ? static_cast<int>(std::clamp(block_rows, -1.0, 1e9)) : -1;
   q.column_norms = z.vector(key + "_column_norms");
-  validate_quantised_basis(q, what, key);
+  validate_quantised_basis(q, what, key, codes_name);
   return dequantise_basis(q);
 }
 
@@ -182,7 +218,7 @@ SubModel get_sub_model(const Npz& z, const std::string& p, bool shape, int D, co
   // shares its basis instead of storing it twice.
   const bool shared = !shape && !z.has(p + "_basis") && z.has("full_basis_is_shape_basis") &&
                       z.scalar("full_basis_is_shape_basis") == 1.0;
-  m.pca.basis = get_basis(z, shared ? std::string("shape_basis") : p + "_basis", what);
+  m.pca.basis = get_basis(z, shared ? std::string("shape_basis") : p + "_basis", what, D);
   m.pca.eigenvalues = z.vector(p + "_eigenvalues");
   m.pca.coefficients = z.matrix(p + "_coefficients");
   const int K = static_cast<int>(m.pca.basis.cols());
@@ -259,28 +295,44 @@ nlohmann::json portable_metadata(nlohmann::json meta) {
 }  // namespace
 
 void ModelFileOptions::validate() const {
-  if (basis_bits != 8 && basis_bits != 16 && basis_bits != 32)
-    throw InputError(fmt::format("model file: basis bits must be 8, 16 or 32 (float32), got {}", basis_bits));
+  if ((basis_bits < kMinBasisBits || basis_bits > kMaxBasisBits) && basis_bits != 32)
+    throw InputError(fmt::format("model file: basis bits must be {} to {}, or 32 (float32), got {}", kMinBasisBits,
+                                 kMaxBasisBits, basis_bits));
   if (block_rows < 1) throw InputError(fmt::format("model file: quantisation block rows must be ≥ 1, got {}", block_rows));
   for (const Eigen::VectorXi* bits : {&shape_column_bits, &full_column_bits})
     for (Eigen::Index k = 0; k < bits->size(); ++k)
-      if ((*bits)(k) != 8 && (*bits)(k) != 16)
-        throw InputError(fmt::format("model file: column bits must be 8 or 16, got {}", (*bits)(k)));
+      if ((*bits)(k) < kMinBasisBits || (*bits)(k) > kMaxBasisBits)
+        throw InputError(fmt::format("model file: column bits must be {} to {}, got {}", kMinBasisBits, kMaxBasisBits,
+                                     (*bits)(k)));
+}
+
+// The bits histogram of a basis ("8": 12, ...) for the metadata.
+nlohmann::json bits_histogram(const Eigen::VectorXi& bits) {
+  nlohmann::json h = nlohmann::json::object();
+  for (int b = kMinBasisBits; b <= kMaxBasisBits; ++b)
+    if (const auto n = (bits.array() == b).count(); n > 0) h[std::to_string(b)] = n;
+  return h;
 }
 
 Npz model_to_npz(const BodyModel& model, const ModelFileOptions& o) {
   o.validate();
   Npz z;
-  // Quantised files are version 3; float32 ones stay 2 so older programs still read them.
-  const int version = o.basis_bits == 32 ? kModelFormatVersion : kQuantisedModelFormatVersion;
+  // Quantised files are version 3 (4 when bit-packed); float32 ones stay 2 so older programs still read them.
+  const Eigen::VectorXi shape_bits = column_bits_of(o, o.shape_column_bits, model.shape.component_count());
+  const Eigen::VectorXi full_bits = column_bits_of(o, o.full_column_bits, model.full.component_count());
+  const int version = o.basis_bits == 32 ? kModelFormatVersion
+                      : byte_aligned(shape_bits) && byte_aligned(full_bits) ? kQuantisedModelFormatVersion
+                                                                            : kPackedModelFormatVersion;
   nlohmann::json meta = portable_metadata(model.metadata);
   if (meta.is_object()) {
     meta["format_version"] = version;
     meta["basis_storage"] = o.basis_bits == 32 ? nlohmann::json("float32")
                                                : nlohmann::json({{"bits", o.basis_bits},
                                                                  {"block_rows", o.block_rows},
-                                                                 {"shape_16_bit_columns", (o.shape_column_bits.array() == 16).count()},
-                                                                 {"full_16_bit_columns", (o.full_column_bits.array() == 16).count()}});
+                                                                 {"shape_16_bit_columns", (shape_bits.array() == 16).count()},
+                                                                 {"full_16_bit_columns", (full_bits.array() == 16).count()},
+                                                                 {"shape_column_bits", bits_histogram(shape_bits)},
+                                                                 {"full_column_bits", bits_histogram(full_bits)}});
   }
   z.put_text("metadata", json_text(meta));
   z.put_int("format_version", version);
@@ -326,11 +378,12 @@ BodyModel model_from_npz(const Npz& z, const std::string& what) {
                                  model.metadata.value("format", std::string("(none)"))));
   double version = z.scalar("format_version");
   // Version 1 (all float64) has the same keys as version 2 (bases float32): both are read, and
-  // version 3 (quantised bases, each with its codes, scales and column norms).
-  if (version != kModelFormatVersion && version != 1 && version != kQuantisedModelFormatVersion)
+  // version 3 (quantised bases, each with its codes, scales and column norms) and 4 (bit-packed codes).
+  if (version != kModelFormatVersion && version != 1 && version != kQuantisedModelFormatVersion &&
+      version != kPackedModelFormatVersion)
     throw InputError(fmt::format("{}: model format version {}, this program reads versions 1 to {} "
                                  "(rebuild the model with `bodymodel build`)",
-                                 what, version, kQuantisedModelFormatVersion));
+                                 what, version, kPackedModelFormatVersion));
   Eigen::MatrixXd V = z.matrix("template_vertices");
   Eigen::MatrixXi F = z.int_matrix("template_faces");
   if (V.cols() != 3 || F.cols() != 3)

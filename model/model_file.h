@@ -13,6 +13,14 @@
 //   <p>_basis_scales         ceil(D / B) by K float32: entry (i, k) = scales[i // B, k] · code(i, k)
 //   <p>_basis_block_rows     scalar B (rows sharing one scale within a column)
 //   <p>_basis_column_norms   K, the norms of the columns that were quantised (checks the scales)
+// PACKED files (format_version 4, per-column widths other than 8 and 16: `bodymodel quantise`'s
+// bit allocation, model/quantise.h) hold, in place of _codes / _codes16:
+//   <p>_basis_column_bits    K int32, 2 to 16
+//   <p>_basis_packed         uint8: column k's D codes q, each stored as q + 2^(b_k−1) − 1 in b_k
+//                            bits, least significant bit first; each column starts on a new byte
+//                            (Σ_k ceil(D·b_k / 8) bytes; any other length is refused)
+// and the same _scales, _block_rows and _column_norms. Files whose columns are all 8 or 16 bits
+// are written as version 3, so programs that read version 3 still read them.
 // Float32 files stay version 2, so programs that predate quantisation still read them.
 // D = 15·#F encoding values,
 // K_s / K_f shape / full components, N_s subjects, N_f scans, L_s / L_f labels.
@@ -54,7 +62,9 @@
 //   c = m["shape_coefficients"][0]                       # first subject
 //   print(m["shape_label_offsets"][h] + c @ m["shape_label_gradients"][:, h])  # predicted cm
 //   x = m["shape_mean"] + m["shape_basis"] @ c           # its encoding (relative to encoding_mean)
-//   # a quantised file: codes = D by K from _codes / _codes16 by _column_bits, then
+//   # a quantised file: codes = D by K from _codes / _codes16 by _column_bits (format 4: column k
+//   #   from _packed: np.unpackbits(bytes, bitorder="little")[:D*b].reshape(D, b) @ (1 << np.arange(b))
+//   #   − (2**(b−1) − 1), its bytes following the previous columns'), then
 //   #   B = np.repeat(m["shape_basis_scales"], int(m["shape_basis_block_rows"]), axis=0)[:D] * codes
 #pragma once
 
@@ -65,14 +75,15 @@
 
 namespace bodymodel {
 
-// How the bases are stored: float32 (basis_bits 32, the default) or quantised to 8 or 16 bits
+// How the bases are stored: float32 (basis_bits 32, the default) or quantised to 2 to 16 bits
 // in blocks of block_rows rows per scale (model/quantise.h).
 struct ModelFileOptions {
   int basis_bits = 32;
   int block_rows = 64;
-  // With basis_bits 8: per-column bits (8 or 16) of each basis (empty: all basis_bits); a
+  // With basis_bits < 32: per-column bits (2 to 16) of each basis (empty: all basis_bits); a
   // shared basis (full = shape) uses shape_column_bits.
   Eigen::VectorXi shape_column_bits, full_column_bits;
+  bool omit_bases = false;  // every array but the bases (for estimating a file's size)
   void validate() const;  // InputError naming the bad field
 };
 

@@ -1,5 +1,6 @@
 // Quantised PCA bases: the bases are nearly all of a model file (D = 15·#F rows, one column per
-// component), so a file a user can ship stores them as 8- or 16-bit integers (model_file.h).
+// component), so a file a user can ship stores them as integers of 2 to 16 bits per column
+// (model_file.h; widths other than 8 and 16 bit-packed).
 //
 // Each column is cut into blocks of `block_rows` consecutive rows; a block's entries are
 // q = round(b / s) with s = max|b| / (2^(bits−1) − 1) over the block (symmetric, no offset: a
@@ -11,7 +12,9 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
 #include <string>
+#include <vector>
 
 #include "model/body_model.h"
 #include "model/model_file.h"
@@ -19,7 +22,7 @@
 namespace bodymodel {
 
 struct QuantisedBasis {
-  Eigen::VectorXi bits;     // K: 8 or 16 per column (16 where 8 bits would move bodies too far)
+  Eigen::VectorXi bits;     // K: 2 to 16 per column
   int block_rows = 64;      // rows per scale within a column
   Eigen::MatrixXi codes;    // D by K, |q| ≤ 2^(bits−1) − 1 of the column
   Eigen::MatrixXd scales;   // ceil(D / block_rows) by K, float32 values, ≥ 0
@@ -31,7 +34,11 @@ struct QuantisedBasis {
   Eigen::VectorXd max_column_error_norm() const;
 };
 
-// Throws InputError for bits other than 8 or 16, block_rows < 1 or a non-finite basis.
+inline constexpr int kMinBasisBits = 2, kMaxBasisBits = 16;
+// The largest code of a column of `bits` bits: codes are symmetric, |q| ≤ 2^(bits−1) − 1.
+int max_basis_code(int bits);
+
+// Throws InputError for bits outside 2..16, block_rows < 1 or a non-finite basis.
 QuantisedBasis quantise_basis(const Eigen::MatrixXd& basis, const Eigen::VectorXi& column_bits, int block_rows);
 QuantisedBasis quantise_basis(const Eigen::MatrixXd& basis, int bits, int block_rows);
 
@@ -45,11 +52,23 @@ Eigen::VectorXi mixed_column_bits(const Eigen::MatrixXd& basis, const Eigen::Vec
 Eigen::VectorXd coefficient_spread(const SubModel& sub);
 Eigen::MatrixXd dequantise_basis(const QuantisedBasis& q);
 
-// Checks a quantised basis read from a file: shapes, code range, scales finite and ≥ 0, and each
+// Bit packing (model file format 4): column k's D codes, each stored as q + max_basis_code(b_k)
+// (0 .. 2^b − 2) in b_k bits, least significant bit first; each column starts on a new byte.
+std::size_t packed_bytes(Eigen::Index rows, const Eigen::VectorXi& bits);
+std::vector<uint8_t> pack_codes(const Eigen::MatrixXi& codes, const Eigen::VectorXi& bits);
+// Throws InputError naming `what` and `name` when the byte count is not packed_bytes(rows, bits)
+// (a truncated or padded array); a stored value of 2^b − 1 comes back as max_basis_code(b) + 1,
+// which validate_quantised_basis refuses.
+Eigen::MatrixXi unpack_codes(const std::vector<int64_t>& packed, Eigen::Index rows, const Eigen::VectorXi& bits,
+                             const std::string& what, const std::string& name);
+
+// Checks a quantised basis read from a file: shapes, bits (2..16), code range, scales finite and ≥ 0, and each
 // dequantised column's norm within max_column_error_norm (+ 1e-6 relative) of column_norms — a
 // corrupt scale changes it. Throws InputError with one line naming `what`, the array (`key` is the
 // basis's: "shape_basis" → shape_basis_codes, _scales, _block_rows, _column_norms) and the element.
-void validate_quantised_basis(const QuantisedBasis& q, const std::string& what, const std::string& key);
+// `codes_name` names the array the codes came from in messages (default: '<key>_codes').
+void validate_quantised_basis(const QuantisedBasis& q, const std::string& what, const std::string& key,
+                              const std::string& codes_name = "");
 
 // How far decoded bodies move when the model's bases are quantised: `samples` coefficient
 // vectors drawn uniformly within each component's range over the training samples (the data's
@@ -68,5 +87,40 @@ QuantisationError decoded_body_difference(const BodyModel& reference, const Body
 // The model with its bases replaced by their quantised-and-decoded values (what a reader of the
 // file written with `options` gets): for measuring before writing.
 BodyModel with_quantised_bases(const BodyModel& model, const ModelFileOptions& options);
+
+// Bit allocation by each column's effect on decoded bodies (greedy reverse water-filling). A
+// decoded body's error comes from the encoding error Σ_k c_k (b_k − b̂_k); with independent
+// rounding errors its expected square is Σ_k E[c_k²] ‖b_k − b̂_k‖², where c_k is uniform within
+// the training range (as the check draws it) and ‖b_k − b̂_k‖² is measured for every width. Bits
+// go one at a time to the column whose extra bit lowers that sum most, until the predicted error
+// is below the target (smallest file) or the next bit would not fit the size budget (lowest
+// error). The mapping from that sum to the check's largest vertex distance is not linear in
+// general: it is calibrated by the check itself (one ratio per sub-model, from an all-8-bit
+// check, updated after every check), and the check decides.
+struct BitAllocationOptions {
+  double max_error_mm = 0.5;  // the check's bound
+  double max_bytes = 0;       // > 0: the lowest error within this file size instead of the smallest file
+  int min_bits = kMinBasisBits, max_bits = kMaxBasisBits, block_rows = 64, samples = 20, tries = 6;
+  uint64_t seed = 1;
+  void validate() const;      // InputError naming the bad field
+};
+struct BitAllocation {
+  ModelFileOptions storage;   // per-column bits of both bases
+  QuantisationError check;    // of `storage`
+  QuantisationError held_out; // of `storage` on other random bodies (seed + 100): not used to choose it
+  double file_bytes = 0;      // the file's size with `storage` (the bases' bytes plus the rest, deflated)
+  bool passed = false;        // check.max_mm ≤ max_error_mm and, with a budget, file_bytes ≤ max_bytes
+  int checks = 0;             // checks run (each decodes 2 × samples bodies twice)
+};
+// E[c_k²] of each coefficient drawn uniformly within its training range (K).
+Eigen::VectorXd coefficient_second_moment(const SubModel& sub);
+// ‖b_k − b̂_k‖² of every column at every width: K by (kMaxBasisBits + 1), columns below min_bits 0.
+Eigen::MatrixXd column_error_table(const Eigen::MatrixXd& basis, int block_rows, int min_bits);
+// `progress` gets one line per check (allocation, predicted and measured error, size).
+BitAllocation allocate_basis_bits(const BodyModel& model, const BitAllocationOptions& options,
+                                  const std::function<void(const std::string&)>& progress = {});
+// The file's size in bytes when written with `storage`, without writing it: the bases' stored bytes
+// (packed codes, scales, tables) plus the other arrays deflated as save_model does.
+double estimated_file_bytes(const BodyModel& model, const ModelFileOptions& storage);
 
 }  // namespace bodymodel

@@ -41,6 +41,14 @@ void Npz::put_small_int(const std::string& name, const Eigen::MatrixXi& m, int b
   put(name, m);
   arrays_[name].store_int_bytes = bytes;
 }
+void Npz::put_bytes(const std::string& name, const std::vector<uint8_t>& bytes) {
+  NpyArray a;
+  a.is_float = false;
+  a.shape = {static_cast<int64_t>(bytes.size())};
+  a.i64.assign(bytes.begin(), bytes.end());
+  a.store_uint8 = true;
+  arrays_[name] = std::move(a);
+}
 void Npz::put(const std::string& name, const Eigen::VectorXd& v) {
   NpyArray a;
   a.shape = {v.size()};
@@ -212,6 +220,10 @@ std::string npy_bytes(const NpyArray& a) {
   } else if (a.is_float) {
     descr = "<f8";
     payload.assign(reinterpret_cast<const char*>(a.f64.data()), a.f64.size() * 8);
+  } else if (a.store_uint8) {
+    descr = "|u1";
+    payload.resize(a.i64.size());
+    for (size_t i = 0; i < a.i64.size(); ++i) payload[i] = static_cast<char>(static_cast<uint8_t>(a.i64[i]));
   } else if (a.store_int_bytes == 1) {
     descr = "|i1";
     payload.resize(a.i64.size());
@@ -322,6 +334,7 @@ NpyArray parse_npy(const std::string& b, const std::string& what) {
   } else if (kind == 'i' || kind == 'u' || kind == 'b') {
     a.is_float = false;
     if (kind == 'i' && (width == 1 || width == 2)) a.store_int_bytes = static_cast<int>(width);  // saved as it came
+    a.store_uint8 = kind == 'u' && width == 1;
     a.i64.resize(n);
     for (int64_t i = 0; i < n; ++i) {
       const char* p = data + width * i;

@@ -26,6 +26,7 @@ struct NpyArray {
   std::string text;            // for string arrays (dtype '<U' or '|S'): the one string
   bool store_float32 = false;  // float data written as '<f4' (≈ 7 significant digits, half the size)
   int store_int_bytes = 0;     // integer data written as '|i1' (1) or '<i2' (2); 0: int32/int64 as above
+  bool store_uint8 = false;    // integer data written as '|u1' (packed bytes)
   std::string dtype;           // the numpy dtype it was read with ('<i4', '<f8', ...); "" when made here
 
   int64_t size() const;
@@ -46,6 +47,8 @@ class Npz {
   // Small integers stored as int8 ('|i1', bytes = 1) or int16 ('<i2', bytes = 2): quantised
   // arrays. Throws InputError if a value does not fit.
   void put_small_int(const std::string& name, const Eigen::MatrixXi& m, int bytes);
+  // Raw bytes as a 1-D uint8 array ('|u1'): bit-packed codes.
+  void put_bytes(const std::string& name, const std::vector<uint8_t>& bytes);
 
   // Accessors; throw InputError naming the file and the key if missing or of the wrong shape.
   bool has(const std::string& name) const;

@@ -222,6 +222,74 @@ TEST(ModelFileValidation, CorruptQuantisedBasisIsRefused) {
   }
 }
 
+// A bit-packed model file (format 4: columns of other widths than 8 and 16 bits) that is truncated,
+// padded, of the wrong type, or holds a code its width cannot hold, is refused with one line naming
+// the file and the array; the intact one decodes to within half a step of each column.
+TEST(ModelFileValidation, CorruptPackedBasisIsRefused) {
+  fixtures::TempDir dir;
+  const BodyModel tiny_model = model_from_npz(tiny::model_npz(), "tiny");
+  ModelFileOptions o;
+  o.basis_bits = 8;
+  const Eigen::Index K = tiny_model.shape.component_count();
+  o.shape_column_bits = Eigen::VectorXi::Constant(K, 3);
+  o.shape_column_bits(0) = 5;
+  o.full_column_bits = Eigen::VectorXi::Constant(tiny_model.full.component_count(), 2);
+  const Npz good = model_to_npz(tiny_model, o);
+  ASSERT_TRUE(good.has("shape_basis_packed"));
+  EXPECT_EQ(good.scalar("format_version"), 4);
+  const BodyModel back = model_from_npz(Npz::parse(good.serialize(), "q.npz"), "q.npz");
+  const Eigen::MatrixXd scales = good.matrix("shape_basis_scales");
+  for (Eigen::Index k = 0; k < K; ++k)
+    EXPECT_LE((back.shape.pca.basis - tiny_model.shape.pca.basis).col(k).cwiseAbs().maxCoeff(),
+              0.5 * scales.col(k).maxCoeff() * (1 + 1e-9) + 1e-15);
+  auto bytes = [](const Npz& z) {
+    const auto& v = z.arrays().at("shape_basis_packed").i64;
+    return std::vector<uint8_t>(v.begin(), v.end());
+  };
+  const std::vector<Corruption> cases = {
+      {"one byte short", [&](Npz& z) { auto b = bytes(z); b.pop_back(); z.put_bytes("shape_basis_packed", b); },
+       {"'shape_basis_packed' has", "bytes, expected", "truncated or inconsistent"}},
+      {"one byte too many", [&](Npz& z) { auto b = bytes(z); b.push_back(0); z.put_bytes("shape_basis_packed", b); },
+       {"'shape_basis_packed' has", "truncated or inconsistent"}},
+      {"a width the bytes were not packed with", [](Npz& z) {
+         Eigen::VectorXi bits = z.int_vector("shape_basis_column_bits");
+         bits(0) = 6;
+         z.put("shape_basis_column_bits", bits);
+       }, {"'shape_basis_packed' has"}},
+      {"a 17-bit column", [](Npz& z) {
+         Eigen::VectorXi bits = z.int_vector("shape_basis_column_bits");
+         bits(1) = 17;
+         z.put("shape_basis_column_bits", bits);
+       }, {"column 1 of 'shape_basis_packed' has 17 bits, expected 2 to 16"}},
+      {"all bits set (code 7 in a 3-bit column)", [&](Npz& z) {
+         auto b = bytes(z);
+         std::fill(b.begin(), b.end(), 0xFF);
+         z.put_bytes("shape_basis_packed", b);
+       }, {"'shape_basis_packed' holds codes outside ±"}},
+      {"packed as int8", [&](Npz& z) {
+         auto b = bytes(z);
+         Eigen::MatrixXi m(static_cast<Eigen::Index>(b.size()), 1);
+         for (size_t i = 0; i < b.size(); ++i) m(static_cast<Eigen::Index>(i), 0) = b[i] > 127 ? 0 : b[i];
+         z.put_small_int("shape_basis_packed", m, 1);
+       }, {"'shape_basis_packed' is '|i1', expected uint8"}},
+  };
+  for (const Corruption& c : cases) {
+    Npz z = Npz::parse(good.serialize(), "q.npz");
+    c.apply(z);
+    const fs::path file = dir / "bad_packed.npz";
+    z.save(file);
+    try {
+      load_model(file);
+      ADD_FAILURE() << c.name << ": accepted";
+    } catch (const InputError& e) {
+      const std::string msg = e.what();
+      EXPECT_EQ(msg.find('\n'), std::string::npos) << c.name << ": " << msg;
+      EXPECT_NE(msg.find("bad_packed.npz"), std::string::npos) << c.name << ": " << msg;
+      for (const auto& s : c.expect) EXPECT_NE(msg.find(s), std::string::npos) << c.name << ": " << msg;
+    }
+  }
+}
+
 TEST(ModelFileValidation, VerbsNameTheBadFile) {
   fixtures::TempDir dir;
   Npz z = tiny::model_npz();

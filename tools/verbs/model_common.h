@@ -63,8 +63,52 @@ inline double check_label_range(const LabelInfo& info, double value, bool clamp)
 // that matter most get 16 bits (mixed_column_bits, halving the 8-bit share until the check
 // passes, 4 tries), then all 16 bits, then float32. Records the passing check in
 // model.metadata["quantisation_check"]; returns the storage to write with.
+// bits 0: per-column widths by each column's effect on decoded bodies (allocate_basis_bits), the
+// smallest file within max_error_mm, or with max_mb > 0 the lowest error within max_mb; when no
+// allocation passes: all 16 bits, then float32, with a warning (with a budget: InputError).
+inline ModelFileOptions choose_allocated_storage(BodyModel& model, int block_rows, int samples, double max_error_mm,
+                                                 double max_mb, int min_bits) {
+  BitAllocationOptions ao;
+  ao.max_error_mm = max_error_mm;
+  ao.max_bytes = max_mb * 1e6;
+  ao.block_rows = block_rows;
+  ao.samples = samples;
+  ao.min_bits = min_bits;
+  model.metadata.erase("quantisation_check");
+  const BitAllocation a = allocate_basis_bits(model, ao, [](const std::string& line) { cli::info(line); });
+  if (a.passed) {
+    const auto n16 = (a.storage.shape_column_bits.array() == 16).count(),
+               f16 = (a.storage.full_column_bits.array() == 16).count();
+    model.metadata["quantisation_check"] = {
+        {"bits", "per column"},          {"block_rows", block_rows},
+        {"shape_16_bit_columns", n16},   {"full_16_bit_columns", f16},
+        {"samples", a.check.samples},    {"max_vertex_distance_mm", a.check.max_mm},
+        {"mean_vertex_distance_mm", a.check.mean_mm}, {"bound_mm", max_error_mm},
+        {"estimated_file_mb", a.file_bytes / 1e6}, {"held_out_max_vertex_distance_mm", a.held_out.max_mm}};
+    if (max_mb > 0) model.metadata["quantisation_check"]["budget_mb"] = max_mb;
+    cli::info(fmt::format("chosen: {:.2f} MB, {}; on {} other random bodies (not used to choose): max {:.4f} mm, "
+                          "mean {:.5f} mm",
+                          a.file_bytes / 1e6, a.check.report(), a.held_out.samples, a.held_out.max_mm,
+                          a.held_out.mean_mm));
+    return a.storage;
+  }
+  if (max_mb > 0)
+    throw InputError(fmt::format("no per-column allocation within {} MB keeps decoded bodies within {} mm (best: "
+                                 "{:.3f} mm at {:.2f} MB): raise --max-mb or --max-error-mm",
+                                 max_mb, max_error_mm, a.check.max_mm, a.file_bytes / 1e6));
+  cli::warn(fmt::format("no per-column allocation passed the {} mm check in {} checks: trying 16 bits", max_error_mm,
+                        a.checks));
+  return {};
+}
+
 inline ModelFileOptions choose_basis_storage(BodyModel& model, int bits, int block_rows, int samples,
-                                             double max_error_mm) {
+                                             double max_error_mm, double max_mb = 0, int min_bits = kMinBasisBits) {
+  if (bits == 0) {
+    if (!(max_error_mm > 0)) throw InputError(fmt::format("--max-error-mm must be > 0, got {}", max_error_mm));
+    ModelFileOptions o = choose_allocated_storage(model, block_rows, samples, max_error_mm, max_mb, min_bits);
+    if (o.basis_bits != 32 || o.shape_column_bits.size() > 0) return o;
+    bits = 16;  // the allocation failed: the uniform fallbacks below
+  }
   ModelFileOptions o;
   o.basis_bits = bits;
   o.block_rows = block_rows;
