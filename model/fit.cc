@@ -121,10 +121,12 @@ void ModelFitOptions::validate() const {
 
 std::string ModelFitSummary::report() const {
   return fmt::format(
-      "{} components: mean vertex error {:.3f} (start {:.3f}), RMS {:.3f}, p95 {:.3f}, max {:.3f}; {} "
+      "{} components: mean vertex error {:.3f} (start {:.3f}{}), RMS {:.3f}, p95 {:.3f}, max {:.3f}; {} "
       "iterations, {} Jacobians ({:.2f} s), {} decodes ({:.2f} s), {:.2f} s; {} ({})",
-      components, mean_mm, start_mean_mm, rms_mm, p95_mm, max_mm, iterations, jacobians, jacobian_seconds,
-      evaluations, decode_seconds, seconds, converged ? "converged" : "NOT CONVERGED", stop_reason);
+      components, mean_mm, start_mean_mm,
+      start_sample >= 0 ? fmt::format(" at training sample {}", start_sample) : std::string(), rms_mm, p95_mm,
+      max_mm, iterations, jacobians, jacobian_seconds, evaluations, decode_seconds, seconds,
+      converged ? "converged" : "NOT CONVERGED", stop_reason);
 }
 
 // Everything that depends only on the template: slots, the rotation system's pattern and where
@@ -560,6 +562,41 @@ void error_summary(const Eigen::MatrixX3d& placed, const Eigen::MatrixX3d& Y, Mo
 
 }  // namespace
 
+Eigen::VectorXd ModelFitter::start_point(const Eigen::MatrixX3d& Y, int K, const ModelFitOptions& o,
+                                         ModelFitSummary& summary) const {
+  Eigen::VectorXd c = Eigen::VectorXd::Zero(K);
+  if (o.start.size() > 0)
+    c.head(o.start.size()) = o.start;
+  else if (o.start_from_projection)
+    c = project(Y, K);
+  summary.start_sample = -1;
+  if (!o.try_training_starts || pca_.coefficients.rows() == 0) return c;
+  // E of each candidate as the fit measures it (rigid placement, prior), one decode each.
+  auto cost_of = [&](Workspace& w, const Eigen::VectorXd& cc) {
+    const auto t0 = Clock::now();
+    const Eigen::MatrixX3d raw = solve(w, cc);
+    summary.decode_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
+    ++summary.evaluations;
+    double prior = 0;
+    for (int k = 0; k < K; ++k)
+      if (pca_.eigenvalues(k) > 0) prior += cc(k) * cc(k) / pca_.eigenvalues(k);
+    return (apply(fit_rigid_motion(raw, Y), raw) - Y).squaredNorm() + o.prior_weight * prior;
+  };
+  Workspace w;
+  w.reference = o.reference_solver;
+  double best = cost_of(w, c);
+  for (int s = 0; s < pca_.coefficients.rows(); ++s) {
+    const Eigen::VectorXd cs = pca_.coefficients.row(s).head(K).transpose();
+    const double e = cost_of(w, cs);
+    if (e < best) {
+      best = e;
+      c = cs;
+      summary.start_sample = s;
+    }
+  }
+  return c;
+}
+
 ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
                           const ProgressCallback& progress) const {
   o.validate();
@@ -575,11 +612,7 @@ ModelFit ModelFitter::fit(const Eigen::MatrixX3d& Y, const ModelFitOptions& o,
     throw InputError(fmt::format("fit: a start of {} coefficients for a fit of {} components", o.start.size(), K));
   ModelFit out;
   out.summary.components = K;
-  Eigen::VectorXd c = Eigen::VectorXd::Zero(K);
-  if (o.start.size() > 0)
-    c.head(o.start.size()) = o.start;
-  else if (o.start_from_projection)
-    c = project(Y, K);
+  Eigen::VectorXd c = start_point(Y, K, o, out.summary);
   Eigen::VectorXd inv_lambda = Eigen::VectorXd::Zero(K);
   for (int k = 0; k < K; ++k)
     if (pca_.eigenvalues(k) > 0) inv_lambda(k) = 1.0 / pca_.eigenvalues(k);

@@ -58,6 +58,11 @@ struct ModelFitOptions {
   // unless `start` is given (its coefficients, the rest 0: e.g. a fit with fewer components).
   bool start_from_projection = true;
   Eigen::VectorXd start;
+  // Also try each training sample's coefficients (the PCA's `coefficients`, first K) as the
+  // start: each is decoded once and the fit starts from whichever of them and the start above
+  // lies closest to the target (lowest E). A projection far from the target (a pose whose
+  // encoding residuals add up along the limbs) then gives way to the nearest training pose.
+  bool try_training_starts = false;
   // Continuation: first fit only the leading `continuation_components` (0 = off) to a looser
   // relative tolerance, then all K. The Jacobian costs one solve per component, so the many
   // iterations a far start needs are cheap; the final answer is the K-component fit's.
@@ -83,6 +88,9 @@ struct ModelFitSummary {
   bool converged = false;
   std::string stop_reason;
   double start_mean_mm = 0;       // mean vertex error at the start (projection or mean body)
+  // With try_training_starts: the training sample the fit started from (row of the PCA's
+  // coefficients), −1 when the projection (or the given start) was closer.
+  int start_sample = -1;
   double mean_mm = 0, rms_mm = 0, p95_mm = 0, max_mm = 0;  // final vertex error (target units)
   double seconds = 0;
   // Wall seconds in decodes (factorisation of the rotation system + solves) and in Jacobians:
@@ -135,6 +143,11 @@ class ModelFitter {
   struct Workspace;
   // Decoded vertices of c (solver gauge); keeps the state and factorisation in ws.
   Eigen::MatrixX3d solve(Workspace& ws, const Eigen::VectorXd& c) const;
+  // The fit's start (K coefficients): options.start, the projection or the mean body, or with
+  // try_training_starts the training sample's coefficients that lie closer (summary.start_sample;
+  // the candidates' decodes are counted in the summary).
+  Eigen::VectorXd start_point(const Eigen::MatrixX3d& Y, int K, const ModelFitOptions& options,
+                              ModelFitSummary& summary) const;
   // Jacobian (3·#V by K) at the state of the last solve(ws, ·).
   void jacobian(Workspace& ws, int K, Eigen::MatrixXd& J) const;
   std::shared_ptr<const EncodingTemplate> tmpl_;

@@ -166,6 +166,8 @@ ModelQuality evaluate_model_quality(const BodyModel& model, const std::vector<Ei
   std::vector<std::vector<Eigen::VectorXd>> errors(jobs.size(), std::vector<Eigen::VectorXd>(test.size()));
   std::vector<std::vector<double>> seconds(jobs.size(), std::vector<double>(test.size(), 0.0));
   std::vector<std::vector<int>> converged(jobs.size(), std::vector<int>(test.size(), -1));
+  std::vector<std::vector<std::pair<double, int>>> starts(
+      jobs.size(), std::vector<std::pair<double, int>>(test.size(), {std::numeric_limits<double>::quiet_NaN(), 0}));
   tbb::parallel_for(0, static_cast<int>(test.size()), [&](int t) {
     Eigen::VectorXd previous;
     for (size_t j = 0; j < jobs.size(); ++j) {
@@ -181,6 +183,7 @@ ModelQuality evaluate_model_quality(const BodyModel& model, const std::vector<Ei
         previous = f.coefficients;
         errors[j][t] = f.vertex_error;
         converged[j][t] = f.summary.converged ? 1 : 0;
+        starts[j][t] = {f.summary.start_mean_mm, f.summary.iterations};
       } else {
         errors[j][t] = fit_vertex_pca(vpca, test[t], jobs[j].K).vertex_error;
       }
@@ -200,7 +203,7 @@ ModelQuality evaluate_model_quality(const BodyModel& model, const std::vector<Ei
       const Eigen::VectorXd& e = errors[j][t];
       std::vector<double> ev(e.data(), e.data() + e.size());
       TestMeshError pm{job.model, names[t], job.K, e.mean(), percentile(ev, 95), e.maxCoeff(), seconds[j][t],
-                       converged[j][t]};
+                       converged[j][t], starts[j][t].first, starts[j][t].second};
       row.unconverged_fits += converged[j][t] == 0;
       mean_sum += pm.mean_mm;
       max_all = std::max(max_all, pm.max_mm);

@@ -16,6 +16,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <limits>
 #include <memory>
 #include <random>
 #include <string>
@@ -89,6 +90,9 @@ struct TestMeshError {
   // 1 / 0: the model fit (model/fit.h) converged / stopped at its iteration cap; −1: vertex PCA
   // (a closed-form fit with a rigid alignment, no cap to hit).
   int converged = -1;
+  // The model fit's start error (mm) and its iterations (NaN / 0 for vertex PCA).
+  double start_mm = std::numeric_limits<double>::quiet_NaN();
+  int iterations = 0;
 };
 
 struct ModelQuality {

@@ -110,6 +110,43 @@ TEST(ModelFit, SaysWhetherItConverged) {
   EXPECT_NE(start.summary.stop_reason.find("no iterations"), std::string::npos) << start.summary.stop_reason;
 }
 
+// try_training_starts: a body near training sample 7 (its coefficients plus a small random
+// change), moved rigidly, is fitted from the mean body with a tight iteration cap. The mean
+// start stops at the cap unconverged; with the training starts the fit starts at sample 7 (the
+// known nearest: the change is small next to the distances between subjects) and converges
+// within the same cap onto the body.
+TEST(ModelFit, TrainingStartConvergesWhereTheMeanStartStops) {
+  auto model = testing::shape_test_model();
+  const Pca& pca = model->shape.pca;
+  ModelFitter fitter(model->tmpl, model->mean, pca);
+  const int s = 7;
+  ASSERT_GT(pca.coefficients.rows(), s);
+  const Eigen::VectorXd truth =
+      Eigen::VectorXd(pca.coefficients.row(s).transpose()) + random_coefficients(pca, pca.component_count(), 0.02, 13);
+  RigidMotion move;
+  move.R = Eigen::AngleAxisd(-0.4, Eigen::Vector3d(1, 0.5, 0).normalized()).toRotationMatrix();
+  move.t = Eigen::Vector3d(-300, 80, 50);
+  const Eigen::MatrixX3d target = apply(move, fitter.evaluate(truth));
+  ModelFitOptions from_mean;
+  from_mean.start_from_projection = false;
+  from_mean.max_iterations = 5;
+  from_mean.continuation_components = 0;
+  ModelFitOptions nearest = from_mean;
+  nearest.try_training_starts = true;
+  const ModelFit a = fitter.fit(target, from_mean), b = fitter.fit(target, nearest);
+  std::printf("mean start: %s\ntraining start: %s\n", a.summary.report().c_str(), b.summary.report().c_str());
+  EXPECT_EQ(a.summary.start_sample, -1);
+  EXPECT_FALSE(a.summary.converged) << a.summary.report();
+  EXPECT_EQ(b.summary.start_sample, s) << b.summary.report();
+  EXPECT_NE(b.summary.report().find("at training sample 7"), std::string::npos) << b.summary.report();
+  EXPECT_LT(b.summary.start_mean_mm, a.summary.start_mean_mm / 3) << b.summary.report();
+  EXPECT_TRUE(b.summary.converged) << b.summary.report();
+  EXPECT_LT(b.summary.max_mm, 0.1) << b.summary.report();
+  EXPECT_GT(a.summary.mean_mm, 10 * b.summary.mean_mm) << a.summary.report();
+  // Each training sample costs one decode: the candidates are counted.
+  EXPECT_GE(b.summary.evaluations, a.summary.evaluations + pca.coefficients.rows());
+}
+
 TEST(ModelFit, RejectsBadInput) {
   auto model = testing::shape_test_model();
   ModelFitter fitter(model->tmpl, model->mean, model->shape.pca);

@@ -165,6 +165,65 @@ TEST(ModelCli, BuildFitAndEvalOnRegisteredFolder) {
   EXPECT_EQ(header.rfind("model,components,generalisation_mean_mm", 0), 0u) << header;
 }
 
+// Unconverged fits are reported, never silent: `fit --iterations 1` warns and writes converged
+// false; eval-model counts them (warning, quality.csv's unconverged_fits, generalisation.csv's
+// converged 0 with the fit's iterations), and with enough iterations the count is 0. The
+// training starts name the training mesh the fit started from.
+TEST(ModelCli, FitAndEvalModelReportUnconvergedFits) {
+  const fs::path& model = built_model();
+  const fs::path dir = folder().dir.path;
+  const fs::path in = dir / "unconverged_in.ply";
+  write_mesh(in, bent_cylinder(118, 1560, 0.18));
+  auto r = run_cli("fit " + q(model) + " --in " + q(in) + " --out " + q(dir / "capped.ply") + " --pose --iterations 1");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("NOT CONVERGED"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("did not converge"), std::string::npos) << r.output;
+  nlohmann::json j = nlohmann::json::parse(std::ifstream(dir / "capped.json"));
+  EXPECT_FALSE(j["converged"].get<bool>());
+  EXPECT_TRUE(j["start_training_mesh"].is_null());
+  r = run_cli("fit " + q(model) + " --in " + q(in) + " --out " + q(dir / "nearest.ply") +
+              " --pose --start mean --training-starts --iterations 100");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  j = nlohmann::json::parse(std::ifstream(dir / "nearest.json"));
+  EXPECT_TRUE(j["converged"].get<bool>()) << j["stop_reason"];
+  ASSERT_TRUE(j["start_training_mesh"].is_string()) << r.output;
+  EXPECT_EQ(j["start_training_mesh"].get<std::string>().rfind("c", 0), 0u);  // a training mesh's name
+  const fs::path test = dir / "unconverged_test";
+  fs::create_directories(test);
+  write_mesh(test / "t0.ply", bent_cylinder(118, 1560, 0.18));
+  write_mesh(test / "t1.ply", bent_cylinder(95, 1480, -0.05));
+  auto unconverged = [&](const fs::path& out) {
+    std::ifstream qc(out / "quality.csv");
+    std::string line;
+    std::getline(qc, line);
+    EXPECT_EQ(line.substr(line.rfind(',') + 1), "unconverged_fits");
+    std::getline(qc, line);  // the rotation-invariant model's row
+    EXPECT_EQ(line.rfind("rre,", 0), 0u) << line;
+    return std::stoi(line.substr(line.rfind(',') + 1));
+  };
+  const std::string base = "eval-model " + q(model) + " --test " + q(test) + " --train " + q(folder().reg) +
+                           " --samples 0 --no-baseline --components 3 ";
+  r = run_cli(base + "--iterations 1 --out " + q(dir / "q_capped"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("2 of 2 model fits stopped at their iteration cap"), std::string::npos) << r.output;
+  EXPECT_EQ(unconverged(dir / "q_capped"), 2);
+  std::ifstream g(dir / "q_capped" / "generalisation.csv");
+  std::string header, row;
+  std::getline(g, header);
+  std::getline(g, row);
+  EXPECT_EQ(header.substr(header.size() - 29), "converged,start_mm,iterations") << header;
+  EXPECT_EQ(row.substr(row.size() - 2), ",1") << row;  // one iteration
+  r = run_cli(base + "--iterations 100 --training-starts --out " + q(dir / "q_converged"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find("stopped at their iteration cap"), std::string::npos) << r.output;
+  EXPECT_EQ(unconverged(dir / "q_converged"), 0);
+  // The part-wise model (model/part_pca.h) in place of the global PCA: more components.
+  r = run_cli(base + "--parts 2 --iterations 100 --out " + q(dir / "q_parts"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("part-wise model: 2 parts"), std::string::npos) << r.output;
+  EXPECT_EQ(run_cli(base + "--parts -1 --out " + q(dir / "q_bad")).exit_code, 2);
+}
+
 // One person in many poses: the shape model is the full model, whose basis the file stores once
 // (full_basis_is_shape_basis); it reads back as the same model.
 TEST(ModelCli, PoseModelStoresItsBasisOnce) {

@@ -12,6 +12,7 @@
 #include "core/io/mesh_io.h"
 #include "model/database.h"
 #include "model/model_quality.h"
+#include "model/part_pca.h"
 #include "regression/line_plot.h"
 #include "tools/pipeline/output_folder.h"
 #include "tools/verb.h"
@@ -27,6 +28,9 @@ struct EvalArgs {
   std::string cross_validate, registered, subjects, standard_pose = "standard";
   std::string components, specificity_components;
   int samples = 1000;
+  int iterations = ModelFitOptions().max_iterations;
+  int parts = 0;
+  bool training_starts = false;
   uint64_t seed = 1;
   double scale = 0;
   double full_variance = 1.0;
@@ -101,13 +105,14 @@ void write_reports(const StagedFolder& out, const std::vector<QualityRow>& rows,
                      r.unconverged_fits);
   write_text_file(out / "quality.csv", q);
   // converged: 1/0 for the model's fits (0 = stopped at the iteration cap), empty for vertex PCA.
-  std::string g = "fold,model,mesh,components,mean_mm,p95_mm,max_mm,fit_seconds,converged\n";
+  std::string g = "fold,model,mesh,components,mean_mm,p95_mm,max_mm,fit_seconds,converged,start_mm,iterations\n";
   int unconverged = 0, fits = 0;
   for (const auto& [fold, f] : folds)
     for (const auto& m : f.per_mesh) {
-      g += fmt::format("{},{},{},{},{},{},{},{:.3f},{}\n", csv_field(fold), csv_field(m.model), csv_field(m.mesh),
-                       m.components, csv_number(m.mean_mm), csv_number(m.p95_mm), csv_number(m.max_mm), m.seconds,
-                       m.converged < 0 ? std::string() : std::to_string(m.converged));
+      g += fmt::format("{},{},{},{},{},{},{},{:.3f},{},{},{}\n", csv_field(fold), csv_field(m.model),
+                       csv_field(m.mesh), m.components, csv_number(m.mean_mm), csv_number(m.p95_mm),
+                       csv_number(m.max_mm), m.seconds, m.converged < 0 ? std::string() : std::to_string(m.converged),
+                       csv_number(m.start_mm), m.converged < 0 ? std::string() : std::to_string(m.iterations));
       fits += m.converged >= 0;
       unconverged += m.converged == 0;
     }
@@ -181,6 +186,14 @@ void add_eval_model_options(CLI::App* cmd, EvalArgs& a) {
   cmd->add_option("--scale", a.scale, "Millimetres per mesh unit (0: the model's, from build --scale)")
       ->capture_default_str();
   cmd->add_flag("--no-baseline", a.no_baseline, "Skip the vertex-PCA baseline");
+  cmd->add_option("--iterations", a.iterations, "Maximum Levenberg-Marquardt iterations of each model fit (as fit)")
+      ->capture_default_str();
+  cmd->add_flag("--training-starts", a.training_starts,
+                "Each model fit also tries every training mesh's coefficients as its start (as fit)");
+  cmd->add_option("--parts", a.parts,
+                  "Evaluate a part-wise model instead: the triangles in this many parts (k-means of their rest "
+                  "positions), each part its own PCA of the training encodings (0: the model's global PCA)")
+      ->capture_default_str();
   cmd->add_flag("--first-mesh-faces", a.first_mesh_faces,
                 "With --cross-validate: meshes share their vertices, not their triangles (as build --first-mesh-faces)");
   cmd->add_option("--out", a.out, "Output folder")->required();
@@ -232,6 +245,15 @@ FoldData fold_data(const EvalArgs& a, const ModelBuildInput& all, const std::vec
   return d;
 }
 
+// With --parts P > 0: the model's full PCA replaced by the part-wise PCA of its training samples
+// (model/part_pca.h); returns whether it was.
+bool use_part_model(BodyModel& model, int parts) {
+  if (parts <= 0) return false;
+  model.full.pca = part_wise_pca(model.full.pca, spatial_triangle_parts(*model.tmpl, parts));
+  cli::info(fmt::format("part-wise model: {} parts, {} components", parts, model.full.pca.component_count()));
+  return true;
+}
+
 // Quality of a model file on --test meshes (and its training meshes for specificity and the
 // vertex-PCA baseline); returns the report's title.
 std::string evaluate_model_file(const EvalArgs& a, const ModelQualityOptions& qo,
@@ -239,7 +261,8 @@ std::string evaluate_model_file(const EvalArgs& a, const ModelQualityOptions& qo
   if (a.model.empty()) throw InputError("eval-model needs a model (or --cross-validate subject|pose)");
   if (a.test.empty()) throw InputError("eval-model needs --test DIR with the meshes the model never saw");
   refuse_existing_output(a.out, a.force);
-  const BodyModel model = model_cli::load_model_for_cli(a.model);
+  BodyModel model = model_cli::load_model_for_cli(a.model);
+  const bool parts = use_part_model(model, a.parts);
   // With a model file K is the user's choice for that model: more than it has is an error
   // (cross-validation folds clamp K to each fold's count instead).
   for (int K : qo.components)
@@ -281,7 +304,7 @@ std::string evaluate_model_file(const EvalArgs& a, const ModelQualityOptions& qo
       cli::warn(fmt::format("test mesh '{}' is one of the model's training meshes: that is not generalisation", n));
   cli::ProgressBar bar("eval-model");
   folds.emplace_back("all", evaluate_model_quality(model, train, test, names,
-                                                   model.metadata.value("full_total_variance", 0.0), qo,
+                                                   parts ? 0.0 : model.metadata.value("full_total_variance", 0.0), qo,
                                                    bar.callback()));
   bar.finish();
   return fmt::format("Model quality of {} on {} test meshes", a.model, test.size());
@@ -323,8 +346,10 @@ std::string cross_validate_models(const EvalArgs& a, const ModelQualityOptions& 
     bo.allow_pose_only = true;
     ModelBuildSummary bs;
     cli::ProgressBar bar(fmt::format("fold {}/{} ({} {})", fi + 1, keys.size(), a.cross_validate, key));
-    const BodyModel model = build_body_model(in, bo, &bs);
-    folds.emplace_back(key, evaluate_model_quality(model, in.meshes, test, names, bs.full_pca.total_variance, qo,
+    BodyModel model = build_body_model(in, bo, &bs);
+    const bool parts = use_part_model(model, a.parts);
+    folds.emplace_back(key, evaluate_model_quality(model, in.meshes, test, names,
+                                                   parts ? 0.0 : bs.full_pca.total_variance, qo,
                                                    bar.callback()));
     bar.finish(fmt::format("{} training meshes, {} components, {} test meshes", in.meshes.size(),
                            model.full.component_count(), test.size()));
@@ -340,6 +365,10 @@ void run_eval_model(EvalArgs& a) {
   qo.specificity_samples = a.samples;
   qo.seed = a.seed;
   qo.vertex_baseline = !a.no_baseline;
+  if (a.iterations < 0) throw InputError("--iterations must be ≥ 0");
+  if (a.parts < 0) throw InputError("--parts must be ≥ 0");
+  qo.fit.max_iterations = a.iterations;
+  qo.fit.try_training_starts = a.training_starts;
   if (a.scale < 0 || !std::isfinite(a.scale)) throw InputError("--scale must be positive (or 0)");
   if (!(a.full_variance > 0 && a.full_variance <= 1)) throw InputError("--full-variance must be in (0, 1]");
   std::vector<std::pair<std::string, ModelQuality>> folds;

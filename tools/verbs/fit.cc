@@ -25,6 +25,8 @@ struct FitArgs {
   int iterations = 20;
   int coarse_iterations = 4;
   double prior = 0;
+  bool training_starts = false;
+  std::string start = "projection";
   std::string sex = "unknown";
 };
 
@@ -50,6 +52,13 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
   cmd->add_option("--prior", a.prior,
                   "Weight (mm²) of a Gaussian prior on the coefficients (0: the plain best fit)")
       ->capture_default_str();
+  cmd->add_option("--start", a.start,
+                  "projection: of the mesh's encoding onto the components; mean: the model's mean body (c = 0)")
+      ->check(CLI::IsMember({"projection", "mean"}))
+      ->capture_default_str();
+  cmd->add_flag("--training-starts", a.training_starts,
+                "Also try each training mesh's coefficients as the start (one decode each) and start from the "
+                "closest: for poses far from the projection (docs/model.md §1)");
   cmd->add_option("--sex", a.sex, "female|male: for the body-fat measurement")
       ->check(CLI::IsMember({"unknown", "female", "male"}));
 }
@@ -87,6 +96,8 @@ void run_fit(FitArgs& a) {
   o.max_iterations = a.iterations;
   o.continuation_iterations = a.coarse_iterations;
   o.prior_weight = a.prior;
+  o.try_training_starts = a.training_starts;
+  o.start_from_projection = a.start == "projection";
   cli::ProgressBar bar("fit");
   ModelFit fit = fitter.fit(Y, o, bar.callback());
   bar.finish(fit.summary.report());
@@ -112,6 +123,9 @@ void run_fit(FitArgs& a) {
       {"vertex_error_mm",
        {{"mean", fit.summary.mean_mm}, {"rms", fit.summary.rms_mm}, {"p95", fit.summary.p95_mm}, {"max", fit.summary.max_mm}}},
       {"start_mean_vertex_error_mm", fit.summary.start_mean_mm},
+      {"start_training_mesh", fit.summary.start_sample >= 0 && fit.summary.start_sample < int(sub.sample_ids.size())
+                                  ? nlohmann::json(sub.sample_ids[fit.summary.start_sample])
+                                  : nlohmann::json(nullptr)},
       {"iterations", fit.summary.iterations},
       {"jacobians", fit.summary.jacobians},
       {"decodes", fit.summary.evaluations},
