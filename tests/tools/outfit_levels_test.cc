@@ -4,7 +4,9 @@
 // `crowd` dressed it (the same seed, sex and clip frames; the drawn outfit checked against its
 // outfit.json) into a temporary folder. Needs BODYMODEL_LEVELS_CROWD=DIR (a crowd's output folder
 // made with --seed BODYMODEL_LEVELS_SEED, default 5, and the clip BODYMODEL_LEVELS_BVH, default
-// CMU 12_03); skipped otherwise. BODYMODEL_LEVELS_COUNT limits the characters.
+// CMU 12_03); skipped otherwise. BODYMODEL_LEVELS_COUNT limits the characters and
+// BODYMODEL_LEVELS_FIRST skips the first ones; BODYMODEL_LEVELS_LOD_CORRECTIONS (any value) turns
+// on OutfitKit::lod_corrections.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -48,7 +50,8 @@ TEST(OutfitLevels, DemoCrowdBetweenKeysAndOnTheLevels) {
   int chars = 0, keys = 0, mids = 0, over[7] = {0, 0, 0, 0, 0, 0, 0}, lod_targets = 0;
   double worst[7] = {0, 0, 0, 0, 0, 0, 0};
   size_t largest = 0;
-  for (int i = 0; i < count; ++i) {
+  const int first = std::stoi(env_or("BODYMODEL_LEVELS_FIRST", "0"));
+  for (int i = first; i < first + count; ++i) {
     const fs::path dir = fs::path(crowd) / fmt::format("char_{:03d}", i);
     if (!fs::exists(dir / "rig.npz")) break;
     const nlohmann::json outfit = nlohmann::json::parse(read_text_file(dir / "anim/outfit.json"));
@@ -77,6 +80,10 @@ TEST(OutfitLevels, DemoCrowdBetweenKeysAndOnTheLevels) {
       over[k] += o, worst[k] = std::max(worst[k], w);
       line += fmt::format(" {} ({:.2f} %)", o, 100 * w);
     }
+    // BODYMODEL_LEVELS_KEEP=DIR keeps each glb (char_NNN.glb), e.g. for the Khronos validator.
+    if (const char* keep = std::getenv("BODYMODEL_LEVELS_KEEP"); keep && *keep)
+      fs::copy_file(out / "dressed.glb", fs::path(keep) / (dir.filename().string() + ".glb"),
+                    fs::copy_options::overwrite_existing);
     std::printf("%s %s: keys / uncorrected / between keys / LOD1 / LOD2 / LOD1, LOD2 uncorrected over the bound:%s; "
                 "%d + %d targets, %.2f MB\n",
                 dir.filename().string().c_str(), outfit["sex"].get<std::string>().c_str(), line.c_str(), r.morph_targets,
