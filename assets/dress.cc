@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
@@ -272,6 +273,49 @@ ClipCorrections clip_corrections(const std::vector<DressedPart>& parts, const Ei
     }
   }
   return c;
+}
+
+BoneTransforms pose_between_keys(const Skeleton& skeleton, const BoneTransforms& a, const BoneTransforms& b, double s) {
+  const int B = skeleton.bone_count();
+  if (static_cast<int>(a.size()) != B || static_cast<int>(b.size()) != B)
+    throw InputError(fmt::format("pose_between_keys: poses of {} and {} bones for a skeleton of {}", a.size(), b.size(), B));
+  BoneTransforms out(static_cast<size_t>(B));
+  std::vector<Eigen::Matrix3d> Q(static_cast<size_t>(B));
+  std::vector<Eigen::Vector3d> at(static_cast<size_t>(B));   // posed joint heads
+  for (int j = 0; j < B; ++j) {
+    const int p = skeleton.parents[static_cast<size_t>(j)];
+    const Eigen::Vector3d h = skeleton.heads.row(j).transpose();
+    auto local = [&](const BoneTransforms& M, Eigen::Quaterniond& r, Eigen::Vector3d& t) {
+      const Eigen::Matrix3d Qp = p < 0 ? Eigen::Matrix3d::Identity().eval() : Eigen::Matrix3d(M[p].linear());
+      const Eigen::Vector3d hp = p < 0 ? Eigen::Vector3d::Zero() : Eigen::Vector3d(M[p] * skeleton.heads.row(p).transpose());
+      r = Eigen::Quaterniond(Qp.transpose() * M[j].linear());
+      t = Qp.transpose() * (M[j] * h - hp);
+    };
+    Eigen::Quaterniond ra, rb;
+    Eigen::Vector3d ta, tb;
+    local(a, ra, ta);
+    local(b, rb, tb);
+    const Eigen::Matrix3d R = ra.slerp(s, rb).toRotationMatrix();
+    const Eigen::Vector3d t = (1 - s) * ta + s * tb;
+    Q[j] = p < 0 ? R : Q[p] * R;
+    at[j] = p < 0 ? t : at[p] + Q[p] * t;
+    out[j].linear() = Q[j];
+    out[j].translation() = at[j] - Q[j] * h;
+  }
+  return out;
+}
+
+ClipCorrections corrections_between_keys(const ClipCorrections& c, double s) {
+  ClipCorrections out;
+  if (c.frames.size() < 2) return out;
+  out.frames.resize(c.frames.size() - 1);
+  for (size_t f = 0; f + 1 < c.frames.size(); ++f)
+    for (const auto& [key, w] : {std::pair<size_t, double>{f, 1 - s}, {f + 1, s}})
+      for (GarmentCorrection g : c.frames[key]) {   // corrected_rest adds every entry of a part
+        g.delta *= w;
+        out.frames[f].push_back(std::move(g));
+      }
+  return out;
 }
 
 }  // namespace bodymodel

@@ -130,4 +130,15 @@ ClipCorrections clip_corrections(const std::vector<DressedPart>& parts, const Ei
                                  const std::vector<char>& hidden, const std::vector<BoneTransforms>& frames,
                                  const ClipCorrectionOptions& options = {});
 
+// Between keys (docs/assets.md#between-keys-and-levels): the pose a glTF player shows at fraction
+// s ∈ [0, 1] from key a to key b of a clip written by skinning/gltf_export.h (rest joint frames
+// without rotation): each joint's local rotation (Q_parentᵀ Q) slerped and its local translation
+// (Q_parentᵀ (M(h) − M_parent(h_parent))) interpolated linearly, then composed down the chain.
+BoneTransforms pose_between_keys(const Skeleton& skeleton, const BoneTransforms& a, const BoneTransforms& b, double s);
+
+// The corrections a player blends at fraction s from key f to key f + 1: the `weights` channel
+// is LINEAR, so (1 − s) of key f's target and s of key f + 1's. One entry per interval
+// (#frames − 1), for clip_penetration over the poses pose_between_keys gives.
+ClipCorrections corrections_between_keys(const ClipCorrections& c, double s);
+
 }  // namespace bodymodel

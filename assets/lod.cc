@@ -111,16 +111,26 @@ DressedPart simplified_part(const DressedPart& source, int target_triangles, dou
   return p;
 }
 
-DressedPart proxy_body_part(const Asset& proxy, const DressedSkinBody& dressed, const DressedPart& body) {
+ProxySurface proxy_surface(const Asset& proxy, const DressedSkinBody& dressed) {
   const AssetBinding& b = proxy.binding;
-  const Eigen::MatrixX3d V = fit_asset(b, dressed.full_rest);
-  const SkinWeights W = asset_skin_weights(b, dressed.full_weights);
-  std::vector<char> hidden(V.rows(), 0);
-  for (Eigen::Index i = 0; i < V.rows(); ++i) {
+  ProxySurface s;
+  s.V = fit_asset(b, dressed.full_rest);
+  s.F = proxy.faces;
+  s.weights = asset_skin_weights(b, dressed.full_weights);
+  s.hidden.assign(static_cast<size_t>(s.V.rows()), 0);
+  for (Eigen::Index i = 0; i < s.V.rows(); ++i) {
     Eigen::Index k;
     b.weights.row(i).cwiseAbs().maxCoeff(&k);
-    hidden[i] = dressed.full_hidden.at(static_cast<size_t>(b.vertices(i, k)));
+    s.hidden[i] = dressed.full_hidden.at(static_cast<size_t>(b.vertices(i, k)));
   }
+  return s;
+}
+
+DressedPart proxy_body_part(const Asset& proxy, const DressedSkinBody& dressed, const DressedPart& body) {
+  const ProxySurface s = proxy_surface(proxy, dressed);
+  const Eigen::MatrixX3d& V = s.V;
+  const SkinWeights& W = s.weights;
+  const std::vector<char>& hidden = s.hidden;
   // A proxy face is far larger than the body's: dropping it when one corner is hidden (as
   // visible_faces does for the body) opens gaps between garments, so only faces hidden at every
   // corner go.

@@ -38,6 +38,17 @@ DressedPart simplified_part(const DressedPart& source, int target_triangles, dou
 // by the outfit). The colour and roughness are the body part's (`body`).
 DressedPart proxy_body_part(const Asset& proxy, const DressedSkinBody& dressed, const DressedPart& body);
 
+// The closed surface of a proxy fitted to the dressed body, for measuring a level's garments
+// against it (docs/assets.md#between-keys-and-levels): every proxy face, the weights carried
+// through the binding, and the vertices hidden by the outfit as proxy_body_part decides them.
+struct ProxySurface {
+  Eigen::MatrixX3d V;
+  Eigen::MatrixX3i F;
+  SkinWeights weights;
+  std::vector<char> hidden;
+};
+ProxySurface proxy_surface(const Asset& proxy, const DressedSkinBody& dressed);
+
 struct LodSpec {
   int max_triangles = 2000;             // the whole level
   const Asset* proxy = nullptr;         // replaces the body; nullptr = the body simplified like the rest

@@ -6,10 +6,56 @@
 #include <vector>
 
 #include "core/error.h"
+#include "assets/fit.h"
 #include "core/geometry.h"
 #include "registration/correspondence.h"
 
 namespace bodymodel {
+
+namespace {
+
+// Generalised winding number of point p with respect to the triangles F of V (solid angles summed
+// over 4π, Van Oosterom–Strackee): about 1 inside a closed outward-wound region, 0 outside, and
+// in between near an opening of an open surface.
+double winding_number(const Eigen::RowVector3d& p, const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F) {
+  double sum = 0;
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    const Eigen::Vector3d a = (V.row(F(f, 0)) - p).transpose(), b = (V.row(F(f, 1)) - p).transpose(),
+                          c = (V.row(F(f, 2)) - p).transpose();
+    const double la = a.norm(), lb = b.norm(), lc = c.norm();
+    const double num = a.dot(b.cross(c));
+    const double den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+    sum += 2 * std::atan2(num, den);
+  }
+  return sum / (4 * M_PI);
+}
+
+}  // namespace
+
+void inside_visible_skin(const Eigen::MatrixX3d& points, const Eigen::MatrixX3d& body_V, const Eigen::MatrixX3i& body_F,
+                         const std::vector<char>& hidden, const Eigen::MatrixX3d& vn, BodyDistance& out) {
+  constexpr double kReach = 40;   // mm: a limb's radius and some
+  std::vector<Eigen::Index> ask;
+  for (Eigen::Index i = 0; i < points.rows(); ++i)
+    if (!out.visible[i]) ask.push_back(i);
+  const Eigen::MatrixX3i vis = visible_faces(body_F, hidden);
+  if (ask.empty() || vis.rows() == 0) return;
+  Eigen::MatrixX3d P(static_cast<Eigen::Index>(ask.size()), 3);
+  for (size_t k = 0; k < ask.size(); ++k) P.row(static_cast<Eigen::Index>(k)) = points.row(ask[k]);
+  const std::vector<SurfaceLocation> loc = locate_on_surface(P, body_V, vis);
+  for (size_t k = 0; k < ask.size(); ++k) {
+    const SurfaceLocation& l = loc[k];
+    if (l.distance > kReach) continue;
+    Eigen::RowVector3d p = Eigen::RowVector3d::Zero(), n = Eigen::RowVector3d::Zero();
+    for (int j = 0; j < 3; ++j) p += l.bary[j] * body_V.row(vis(l.face, j)), n += l.bary[j] * vn.row(vis(l.face, j));
+    if (n.norm() > 0) n.normalize();
+    const Eigen::RowVector3d x = P.row(static_cast<Eigen::Index>(k));
+    if ((x - p).dot(n) >= 0 || winding_number(x, body_V, vis) < 0.5) continue;
+    out.signed_distance[ask[k]] = -l.distance;
+    out.normal.row(ask[k]) = n;
+    out.visible[ask[k]] = 1;
+  }
+}
 
 BodyDistance body_distance(const Eigen::MatrixX3d& points, const Eigen::MatrixX3d& body_V,
                            const Eigen::MatrixX3i& body_F, const std::vector<char>& hidden) {
@@ -36,6 +82,7 @@ BodyDistance body_distance(const Eigen::MatrixX3d& points, const Eigen::MatrixX3
     out.signed_distance[i] = (points.row(i) - p).dot(n) < 0 ? -l.distance : l.distance;
     out.normal.row(i) = n;
   }
+  if (!hidden.empty()) inside_visible_skin(points, body_V, body_F, hidden, vn, out);
   return out;
 }
 

@@ -28,8 +28,20 @@ struct BodyDistance {
 // Of each row of `points` to the closed body surface (V, F): F all body faces
 // (MakeHuman::body_faces), V any rows F indexes (e.g. all 19158); `hidden` one flag per row of V
 // (assets/fit.h hidden_body_vertices), or empty when nothing is hidden.
+// A point whose closest body skin is hidden but which lies inside VISIBLE skin (where the body
+// passes through itself: an arm sunk into the torso, a hand into a thigh; the garment between
+// them is then inside the arm, and the arm shows through it) takes its distance, normal and
+// visibility from the visible skin instead: when its closest visible point is within 40 mm, on
+// the inner side of the normal there, and its generalised winding number over the visible faces
+// is at least 0.5 (inside, allowing for the openings the hidden skin leaves). The headless pixel
+// check (tests/tools/outfit_pixels_test.cc) found these: the closest-point test alone misses them.
 BodyDistance body_distance(const Eigen::MatrixX3d& points, const Eigen::MatrixX3d& body_V,
                            const Eigen::MatrixX3i& body_F, const std::vector<char>& hidden = {});
+
+// body_distance's second pass (exposed for its tests): the points flagged not visible in `out`
+// re-measured against the visible skin as described above. vn: the body's vertex normals.
+void inside_visible_skin(const Eigen::MatrixX3d& points, const Eigen::MatrixX3d& body_V, const Eigen::MatrixX3i& body_F,
+                         const std::vector<char>& hidden, const Eigen::MatrixX3d& vn, BodyDistance& out);
 
 struct Penetration {
   int vertices = 0;        // garment vertices tested

@@ -135,16 +135,17 @@ void add_clip_targets(GltfLevel& l, const std::vector<DressedPart>& parts, const
   for (size_t k = 0; k < keyed.size(); ++k) l.target_weights(static_cast<Eigen::Index>(keyed[k]), k) = 1;
 }
 
-// The levels (the full one first) as one glb sharing the skeleton and the clip; the clip
-// corrections (when given) as morph targets of the full level.
+// The levels (the full one first) as one glb sharing the skeleton and the clip; each level's clip
+// corrections (when given: corrections[k] for level k) as its morph targets.
 size_t write_dressed_glb(const fs::path& path, const std::vector<const std::vector<DressedPart>*>& levels,
                          const Skeleton& skeleton, const std::vector<BoneTransforms>& frames, double frame_time,
-                         const ClipCorrections* corrections) {
+                         const std::vector<const ClipCorrections*>& corrections) {
   std::vector<GltfLevel> meshes;
   for (size_t k = 0; k < levels.size(); ++k)
     meshes.push_back(dressed_level(levels.size() == 1 ? "dressed" : fmt::format("dressed_LOD{}", k), *levels[k],
                                    skeleton.bone_count()));
-  if (corrections && !frames.empty()) add_clip_targets(meshes[0], *levels[0], *corrections);
+  for (size_t k = 0; k < corrections.size() && k < levels.size(); ++k)
+    if (corrections[k] && !frames.empty()) add_clip_targets(meshes[k], *levels[k], *corrections[k]);
   GltfAnimation clip;
   clip.frame_time = frame_time;
   clip.frames = frames;
@@ -170,6 +171,86 @@ std::vector<std::vector<DressedPart>> dressed_lods(const OutfitKit& kit, const s
   return lods;
 }
 
+// The skin faces the outfit hides (any hidden corner) over the vertices they use, with their
+// weights: OutfitKit::keep_hidden_skin's debug part.
+DressedPart hidden_skin_part(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const SkinWeights& W,
+                             const std::vector<char>& hidden, const Eigen::Vector3d& colour) {
+  DressedPart p;
+  p.name = "body_hidden";
+  p.kind = "body";
+  p.colour = colour;
+  p.roughness = 0.6;
+  std::vector<int> faces, map(static_cast<size_t>(V.rows()), -1);
+  int n = 0;
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    if (hidden[F(f, 0)] || hidden[F(f, 1)] || hidden[F(f, 2)]) {
+      faces.push_back(static_cast<int>(f));
+      for (int k = 0; k < 3; ++k)
+        if (map[F(f, k)] < 0) map[F(f, k)] = n++;
+    }
+  p.F.resize(static_cast<Eigen::Index>(faces.size()), 3);
+  for (size_t i = 0; i < faces.size(); ++i)
+    for (int k = 0; k < 3; ++k) p.F(static_cast<Eigen::Index>(i), k) = map[F(faces[i], k)];
+  p.V.resize(n, 3);
+  std::vector<Eigen::Triplet<double>> t;
+  for (Eigen::Index v = 0; v < V.rows(); ++v)
+    if (map[v] >= 0) {
+      p.V.row(map[v]) = V.row(v);
+      for (SkinWeights::InnerIterator it(W, v); it; ++it) t.emplace_back(map[v], it.col(), it.value());
+    }
+  p.weights.resize(n, W.cols());
+  p.weights.setFromTriplets(t.begin(), t.end());
+  p.weights = largest_weights(p.weights, 4);
+  return p;
+}
+
+// The closed proxy surface level k (1 or 2) is measured and corrected against, weights as played.
+ProxySurface level_body(const OutfitKit& kit, const DressedSkinBody& d, bool male, size_t k) {
+  ProxySurface s = proxy_surface(kit.proxies.at(k == 1 ? (male ? "male1591" : "female1605") : "proxy741"), d);
+  s.weights = largest_weights(s.weights, 4);
+  return s;
+}
+
+// OutfitKit::lod_corrections: LOD1's and LOD2's garments pushed out of their proxy bodies frame by
+// frame, as LOD0's are out of the skin.
+std::vector<ClipCorrections> level_corrections(const OutfitKit& kit, const DressedSkinBody& d, bool male,
+                                               const std::vector<BoneTransforms>& frames, const ClipCorrectionOptions& co,
+                                               DressedCharacterResult& r) {
+  std::vector<ClipCorrections> out;
+  for (size_t k = 0; k < r.lods.size(); ++k) {
+    const ProxySurface s = level_body(kit, d, male, k + 1);
+    out.push_back(clip_corrections(r.lods[k], s.V, s.F, s.weights, s.hidden, frames, co));
+    for (const auto& f : out.back().frames) r.lod_morph_targets += !f.empty();
+  }
+  return out;
+}
+
+// OutfitKit::measure_levels: half-way between keys (LOD0 with the blended corrections) and LOD1,
+// LOD2 at the keys against their proxies' closed surfaces (the proxy as fitted; LOD2's body is
+// that proxy simplified when it takes over half the budget, so there the measure approximates),
+// with their corrections when given.
+void measure_levels(const OutfitKit& kit, const CharacterRigFile& ch, const SkinWeights& W, const DressedSkinBody& d,
+                    bool male, const std::vector<BoneTransforms>& frames, const ClipCorrections* corr,
+                    const std::vector<ClipCorrections>& lod_corr, DressedCharacterResult& r) {
+  std::vector<BoneTransforms> mid;
+  for (size_t f = 0; f + 1 < frames.size(); ++f) mid.push_back(pose_between_keys(ch.skeleton, frames[f], frames[f + 1], 0.5));
+  std::optional<ClipCorrections> blended;
+  if (corr) blended = corrections_between_keys(*corr, 0.5);
+  r.between_keys = clip_penetration(r.parts, ch.lbs.rest, ch.F, W, d.hidden, mid, r.depth_mm, blended ? &*blended : nullptr);
+  for (size_t k = 0; k < r.lods.size(); ++k) {
+    const ProxySurface s = level_body(kit, d, male, k + 1);
+    const ClipCorrections* c = k < lod_corr.size() ? &lod_corr[k] : nullptr;
+    r.lod_penetration.push_back(clip_penetration(r.lods[k], s.V, s.F, s.weights, s.hidden, frames, r.depth_mm, c));
+    r.lod_uncorrected.push_back(c ? c->uncorrected : r.lod_penetration.back());
+  }
+}
+
+nlohmann::json penetration_json(const ClipPenetration& p, double limit) {
+  return {{"frames", p.fraction.rows()},
+          {"frames_over_limit", p.frames_over(limit)},
+          {"worst_fraction", p.fraction.size() ? p.fraction.maxCoeff() : 0.0}};
+}
+
 nlohmann::json outfit_json(const DressedCharacterResult& r) {
   nlohmann::json lod_triangles = {triangle_count(r.parts)};
   for (const auto& l : r.lods) lod_triangles.push_back(triangle_count(l));
@@ -177,7 +258,7 @@ nlohmann::json outfit_json(const DressedCharacterResult& r) {
   for (const DrawnItem& i : r.drawn.items)
     items.push_back({{"slot", i.slot}, {"asset", i.asset}, {"palette", i.palette}, {"srgb", i.hex},
                      {"linear", {i.colour[0], i.colour[1], i.colour[2]}}});
-  return {{"sex", r.drawn.male ? "male" : "female"},
+  nlohmann::json j = {{"sex", r.drawn.male ? "male" : "female"},
           {"skin", {{"srgb", r.drawn.skin_hex}, {"linear", {r.drawn.skin[0], r.drawn.skin[1], r.drawn.skin[2]}}}},
           {"items", items},
           {"penetration", {{"depth_mm", r.depth_mm},
@@ -193,6 +274,14 @@ nlohmann::json outfit_json(const DressedCharacterResult& r) {
                                 {"vertices", r.corrected_vertices}}},
           {"lod_triangles", lod_triangles},
           {"glb_bytes", r.glb_bytes}};
+  if (r.between_keys.fraction.rows() > 0) j["between_keys"] = penetration_json(r.between_keys, r.limit);
+  for (size_t k = 0; k < r.lod_penetration.size(); ++k) {
+    nlohmann::json l = penetration_json(r.lod_penetration[k], r.limit);
+    l["uncorrected_frames_over_limit"] = r.lod_uncorrected[k].frames_over(r.limit);
+    j["lods"].push_back(l);
+  }
+  if (r.lod_morph_targets > 0) j["clip_corrections"]["lod_morph_targets"] = r.lod_morph_targets;
+  return j;
 }
 
 }  // namespace
@@ -218,10 +307,12 @@ DressedCharacterResult write_dressed_character(const OutfitKit& kit, const Chara
       frames.empty() ? std::vector<BoneTransforms>{BoneTransforms(ch.skeleton.bone_count(), Eigen::Affine3d::Identity())}
                      : frames;
   std::optional<ClipCorrections> corr;
+  std::vector<ClipCorrections> lod_corr;
+  ClipCorrectionOptions co;
+  co.push = kit.dress.push;
+  co.depth_mm = r.depth_mm;
+  if (kit.clip_corrections && kit.lod_corrections && !frames.empty()) lod_corr = level_corrections(kit, d, male, measured, co, r);
   if (kit.clip_corrections && !frames.empty()) {
-    ClipCorrectionOptions co;
-    co.push = kit.dress.push;
-    co.depth_mm = r.depth_mm;
     corr = clip_corrections(r.parts, ch.lbs.rest, ch.F, W, d.hidden, measured, co);
     r.uncorrected = corr->uncorrected;
     r.corrected_garment_frames = corr->garment_frames;
@@ -230,9 +321,14 @@ DressedCharacterResult write_dressed_character(const OutfitKit& kit, const Chara
   }
   r.penetration = clip_penetration(r.parts, ch.lbs.rest, ch.F, W, d.hidden, measured, r.depth_mm, corr ? &*corr : nullptr);
   if (!corr) r.uncorrected = r.penetration;
+  if (kit.measure_levels) measure_levels(kit, ch, W, d, male, measured, corr ? &*corr : nullptr, lod_corr, r);
+  // After the levels and the corrections (the parts' indices stay those the corrections name).
+  if (kit.keep_hidden_skin) r.parts.push_back(hidden_skin_part(ch.lbs.rest, ch.F, W, d.hidden, r.parts[0].colour));
   std::vector<const std::vector<DressedPart>*> levels = {&r.parts};
   for (const auto& l : r.lods) levels.push_back(&l);
-  r.glb_bytes = write_dressed_glb(dir / "dressed.glb", levels, ch.skeleton, frames, frame_time, corr ? &*corr : nullptr);
+  std::vector<const ClipCorrections*> level_corr = {corr ? &*corr : nullptr};
+  for (const ClipCorrections& c : lod_corr) level_corr.push_back(&c);
+  r.glb_bytes = write_dressed_glb(dir / "dressed.glb", levels, ch.skeleton, frames, frame_time, level_corr);
   std::string csv = "frame";
   for (const std::string& g : r.penetration.garments) csv += fmt::format(",{0}_inside_fraction,{0}_max_depth_mm", g);
   for (const std::string& g : r.penetration.garments) csv += fmt::format(",{0}_uncorrected_inside_fraction", g);

@@ -44,6 +44,20 @@ struct OutfitKit {
   // and baked into LOD0 as morph targets, one per corrected frame, selected by a `weights`
   // channel (docs/assets.md#penetration). LOD1 and LOD2 are not corrected. false = the rest fix only.
   bool clip_corrections = true;
+  // Debug: also write the skin the outfit hides, as a part "body_hidden" after the others in LOD0
+  // (the body's colour), so that a render has a closed body. The browser pixel check of "no body
+  // colour through a jacket" needs it to tell a ray that leaves the body from one that enters a
+  // garment inside it (tests/tools/outfit_pixels_test.cc). Not for export: that skin is meant to
+  // stay under the clothes, and nothing keeps it there. The measure is unchanged.
+  bool keep_hidden_skin = false;
+  // Also measure the penetration half-way between keys (as a player interpolates the clip and
+  // blends the corrections) and on LOD1 and LOD2 against their proxy bodies (slower: about twice
+  // the measure). Figures in outfit.json ("between_keys", "lods").
+  bool measure_levels = false;
+  // With a clip and levels: LOD1 and LOD2 get per-frame corrections too (clip_corrections against
+  // their proxy bodies' closed surfaces), baked as their own morph targets and weights channels.
+  // Off by default (measured in docs/assets.md#between-keys-and-levels).
+  bool lod_corrections = false;
 };
 
 // `outfits` = a JSON file or "default". Reads every asset the file names (InputError "'FILE':
@@ -63,6 +77,10 @@ struct DressedCharacterResult {
   std::vector<std::vector<DressedPart>> lods;  // levels 1, 2 (empty when kit.lods is false)
   ClipPenetration penetration;           // per frame (the rest pose when there is no clip), as the glb plays it
   ClipPenetration uncorrected;           // the same without the clip corrections (= penetration without them)
+  ClipPenetration between_keys;          // OutfitKit::measure_levels: half-way between keys (#frames − 1)
+  std::vector<ClipPenetration> lod_penetration;   // OutfitKit::measure_levels: LOD1, LOD2 at the keys (as played)
+  std::vector<ClipPenetration> lod_uncorrected;   // the same without LOD corrections
+  int lod_morph_targets = 0;             // OutfitKit::lod_corrections: LOD1's and LOD2's targets
   std::vector<char> hidden;              // the skin vertices the outfit hides (#skin), as measured
   int morph_targets = 0;                 // LOD0's targets (frames with a correction)
   int corrected_garment_frames = 0;
