@@ -27,6 +27,8 @@ struct EvalArgs {
   std::string cross_validate, registered, subjects, standard_pose = "standard";
   std::string components, specificity_components;
   int samples = 1000;
+  int iterations = 20, coarse_iterations = 4;
+  double prior = 0;
   uint64_t seed = 1;
   double scale = 0;
   double full_variance = 1.0;
@@ -181,6 +183,14 @@ void add_eval_model_options(CLI::App* cmd, EvalArgs& a) {
   cmd->add_option("--scale", a.scale, "Millimetres per mesh unit (0: the model's, from build --scale)")
       ->capture_default_str();
   cmd->add_flag("--no-baseline", a.no_baseline, "Skip the vertex-PCA baseline");
+  cmd->add_option("--iterations", a.iterations, "Maximum Levenberg-Marquardt iterations of each model fit (as fit)")
+      ->capture_default_str();
+  cmd->add_option("--coarse-iterations", a.coarse_iterations,
+                  "At most this many of --iterations fit only the leading 16 components first (as fit)")
+      ->capture_default_str();
+  cmd->add_option("--prior", a.prior,
+                  "Weight (mm²) of a Gaussian prior on the coefficients of each model fit (0: the plain best fit)")
+      ->capture_default_str();
   cmd->add_flag("--first-mesh-faces", a.first_mesh_faces,
                 "With --cross-validate: meshes share their vertices, not their triangles (as build --first-mesh-faces)");
   cmd->add_option("--out", a.out, "Output folder")->required();
@@ -256,7 +266,8 @@ std::string evaluate_model_file(const EvalArgs& a, const ModelQualityOptions& qo
   // Training meshes: from --train or where build read them, named by the full model's samples.
   std::vector<Eigen::MatrixX3d> train;
   const std::string train_dir = !a.train.empty() ? a.train : src.value("registered", "");
-  if (!train_dir.empty()) {
+  const bool needs_train = a.samples > 0 || !a.no_baseline;  // as the error below promises
+  if (!train_dir.empty() && needs_train) {
     std::vector<std::pair<std::string, fs::path>> list;
     std::vector<std::string> missing;
     for (const auto& id : model.full.sample_ids) {
@@ -269,7 +280,7 @@ std::string evaluate_model_file(const EvalArgs& a, const ModelQualityOptions& qo
                                    "or --samples 0 --no-baseline to skip what needs them",
                                    missing[0], train_dir, missing.size()));
     train = read_checked(model, list, scale, a.scale == 0, "training mesh");
-  } else if (a.samples > 0 || !a.no_baseline) {
+  } else if (needs_train) {
     throw InputError("the model does not say where its training meshes are: give --train DIR (or --samples 0 "
                      "--no-baseline)");
   }
@@ -340,6 +351,12 @@ void run_eval_model(EvalArgs& a) {
   qo.specificity_samples = a.samples;
   qo.seed = a.seed;
   qo.vertex_baseline = !a.no_baseline;
+  if (a.iterations < 0) throw InputError("--iterations must be ≥ 0");
+  if (a.coarse_iterations < 0) throw InputError("--coarse-iterations must be ≥ 0");
+  if (!(a.prior >= 0) || !std::isfinite(a.prior)) throw InputError("--prior must be ≥ 0");
+  qo.fit.max_iterations = a.iterations;
+  qo.fit.continuation_iterations = a.coarse_iterations;
+  qo.fit.prior_weight = a.prior;
   if (a.scale < 0 || !std::isfinite(a.scale)) throw InputError("--scale must be positive (or 0)");
   if (!(a.full_variance > 0 && a.full_variance <= 1)) throw InputError("--full-variance must be in (0, 1]");
   std::vector<std::pair<std::string, ModelQuality>> folds;
