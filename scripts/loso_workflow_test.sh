@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # The leave-one-subject-out workflow (workflow/loso.smk) on a tiny synthetic set: 3 people in
 # 2 poses (synth-db truth meshes, standing in for registrations) and 2 population bodies; 3 folds
-# of 5 training meshes, each model fitted (4 components, 6 iterations) to the left-out person's 2
+# of 6 training meshes, each model fitted (4 components, 6 iterations) to the left-out person's 2
 # meshes. Checks every fold's table and the pooled summary (the mean over the 6 test meshes
-# recomputed from the per-mesh rows), then that a rerun has nothing to do and that a deleted
-# fold is the only job remade.
+# recomputed from the per-mesh rows), then that a rerun has nothing to do and that a run stopped
+# before its end (one fold and the summary missing) remakes that fold alone.
 # Usage: scripts/loso_workflow_test.sh BODYMODEL_EXE
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -40,7 +40,9 @@ assert len(folds) == 6 and all(r["components"] == "4" for r in folds), folds
 EOF
 snakemake -s "$here/workflow/loso.smk" --cores 1 --config "${config[@]}" >rerun.txt 2>&1
 grep -q "Nothing to be done" rerun.txt || { cat rerun.txt; exit 1; }
-rm out/fold_s001/q/quality.csv
+# A run stopped before its end (no summary yet, one fold unfinished) resumes at that fold alone.
+rm out/fold_s001/q/quality.csv out/summary.csv
 snakemake -s "$here/workflow/loso.smk" --cores 1 --config "${config[@]}" >resume.txt 2>&1 || { cat resume.txt; exit 1; }
-grep -Eq "^ *fold +1$" resume.txt || { cat resume.txt; exit 1; }
-echo "loso_workflow_test: 3 folds built and fitted, pooled; a rerun does nothing, a lost fold is remade alone"
+grep -Eq "^fold +1 " resume.txt || { cat resume.txt; exit 1; }
+test -s out/summary.csv
+echo "loso_workflow_test: 3 folds built and fitted, pooled; a rerun does nothing, a stopped run resumes at its missing fold"
