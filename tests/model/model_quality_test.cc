@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "core/error.h"
 #include "core/io/atomic_write.h"
@@ -222,6 +223,49 @@ TEST(ModelCli, FitAndEvalModelReportUnconvergedFits) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("part-wise model: 2 parts"), std::string::npos) << r.output;
   EXPECT_EQ(run_cli(base + "--parts -1 --out " + q(dir / "q_bad")).exit_code, 2);
+}
+
+// eval-model's fit options reach every fit: --iterations 0 returns each start (the projection),
+// reported unconverged; the default iterations lower the error from it; a negative prior is
+// refused before anything is written.
+TEST(ModelCli, EvalModelPassesItsFitOptions) {
+  const fs::path& model = built_model();
+  const fs::path dir = folder().dir.path;
+  const fs::path test = dir / "fit_options_test";
+  fs::create_directories(test);
+  write_mesh(test / "t0.ply", bent_cylinder(118, 1560, 0.18));
+  write_mesh(test / "t1.ply", bent_cylinder(95, 1480, -0.05));
+  auto rre_rows = [](const fs::path& csv) {
+    std::ifstream in(csv);
+    std::string line;
+    std::vector<std::pair<double, std::string>> rows;  // mean_mm, converged
+    std::getline(in, line);
+    while (std::getline(in, line)) {
+      std::vector<std::string> f;
+      std::stringstream ss(line);
+      for (std::string x; std::getline(ss, x, ',');) f.push_back(x);
+      if (f.size() >= 9 && f[1] == "rre") rows.emplace_back(std::stod(f[4]), f[8]);
+    }
+    return rows;
+  };
+  const std::string base = "eval-model " + q(model) + " --test " + q(test) + " --samples 0 --no-baseline --components 3";
+  auto r = run_cli(base + " --iterations 0 --out " + q(dir / "it0"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("2 of 2 model fits stopped at their iteration cap"), std::string::npos) << r.output;
+  r = run_cli(base + " --out " + q(dir / "it20"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto start = rre_rows(dir / "it0" / "generalisation.csv");
+  const auto fitted = rre_rows(dir / "it20" / "generalisation.csv");
+  ASSERT_EQ(start.size(), 2u);
+  ASSERT_EQ(fitted.size(), 2u);
+  for (size_t i = 0; i < 2; ++i) {
+    EXPECT_EQ(start[i].second, "0");
+    EXPECT_LT(fitted[i].first, start[i].first);
+  }
+  r = run_cli(base + " --prior -1 --out " + q(dir / "bad_prior"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("bodymodel: error: --prior must be"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir / "bad_prior"));
 }
 
 // One person in many poses: the shape model is the full model, whose basis the file stores once

@@ -28,9 +28,10 @@ struct EvalArgs {
   std::string cross_validate, registered, subjects, standard_pose = "standard";
   std::string components, specificity_components;
   int samples = 1000;
-  int iterations = ModelFitOptions().max_iterations;
+  int iterations = ModelFitOptions().max_iterations, coarse_iterations = ModelFitOptions().continuation_iterations;
   int parts = 0;
   bool training_starts = false;
+  double prior = 0;
   uint64_t seed = 1;
   double scale = 0;
   double full_variance = 1.0;
@@ -194,6 +195,12 @@ void add_eval_model_options(CLI::App* cmd, EvalArgs& a) {
                   "Evaluate a part-wise model instead: the triangles in this many parts (k-means of their rest "
                   "positions), each part its own PCA of the training encodings (0: the model's global PCA)")
       ->capture_default_str();
+  cmd->add_option("--coarse-iterations", a.coarse_iterations,
+                  "At most this many of --iterations fit only the leading 16 components first (as fit)")
+      ->capture_default_str();
+  cmd->add_option("--prior", a.prior,
+                  "Weight (mm²) of a Gaussian prior on the coefficients of each model fit (0: the plain best fit)")
+      ->capture_default_str();
   cmd->add_flag("--first-mesh-faces", a.first_mesh_faces,
                 "With --cross-validate: meshes share their vertices, not their triangles (as build --first-mesh-faces)");
   cmd->add_option("--out", a.out, "Output folder")->required();
@@ -279,7 +286,8 @@ std::string evaluate_model_file(const EvalArgs& a, const ModelQualityOptions& qo
   // Training meshes: from --train or where build read them, named by the full model's samples.
   std::vector<Eigen::MatrixX3d> train;
   const std::string train_dir = !a.train.empty() ? a.train : src.value("registered", "");
-  if (!train_dir.empty()) {
+  const bool needs_train = a.samples > 0 || !a.no_baseline;  // as the error below promises
+  if (!train_dir.empty() && needs_train) {
     std::vector<std::pair<std::string, fs::path>> list;
     std::vector<std::string> missing;
     for (const auto& id : model.full.sample_ids) {
@@ -292,7 +300,7 @@ std::string evaluate_model_file(const EvalArgs& a, const ModelQualityOptions& qo
                                    "or --samples 0 --no-baseline to skip what needs them",
                                    missing[0], train_dir, missing.size()));
     train = read_checked(model, list, scale, a.scale == 0, "training mesh");
-  } else if (a.samples > 0 || !a.no_baseline) {
+  } else if (needs_train) {
     throw InputError("the model does not say where its training meshes are: give --train DIR (or --samples 0 "
                      "--no-baseline)");
   }
@@ -369,6 +377,10 @@ void run_eval_model(EvalArgs& a) {
   if (a.parts < 0) throw InputError("--parts must be ≥ 0");
   qo.fit.max_iterations = a.iterations;
   qo.fit.try_training_starts = a.training_starts;
+  if (a.coarse_iterations < 0) throw InputError("--coarse-iterations must be ≥ 0");
+  if (!(a.prior >= 0) || !std::isfinite(a.prior)) throw InputError("--prior must be ≥ 0");
+  qo.fit.continuation_iterations = a.coarse_iterations;
+  qo.fit.prior_weight = a.prior;
   if (a.scale < 0 || !std::isfinite(a.scale)) throw InputError("--scale must be positive (or 0)");
   if (!(a.full_variance > 0 && a.full_variance <= 1)) throw InputError("--full-variance must be in (0, 1]");
   std::vector<std::pair<std::string, ModelQuality>> folds;
