@@ -571,6 +571,25 @@ int undo_disagreeing(const MarkerData& c, const Surface& s, const CleanOptions& 
   return undone;
 }
 
+// Merges piece k (in `order`) into marker choice[k] where the marker is missing over all of its
+// frames; a piece whose marker an earlier one already filled there is left. Returns the merges.
+int merge_chosen(const MarkerData& c, const Surface& s, const std::vector<size_t>& order, const std::vector<int>& choice,
+                 const std::vector<double>& dist, Pieces& ps, Eigen::MatrixXd& X, CleanReport& r) {
+  int merged = 0;
+  for (size_t k : order) {
+    const int i = choice[k];
+    if (i < 0) continue;
+    const Piece& p = ps.list[k];
+    bool missing = true;
+    for (int t : p.frames) missing = missing && !present(X, t, i);
+    if (!missing) continue;
+    for (int t : p.frames) X.block<1, 3>(t, 3 * i) = c.xyz.block<1, 3>(t, 3 * p.column);
+    ps.done[k] = 1, ps.marker[k] = i, ++merged;
+    r.merges.push_back({c.labels[p.column], c.labels[s.columns[i]], p.frames.front(), p.frames.back(), dist[k]});
+  }
+  return merged;
+}
+
 // Our addition, after the rounds of step 4: the pieces left are matched by the neighbourhood models
 // alone. A candidate is a marker missing over the whole piece, within one spacing of it at its first
 // frame (filled trajectory) and not refused by it; the piece goes to the one whose models place it
@@ -599,19 +618,9 @@ int model_round(const MarkerData& c, const Surface& s, const CleanOptions& o, co
     }
     if (bi >= 0 && best <= o.model_tolerance * s.spacing(bi) && second >= o.ambiguity * best) choice[k] = bi, dist[k] = best;
   });
-  int merged = 0;
-  for (size_t k = 0; k < ps.list.size(); ++k) {
-    const int i = choice[k];
-    if (i < 0) continue;
-    const Piece& p = ps.list[k];
-    bool missing = true;
-    for (int t : p.frames) missing = missing && !present(X, t, i);
-    if (!missing) continue;
-    for (int t : p.frames) X.block<1, 3>(t, 3 * i) = c.xyz.block<1, 3>(t, 3 * p.column);
-    ps.done[k] = 1, ps.marker[k] = i, ++merged;
-    r.merges.push_back({c.labels[p.column], c.labels[s.columns[i]], p.frames.front(), p.frames.back(), dist[k]});
-  }
-  return merged;
+  std::vector<size_t> order(ps.list.size());
+  for (size_t k = 0; k < order.size(); ++k) order[k] = k;
+  return merge_chosen(c, s, order, choice, dist, ps, X, r);
 }
 
 // Where piece p sits in the reference frame (false: it cannot say): its own rigid part, the markers
@@ -694,19 +703,7 @@ int part_round(const MarkerData& c, const Surface& s, const CleanOptions& o, Pie
   std::vector<size_t> order(ps.list.size());
   for (size_t k = 0; k < order.size(); ++k) order[k] = k;
   std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return dist[a] < dist[b]; });
-  int merged = 0;
-  for (size_t k : order) {
-    const int i = choice[k];
-    if (i < 0) continue;
-    const Piece& p = ps.list[k];
-    bool missing = true;
-    for (int t : p.frames) missing = missing && !present(X, t, i);
-    if (!missing) continue;
-    for (int t : p.frames) X.block<1, 3>(t, 3 * i) = c.xyz.block<1, 3>(t, 3 * p.column);
-    ps.done[k] = 1, ps.marker[k] = i, ++merged;
-    r.merges.push_back({c.labels[p.column], c.labels[s.columns[i]], p.frames.front(), p.frames.back(), dist[k]});
-  }
-  return merged;
+  return merge_chosen(c, s, order, choice, dist, ps, X, r);
 }
 
 // The neighbourhood models of the merged trajectories, after taking out the merges they disagree with.
