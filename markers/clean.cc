@@ -5,6 +5,8 @@
 #include <cmath>
 #include <functional>
 #include <tbb/parallel_for.h>
+#include <tuple>
+#include <utility>
 
 #include "core/error.h"
 #include "core/geometry.h"
@@ -153,14 +155,22 @@ void find_parts(Surface& s, const CleanOptions& o, const Eigen::MatrixXd& X) {
   });
 }
 
+// The nearest frames before and after t where marker i is seen (−1 and the frame count when none).
+std::pair<int, int> seen_around(const Eigen::MatrixXd& X, int i, int t) {
+  const int T = static_cast<int>(X.rows());
+  int before = t - 1, after = t + 1;
+  while (before >= 0 && !present(X, before, i)) --before;
+  while (after < T && !present(X, after, i)) ++after;
+  return {before, after};
+}
+
 // Marker i at frame t moved rigidly with its neighbours from the nearest frames before and after
 // where it was seen (weighted by closeness in time): the local shape of a recent frame is nearer
 // the current one than the reference pose's. The reference-frame estimate when neither serves.
 bool anchored_estimate(const Surface& s, const Eigen::MatrixXd& X, int i, int t, Eigen::Vector3d& out) {
   const int T = static_cast<int>(X.rows());
-  int before = t - 1, after = t + 1;
-  while (before >= 0 && !present(X, before, i)) --before;
-  while (after < T && !present(X, after, i)) ++after;
+  int before = 0, after = 0;
+  std::tie(before, after) = seen_around(X, i, t);
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   double wsum = 0;
   for (int a : {before, after}) {
@@ -186,9 +196,8 @@ bool anchored_estimate(const Surface& s, const Eigen::MatrixXd& X, int i, int t,
 // (false: the part cannot say).
 bool part_estimate(const Surface& s, const Eigen::MatrixXd& X, int i, int t, Eigen::Vector3d& out) {
   const int T = static_cast<int>(X.rows());
-  int before = t - 1, after = t + 1;
-  while (before >= 0 && !present(X, before, i)) --before;
-  while (after < T && !present(X, after, i)) ++after;
+  int before = 0, after = 0;
+  std::tie(before, after) = seen_around(X, i, t);
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   double wsum = 0;
   auto from = [&](int a) {  // a < 0: the reference frame
