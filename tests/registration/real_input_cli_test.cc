@@ -6,8 +6,13 @@
 
 #include <filesystem>
 
+#include <nlohmann/json.hpp>
+
 #include "core/io/atomic_write.h"
+#include "core/data_path.h"
 #include "core/io/mesh_io.h"
+#include "core/landmarks.h"
+#include "registration/mesh_scan.h"
 #include "support/fixtures.h"
 #include "support/run_cli.h"
 
@@ -81,6 +86,34 @@ TEST(RealInputCli, ASphereIsNotABody) {
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("registration failed"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir / "reg" / "sphere.ply"));
+}
+
+// Landmarks given as positions are in the mesh's own units and axes, as its vertices are: FAUST's
+// landmark vertices written as positions in metres give the same pose fit as the vertex indices
+// (before, positions were taken as millimetres of the project's frame, 1 000 times too small).
+TEST(RealInputCli, LandmarkPositionsAreInTheMeshsUnits) {
+  fs::path faust;
+  try {
+    faust = data_root() / "faust-registrations" / "tr_reg_000.off";
+  } catch (const std::exception&) {
+  }
+  if (faust.empty() || !fs::exists(faust))
+    GTEST_SKIP() << "faust-registrations not found under the data root (BODYMODEL_DATA)";
+  fixtures::TempDir dir;
+  const Mesh mesh = read_mesh(faust);
+  nlohmann::json positions = nlohmann::json::object();
+  for (const Landmark& l : read_mesh_landmarks(kFaustLandmarks, registration_landmarks(), mesh.V))
+    positions[l.name] = {l.target.x(), l.target.y(), l.target.z()};
+  write_text_file(dir / "positions.json", positions.dump());
+  const std::string common = faust.string() + " --scale 1000 --pose-only --hand-stage off --jobs 1 --landmarks ";
+  const auto a = run_cli("register-mesh " + common + kFaustLandmarks.string() + " --out " + (dir / "a").string());
+  const auto b = run_cli("register-mesh " + common + (dir / "positions.json").string() + " --out " +
+                         (dir / "b").string());
+  ASSERT_EQ(a.exit_code, 0) << a.output;
+  ASSERT_EQ(b.exit_code, 0) << b.output;
+  const Mesh ra = read_mesh(dir / "a" / "tr_reg_000.ply"), rb = read_mesh(dir / "b" / "tr_reg_000.ply");
+  ASSERT_EQ(ra.V.rows(), rb.V.rows());
+  EXPECT_LT((ra.V - rb.V).rowwise().norm().maxCoeff(), 0.01);  // mm
 }
 
 }  // namespace

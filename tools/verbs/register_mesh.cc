@@ -78,8 +78,10 @@ std::string register_one_mesh(const RegisterMeshArgs& a, const RegistrationTempl
                               const std::string& path, const std::string& stem,
                               const std::function<void(double)>& progress) {
   Mesh mesh = read_mesh(path);
-  mesh.V = to_project_frame(mesh.V, a.scale, up);
+  // Landmarks given as [x, y, z] are in the mesh's own units and axes, like its vertices.
   std::vector<Landmark> landmarks = read_mesh_landmarks(a.landmarks, registration_landmarks(), mesh.V);
+  mesh.V = to_project_frame(mesh.V, a.scale, up);
+  for (Landmark& l : landmarks) l.target = a.scale * (up * l.target);
   MeshScanOptions so;
   so.samples = a.samples;
   PointCloud scan = mesh_to_scan(mesh, so, path);
@@ -130,7 +132,8 @@ namespace {
 void add_register_mesh_options(CLI::App* cmd, RegisterMeshArgs& a) {
   cmd->add_option("meshes", a.meshes, "Scan meshes (OBJ/PLY/OFF), any topology")->required();
   cmd->add_option("--landmarks", a.landmarks,
-                  "JSON {name: vertex index (0-based, of the scan mesh) or [x, y, z]}; names as "
+                  "JSON {name: vertex index (0-based, of the scan mesh) or [x, y, z] in the mesh's units "
+                  "and axes}; names as "
                   "in the template's landmark table (head_top, l_knee, ...)")
       ->required();
   cmd->add_option("--out", a.out, "Output folder")->required();
