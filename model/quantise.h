@@ -107,7 +107,8 @@ struct BitAllocationOptions {
 struct BitAllocation {
   ModelFileOptions storage;   // per-column bits of both bases
   QuantisationError check;    // of `storage`
-  QuantisationError held_out; // of `storage` on other random bodies (seed + 100): not used to choose it
+  QuantisationError held_out; // of `storage` on other random bodies (a seed of their own): the file must pass it
+                              // too (error mode), but the bits are not chosen on it
   double file_bytes = 0;      // the file's size with `storage` (the bases' bytes plus the rest, deflated)
   bool passed = false;        // check.max_mm ≤ max_error_mm and, with a budget, file_bytes ≤ max_bytes
   int checks = 0;             // checks run (each decodes 2 × samples bodies twice)

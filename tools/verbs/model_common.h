@@ -86,7 +86,7 @@ inline ModelFileOptions choose_allocated_storage(BodyModel& model, int block_row
         {"mean_vertex_distance_mm", a.check.mean_mm}, {"bound_mm", max_error_mm},
         {"estimated_file_mb", a.file_bytes / 1e6}, {"held_out_max_vertex_distance_mm", a.held_out.max_mm}};
     if (max_mb > 0) model.metadata["quantisation_check"]["budget_mb"] = max_mb;
-    cli::info(fmt::format("chosen: {:.2f} MB, {}; on {} other random bodies (not used to choose): max {:.4f} mm, "
+    cli::info(fmt::format("chosen: {:.2f} MB, {}; confirmed on {} other random bodies: max {:.4f} mm, "
                           "mean {:.5f} mm",
                           a.file_bytes / 1e6, a.check.report(), a.held_out.samples, a.held_out.max_mm,
                           a.held_out.mean_mm));

@@ -1,11 +1,14 @@
 // bodymodel quantise model.npz --out small.npz [--bits auto|2..16|32] [--max-mb M] [--block-rows 64] [--samples 20]
 //     [--max-error-mm 0.5]
+// bodymodel quantise model.npz --compare small.npz [--samples 100] [--seed 1000]: decoded bodies, both files
 #include <fmt/format.h>
 
 #include <filesystem>
+#include <stdexcept>
 
 #include "core/error.h"
 #include "model/model_file.h"
+#include "model/quantise.h"
 #include "tools/console.h"
 #include "tools/verb.h"
 #include "tools/verbs/model_common.h"
@@ -14,15 +17,35 @@ namespace bodymodel {
 namespace {
 
 struct QuantiseArgs {
-  std::string model, out;
+  std::string model, out, compare;
+  uint64_t seed = 1000;
   std::string bits = "auto";
   int block_rows = 64, samples = 20, min_bits = kMinBasisBits;
   double max_error_mm = 0.5, max_mb = 0;
 };
 
+// Checks a file someone else quantised (or this verb, with other random bodies than it chose
+// with): exit 1 if a vertex moves by more than the bound.
+void run_compare(const QuantiseArgs& a) {
+  const BodyModel reference = model_cli::load_model_for_cli(a.model);
+  const BodyModel other = model_cli::load_model_for_cli(a.compare);
+  if (other.shape.pca.basis.rows() != reference.shape.pca.basis.rows() ||
+      other.shape.component_count() != reference.shape.component_count() ||
+      other.full.component_count() != reference.full.component_count())
+    throw InputError(fmt::format("{}: not a quantised copy of {} (other topology or component counts)", a.compare,
+                                 a.model));
+  const QuantisationError e = decoded_body_difference(reference, other, a.samples, a.seed);
+  cli::info(fmt::format("{} against {} (seed {}): {}", a.compare, a.model, a.seed, e.report()));
+  if (e.max_mm > a.max_error_mm)
+    throw std::runtime_error(fmt::format("{}: a decoded vertex moves {:.4f} mm, over --max-error-mm {}", a.compare,
+                                         e.max_mm, a.max_error_mm));
+}
+
 void run_quantise(const QuantiseArgs& a) {
   namespace fs = std::filesystem;
   if (a.samples < 1) throw InputError(fmt::format("--samples must be ≥ 1, got {}", a.samples));
+  if (!a.compare.empty()) return run_compare(a);
+  if (a.out.empty()) throw InputError("--out (the file to write) or --compare (a file to check) is required");
   if (fs::exists(a.out) && fs::equivalent(a.model, a.out))
     throw InputError("--out must not be the input model (write a new file, then move it)");
   const int bits = a.bits == "auto" ? 0 : std::stoi(a.bits);
@@ -59,9 +82,15 @@ BODYMODEL_VERB(add_model_quantise_verb) {
       "bases; if any vertex moves by more than --max-error-mm, 16 bits and then float32 are used instead\n"
       "(with --max-mb: nothing is written). The check and size are printed and kept in the file's\n"
       "metadata (quantisation_check). See docs/model.md for sizes and errors.\n"
+      "--compare FILE writes nothing: it decodes --samples random bodies (--seed) through both files.\n"
       "Example: bodymodel quantise model.npz --out model-q.npz --max-mb 150");
   cmd->add_option("model", a->model, "Model (.npz)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--out", a->out, "Output model (.npz)")->required();
+  auto* out = cmd->add_option("--out", a->out, "Output model (.npz)");
+  cmd->add_option("--compare", a->compare,
+                  "A quantised copy of the model to check instead of writing one: the largest and mean vertex "
+                  "distance of --samples random bodies decoded through both; exit 1 over --max-error-mm")
+      ->check(CLI::ExistingFile)
+      ->excludes(out);
   cmd->add_option("--bits", a->bits, "auto (2 to 16 per component), 8 or 16 (8: 16 for the components that need it), 32 (float32)")
       ->check(CLI::IsMember({"auto", "8", "16", "32"}))
       ->capture_default_str();
@@ -75,6 +104,7 @@ BODYMODEL_VERB(add_model_quantise_verb) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   cmd->add_option("--samples", a->samples, "Random bodies decoded both ways for the check")->capture_default_str();
+  cmd->add_option("--seed", a->seed, "With --compare: the random bodies' seed")->capture_default_str();
   cmd->add_option("--max-error-mm", a->max_error_mm,
                   "Largest vertex distance allowed between the bodies decoded both ways (mm)")
       ->capture_default_str();
