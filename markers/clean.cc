@@ -26,6 +26,7 @@ struct Surface {
   std::vector<std::vector<int>> nbr;
   std::vector<std::vector<int>> wide;  // the 2·k nearest, for estimates when neighbours are missing
   std::vector<std::vector<int>> part;  // markers rigid with it (find_parts), steadiest first; may be empty
+  std::vector<std::vector<double>> part_distance;  // its mean distance to each, over the frames both were seen
   Eigen::VectorXd spacing;   // mean distance to the neighbours (eq. 3)
   int size() const { return static_cast<int>(columns.size()); }
 };
@@ -122,7 +123,7 @@ bool estimate(const Surface& s, const Eigen::MatrixXd& X, int i, int t, Eigen::V
 
 // The std over the frames where both are seen of the distance between markers i and j of X, and
 // how many frames that is.
-double distance_spread(const Eigen::MatrixXd& X, int i, int j, int& n) {
+double distance_spread(const Eigen::MatrixXd& X, int i, int j, int& n, double* mean = nullptr) {
   double sum = 0, sum2 = 0;
   n = 0;
   for (int t = 0; t < X.rows(); ++t) {
@@ -130,6 +131,7 @@ double distance_spread(const Eigen::MatrixXd& X, int i, int j, int& n) {
     const double d = (at(X, t, i) - at(X, t, j)).norm();
     sum += d, sum2 += d * d, ++n;
   }
+  if (mean) *mean = n ? sum / n : 0;
   return n > 1 ? std::sqrt(std::max(0.0, sum2 / n - (sum / n) * (sum / n))) : 1e300;
 }
 
@@ -140,18 +142,23 @@ double distance_spread(const Eigen::MatrixXd& X, int i, int j, int& n) {
 // predict each other while the forearm and the hip move against them.
 void find_parts(Surface& s, const CleanOptions& o, const Eigen::MatrixXd& X) {
   s.part.assign(s.size(), {});
+  s.part_distance.assign(s.size(), {});
   if (o.part_rigidity <= 0) return;
   const PointIndex index(s.X0);
   const int min_frames = std::max(12, static_cast<int>(X.rows()) / 10);
   tbb::parallel_for(0, s.size(), [&](int i) {
-    std::vector<std::pair<double, int>> steady;
+    std::vector<std::tuple<double, int, double>> steady;  // (spread, marker, mean distance)
     for (int j : index.knn(s.X0.row(i).transpose(), 5 * o.neighbours + 1)) {
       int n = 0;
-      const double spread = j == i ? 1e300 : distance_spread(X, i, j, n);
-      if (n >= min_frames && spread <= o.part_rigidity) steady.emplace_back(spread, j);
+      double mean = 0;
+      const double spread = j == i ? 1e300 : distance_spread(X, i, j, n, &mean);
+      if (n >= min_frames && spread <= o.part_rigidity) steady.emplace_back(spread, j, mean);
     }
     std::sort(steady.begin(), steady.end());
-    for (size_t k = 0; k < steady.size() && static_cast<int>(k) < o.part_size; ++k) s.part[i].push_back(steady[k].second);
+    for (size_t k = 0; k < steady.size() && static_cast<int>(k) < o.part_size; ++k) {
+      s.part[i].push_back(std::get<1>(steady[k]));
+      s.part_distance[i].push_back(std::get<2>(steady[k]));
+    }
   });
 }
 
@@ -230,6 +237,52 @@ struct Piece {
   std::vector<int> refused;  // markers its merge into was undone (the neighbourhood models disagreed)
 };
 
+// The median over piece p's frames and marker i's part members seen then of how far the piece's
+// distance to the member strays from marker i's own mean distance to it (-1: no verdict, a part of
+// fewer than 2 or fewer than 3 such samples). A piece of marker i keeps its part's distances within
+// their spread (at most part_rigidity); another marker's piece, or a ghost, does not.
+double part_misfit(const Surface& s, const MarkerData& c, const Eigen::MatrixXd& X, int i, const Piece& p) {
+  std::vector<double> e;
+  if (s.part[i].size() < 2) return -1;  // one marker's distance says little about where it sits
+  for (size_t k = 0; k < s.part[i].size(); ++k) {
+    const int j = s.part[i][k];
+    for (int t : p.frames)
+      if (present(X, t, j)) e.push_back(std::abs((c.at(t, p.column) - at(X, t, j)).norm() - s.part_distance[i][k]));
+  }
+  if (e.size() < 3) return -1;
+  std::nth_element(e.begin(), e.begin() + e.size() / 2, e.end());
+  return e[e.size() / 2];
+}
+
+// Our addition, a check of every merge before it is made (all rounds): piece p is not marker i's when
+// it strays from the distances of i's rigid part by more than part_rigidity and `ambiguity` times more
+// than from those of another marker's part near i (within 2.5 spacings in the reference frame) that is
+// missing over the whole piece, refused by it or not. Near hands and hips the predictions that merge
+// a piece (rigid, filled trajectory, models, the piece's own part) are tens of millimetres off for the
+// right marker and its neighbour alike; the distances within a part are not.
+bool part_refuses(const Surface& s, const CleanOptions& o, const MarkerData& c, const Eigen::MatrixXd& X, int i, const Piece& p) {
+  if (o.part_check <= 0 || o.part_rigidity <= 0) return false;
+  const double e = part_misfit(s, c, X, i, p);
+  if (e <= o.part_rigidity) return false;  // fits, or no verdict (-1)
+  for (int j = 0; j < s.size(); ++j) {
+    if (j == i || (s.X0.row(j) - s.X0.row(i)).norm() > 2.5 * s.spacing(i)) continue;
+    bool missing = true;
+    for (int t : p.frames) missing = missing && !present(X, t, j);
+    if (!missing) continue;
+    const double ej = part_misfit(s, c, X, j, p);
+    if (ej >= 0 && o.ambiguity * ej < e) return true;
+  }
+  return false;
+}
+
+// A short merged piece (under 12 frames, as the part rounds' minimum) straying from marker i's part
+// distances by more than part_check · part_rigidity: a ghost, which no marker explains better, so
+// part_refuses lets it through. Taken out by undo_disagreeing.
+bool is_ghost(const Surface& s, const CleanOptions& o, const MarkerData& c, const Eigen::MatrixXd& X, int i, const Piece& p) {
+  if (o.part_check <= 0 || o.part_rigidity <= 0 || p.frames.size() >= 12) return false;
+  return part_misfit(s, c, X, i, p) > o.part_check * o.part_rigidity;
+}
+
 // Where marker i should be at frame t (false: no prediction).
 using Predictor = std::function<bool(int i, int t, Eigen::Vector3d& out)>;
 
@@ -282,6 +335,7 @@ int match_piece(const Surface& s, const CleanOptions& o, const MarkerData& c, co
     }
   }
   if (best >= 0 && runner_up < o.ambiguity * best_mean) return -1;  // two markers explain it: leave it
+  if (best >= 0 && part_refuses(s, o, c, X, best, p)) return -1;
   return best;
 }
 
@@ -559,6 +613,7 @@ int undo_disagreeing(const MarkerData& c, const Surface& s, const CleanOptions& 
     const int i = ps.marker[k];
     const double dk = model_distance(nb, c, X, i, ps.list[k]);
     if (dk > o.model_tolerance * s.spacing(i) && better_explained(s, nb, c, X, i, ps.list[k], dk)) d[k] = dk;
+    if (is_ghost(s, o, c, X, i, ps.list[k])) d[k] = std::max(0.0, dk);
   });
   int undone = 0;
   for (size_t k = 0; k < ps.list.size(); ++k) {
@@ -582,7 +637,7 @@ int undo_disagreeing(const MarkerData& c, const Surface& s, const CleanOptions& 
 
 // Merges piece k (in `order`) into marker choice[k] where the marker is missing over all of its
 // frames; a piece whose marker an earlier one already filled there is left. Returns the merges.
-int merge_chosen(const MarkerData& c, const Surface& s, const std::vector<size_t>& order, const std::vector<int>& choice,
+int merge_chosen(const MarkerData& c, const Surface& s, const CleanOptions& o, const std::vector<size_t>& order, const std::vector<int>& choice,
                  const std::vector<double>& dist, Pieces& ps, Eigen::MatrixXd& X, CleanReport& r) {
   int merged = 0;
   for (size_t k : order) {
@@ -591,7 +646,7 @@ int merge_chosen(const MarkerData& c, const Surface& s, const std::vector<size_t
     const Piece& p = ps.list[k];
     bool missing = true;
     for (int t : p.frames) missing = missing && !present(X, t, i);
-    if (!missing) continue;
+    if (!missing || part_refuses(s, o, c, X, i, p)) continue;
     for (int t : p.frames) X.block<1, 3>(t, 3 * i) = c.xyz.block<1, 3>(t, 3 * p.column);
     ps.done[k] = 1, ps.marker[k] = i, ++merged;
     r.merges.push_back({c.labels[p.column], c.labels[s.columns[i]], p.frames.front(), p.frames.back(), dist[k]});
@@ -629,7 +684,7 @@ int model_round(const MarkerData& c, const Surface& s, const CleanOptions& o, co
   });
   std::vector<size_t> order(ps.list.size());
   for (size_t k = 0; k < order.size(); ++k) order[k] = k;
-  return merge_chosen(c, s, order, choice, dist, ps, X, r);
+  return merge_chosen(c, s, o, order, choice, dist, ps, X, r);
 }
 
 // Where piece p sits in the reference frame (false: it cannot say): its own rigid part, the markers
@@ -712,7 +767,7 @@ int part_round(const MarkerData& c, const Surface& s, const CleanOptions& o, Pie
   std::vector<size_t> order(ps.list.size());
   for (size_t k = 0; k < order.size(); ++k) order[k] = k;
   std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return dist[a] < dist[b]; });
-  return merge_chosen(c, s, order, choice, dist, ps, X, r);
+  return merge_chosen(c, s, o, order, choice, dist, ps, X, r);
 }
 
 // The neighbourhood models of the merged trajectories, after taking out the merges they disagree with.
