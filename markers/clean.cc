@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <tbb/parallel_for.h>
 #include <tuple>
@@ -431,17 +432,17 @@ Model fit_model(const Surface& s, const Eigen::MatrixXd& X, int i, double energy
   return md;
 }
 
-// The model's estimate of group member `target` at frame t from the other members present in
-// Y: alternately the rigid placement of the model shape and its PCA coefficients.
-bool reconstruct(const Model& md, const Eigen::MatrixXd& Y, int t, int target, Eigen::Vector3d& out) {
+// The model's shape and its rigid placement at frame t from the members present in Y other than
+// `target`: alternately the rigid placement of the model shape and its PCA coefficients.
+bool place_model(const Model& md, const Eigen::MatrixXd& Y, int t, int target, Eigen::MatrixX3d& shape, RigidMotion& m) {
   std::vector<int> q;
   for (int k = 0; k < static_cast<int>(md.group.size()); ++k)
     if (k != target && present(Y, t, md.group[k])) q.push_back(k);
   if (q.size() < 3) return false;
-  Eigen::MatrixX3d cur(q.size(), 3), shape = md.mean;
+  Eigen::MatrixX3d cur(q.size(), 3);
+  shape = md.mean;
   for (size_t k = 0; k < q.size(); ++k) cur.row(k) = at(Y, t, md.group[q[k]]).transpose();
   if (!well_spread(cur)) return false;
-  RigidMotion m;
   for (int it = 0; it < 2; ++it) {
     Eigen::MatrixX3d sq(q.size(), 3);
     for (size_t k = 0; k < q.size(); ++k) sq.row(k) = shape.row(q[k]);
@@ -465,21 +466,63 @@ bool reconstruct(const Model& md, const Eigen::MatrixXd& Y, int t, int target, E
     for (size_t k = 0; k < q.size(); ++k) sq.row(k) = shape.row(q[k]);
     m = fit_rigid_motion(sq, cur);
   }
+  return true;
+}
+
+// The model's estimate of group member `target` at frame t from the other members present in Y.
+bool reconstruct(const Model& md, const Eigen::MatrixXd& Y, int t, int target, Eigen::Vector3d& out) {
+  Eigen::MatrixX3d shape;
+  RigidMotion m;
+  if (!place_model(md, Y, t, target, shape, m)) return false;
   out = m.R * shape.row(target).transpose() + m.t;
+  return true;
+}
+
+// Every model's estimates of its members missing in Y, per model (frame, member, estimate) in frame
+// then member order. The members present are the same for all of a frame's missing members, so one
+// placement of the model serves them all (the same as reconstruct for each).
+using MissingEstimates = std::vector<std::vector<std::tuple<int, int, Eigen::Vector3d>>>;
+MissingEstimates estimate_missing(const std::vector<Model>& models, const Eigen::MatrixXd& Y) {
+  MissingEstimates est(models.size());
+  tbb::parallel_for(size_t(0), models.size(), [&](size_t j) {
+    const Model& md = models[j];
+    const int g = static_cast<int>(md.group.size());
+    Eigen::MatrixX3d shape;
+    RigidMotion m;
+    for (int t = 0; t < Y.rows(); ++t) {
+      int first = -1;
+      for (int k = 0; k < g && first < 0; ++k)
+        if (!present(Y, t, md.group[k])) first = k;
+      if (first < 0 || !place_model(md, Y, t, first, shape, m)) continue;
+      for (int k = first; k < g; ++k)
+        if (!present(Y, t, md.group[k])) est[j].emplace_back(t, k, m.R * shape.row(k).transpose() + m.t);
+    }
+  });
+  return est;
+}
+
+// Model `model`'s estimate of its member `member` at frame t from `est` (false: none).
+bool find_estimate(const MissingEstimates& est, int model, int member, int t, Eigen::Vector3d& out) {
+  const auto& e = est[model];
+  const auto it = std::lower_bound(e.begin(), e.end(), std::make_pair(t, member), [](const auto& a, const std::pair<int, int>& key) {
+    return std::make_pair(std::get<0>(a), std::get<1>(a)) < key;
+  });
+  if (it == e.end() || std::get<0>(*it) != t || std::get<1>(*it) != member) return false;
+  out = std::get<2>(*it);
   return true;
 }
 
 // The holes of marker i at the frames in `todo`, averaged over the models holding i; the frames
 // filled are cleared from `todo`.
 long fill_from_models(const Surface& s, const std::vector<Model>& models, const std::vector<std::vector<std::pair<int, int>>>& holders,
-                      const Eigen::MatrixXd& from, Eigen::MatrixXd& to, int i, std::vector<int>& todo) {
+                      const MissingEstimates* est, const Eigen::MatrixXd& from, Eigen::MatrixXd& to, int i, std::vector<int>& todo) {
   long filled = 0;
   std::vector<int> left;
   for (int t : todo) {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero(), e;
     int n = 0;
     for (const auto& [model, member] : holders[i])
-      if (reconstruct(models[model], from, t, member, e)) sum += e, ++n;
+      if (est ? find_estimate(*est, model, member, t, e) : reconstruct(models[model], from, t, member, e)) sum += e, ++n;
     // A quarter the PCA models' estimate, three quarters the rigid motion from the nearest frames
     // where the marker was seen, of its rigid part where it has one, else of its one-ring (our
     // addition: it follows short gaps more closely, and near hands and hips the models, fitted on
@@ -502,15 +545,33 @@ long fill_from_models(const Surface& s, const std::vector<Model>& models, const 
 struct Neighbourhoods {
   std::vector<Model> models;                              // one per marker
   std::vector<std::vector<std::pair<int, int>>> holders;  // (model, member) holding marker i
+  Eigen::MatrixXd data;                                   // the merged trajectories they were fitted on
 };
 
-Neighbourhoods fit_neighbourhoods(const Surface& s, const CleanOptions& o, const Eigen::MatrixXd& X) {
+bool same_columns(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, int i) {  // bitwise: NaN == NaN
+  return A.rows() == B.rows() && std::equal(A.col(3 * i).data(), A.col(3 * i).data() + 3 * A.rows(), B.col(3 * i).data(),
+                                            [](double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; });
+}
+
+// The models of X's neighbourhoods. A model depends on its group's trajectories alone: those of `nb`
+// whose group X leaves as they were are kept (the merge rounds change a few markers each), the rest
+// refitted.
+void fit_neighbourhoods(const Surface& s, const CleanOptions& o, const Eigen::MatrixXd& X, Neighbourhoods& nb) {
   const int L = s.size();
-  Neighbourhoods nb{std::vector<Model>(L), std::vector<std::vector<std::pair<int, int>>>(L)};
-  tbb::parallel_for(0, L, [&](int i) { nb.models[i] = fit_model(s, X, i, o.pca_energy); });
+  const bool reuse = static_cast<int>(nb.models.size()) == L && nb.data.rows() == X.rows();
+  std::vector<char> changed(L, 1);
+  if (reuse)
+    for (int i = 0; i < L; ++i) changed[i] = !same_columns(nb.data, X, i);
+  nb.models.resize(L);
+  tbb::parallel_for(0, L, [&](int i) {
+    bool stale = !reuse;
+    for (int j : nb.models[i].group) stale = stale || changed[j];
+    if (stale || nb.models[i].group.empty()) nb.models[i] = fit_model(s, X, i, o.pca_energy);
+  });
+  nb.holders.assign(L, {});
   for (int j = 0; j < L; ++j)
     for (size_t k = 0; k < nb.models[j].group.size(); ++k) nb.holders[nb.models[j].group[k]].emplace_back(j, static_cast<int>(k));
-  return nb;
+  nb.data = X;
 }
 
 // The mean distance of piece p's samples to marker i's neighbourhood models' estimates from the
@@ -584,9 +645,10 @@ Eigen::MatrixXd fill_holes(const Surface& s, const Neighbourhoods& nb, const Eig
       if (!present(X, t, i)) todo[i].push_back(t);
   Eigen::MatrixXd Y = X;
   std::vector<long> filled(L, 0);
-  tbb::parallel_for(0, L, [&](int i) { filled[i] += fill_from_models(s, models, holders, X, Y, i, todo[i]); });
+  const MissingEstimates est = estimate_missing(models, X);  // the first pass's model estimates, one placement per model and frame
+  tbb::parallel_for(0, L, [&](int i) { filled[i] += fill_from_models(s, models, holders, &est, X, Y, i, todo[i]); });
   const Eigen::MatrixXd Y1 = Y;
-  tbb::parallel_for(0, L, [&](int i) { filled[i] += fill_from_models(s, models, holders, Y1, Y, i, todo[i]); });
+  tbb::parallel_for(0, L, [&](int i) { filled[i] += fill_from_models(s, models, holders, nullptr, Y1, Y, i, todo[i]); });
   for (int i = 0; i < L; ++i) {
     r.filled_from_neighbours += filled[i];
     r.filled_by_interpolation += static_cast<long>(todo[i].size());
@@ -770,12 +832,11 @@ int part_round(const MarkerData& c, const Surface& s, const CleanOptions& o, Pie
   return merge_chosen(c, s, o, order, choice, dist, ps, X, r);
 }
 
-// The neighbourhood models of the merged trajectories, after taking out the merges they disagree with.
-Neighbourhoods checked_neighbourhoods(const MarkerData& c, const Surface& s, const CleanOptions& o, Pieces& ps,
-                                      std::vector<char>& checked, Eigen::MatrixXd& X, CleanReport& r) {
-  Neighbourhoods nb = fit_neighbourhoods(s, o, X);
-  if (undo_disagreeing(c, s, o, nb, ps, checked, X, r) > 0) nb = fit_neighbourhoods(s, o, X);
-  return nb;
+// The neighbourhood models of the merged trajectories (nb, updated), after taking out the merges they disagree with.
+void checked_neighbourhoods(const MarkerData& c, const Surface& s, const CleanOptions& o, Neighbourhoods& nb, Pieces& ps,
+                            std::vector<char>& checked, Eigen::MatrixXd& X, CleanReport& r) {
+  fit_neighbourhoods(s, o, X, nb);
+  if (undo_disagreeing(c, s, o, nb, ps, checked, X, r) > 0) fit_neighbourhoods(s, o, X, nb);
 }
 
 // Section 4.4: each trajectory smoothed in its local frame (the rigid motion of its neighbours
@@ -827,7 +888,8 @@ CleanResult clean_markers(const MarkerData& capture, const CleanOptions& o, cons
     find_parts(s, o, X);  // from the merged trajectories: more frames
   }
   std::vector<char> checked;
-  Neighbourhoods nb = checked_neighbourhoods(capture, s, o, ps, checked, X, r);
+  Neighbourhoods nb;
+  checked_neighbourhoods(capture, s, o, nb, ps, checked, X, r);
   Eigen::MatrixXd Y = fill_holes(s, nb, X, r);
   // The filled trajectories predict better than a rigid fit of the neighbours where the body
   // deforms: the pieces left are matched against them, and the holes filled again.
@@ -838,18 +900,20 @@ CleanResult clean_markers(const MarkerData& capture, const CleanOptions& o, cons
   for (int round = 0; round < o.rounds; ++round) {
     if (progress) progress(0.2 + 0.6 * (round + 1) / (o.rounds + 1));
     if (merge_round(capture, s, o, filled, ps, X, r) == 0) break;
-    nb = checked_neighbourhoods(capture, s, o, ps, checked, X, r);
+    checked_neighbourhoods(capture, s, o, nb, ps, checked, X, r);
     Y = fill_holes(s, nb, X, r);
   }
+  bool part_merged = false;  // the part rounds match by X alone: one fill after the last
   for (int round = 0; round < o.part_rounds; ++round) {
     if (part_round(capture, s, o, ps, X, r) == 0) break;
+    part_merged = true;
     find_parts(s, o, X);
-    nb = checked_neighbourhoods(capture, s, o, ps, checked, X, r);
-    Y = fill_holes(s, nb, X, r);
+    checked_neighbourhoods(capture, s, o, nb, ps, checked, X, r);
   }
+  if (part_merged) Y = fill_holes(s, nb, X, r);
   for (int round = 0; round < o.model_rounds; ++round) {
     if (model_round(capture, s, o, nb, Y, ps, X, r) == 0) break;  // nb: the models of the current X
-    nb = fit_neighbourhoods(s, o, X);
+    fit_neighbourhoods(s, o, X, nb);
     Y = fill_holes(s, nb, X, r);
   }
   for (size_t k = 0; k < ps.list.size(); ++k)
