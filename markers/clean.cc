@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <tbb/parallel_for.h>
 #include <tuple>
@@ -26,6 +27,7 @@ struct Surface {
   std::vector<std::vector<int>> nbr;
   std::vector<std::vector<int>> wide;  // the 2·k nearest, for estimates when neighbours are missing
   std::vector<std::vector<int>> part;  // markers rigid with it (find_parts), steadiest first; may be empty
+  std::vector<std::vector<double>> part_distance;  // its mean distance to each, over the frames both were seen
   Eigen::VectorXd spacing;   // mean distance to the neighbours (eq. 3)
   int size() const { return static_cast<int>(columns.size()); }
 };
@@ -122,7 +124,7 @@ bool estimate(const Surface& s, const Eigen::MatrixXd& X, int i, int t, Eigen::V
 
 // The std over the frames where both are seen of the distance between markers i and j of X, and
 // how many frames that is.
-double distance_spread(const Eigen::MatrixXd& X, int i, int j, int& n) {
+double distance_spread(const Eigen::MatrixXd& X, int i, int j, int& n, double* mean = nullptr) {
   double sum = 0, sum2 = 0;
   n = 0;
   for (int t = 0; t < X.rows(); ++t) {
@@ -130,6 +132,7 @@ double distance_spread(const Eigen::MatrixXd& X, int i, int j, int& n) {
     const double d = (at(X, t, i) - at(X, t, j)).norm();
     sum += d, sum2 += d * d, ++n;
   }
+  if (mean) *mean = n ? sum / n : 0;
   return n > 1 ? std::sqrt(std::max(0.0, sum2 / n - (sum / n) * (sum / n))) : 1e300;
 }
 
@@ -140,18 +143,23 @@ double distance_spread(const Eigen::MatrixXd& X, int i, int j, int& n) {
 // predict each other while the forearm and the hip move against them.
 void find_parts(Surface& s, const CleanOptions& o, const Eigen::MatrixXd& X) {
   s.part.assign(s.size(), {});
+  s.part_distance.assign(s.size(), {});
   if (o.part_rigidity <= 0) return;
   const PointIndex index(s.X0);
   const int min_frames = std::max(12, static_cast<int>(X.rows()) / 10);
   tbb::parallel_for(0, s.size(), [&](int i) {
-    std::vector<std::pair<double, int>> steady;
+    std::vector<std::tuple<double, int, double>> steady;  // (spread, marker, mean distance)
     for (int j : index.knn(s.X0.row(i).transpose(), 5 * o.neighbours + 1)) {
       int n = 0;
-      const double spread = j == i ? 1e300 : distance_spread(X, i, j, n);
-      if (n >= min_frames && spread <= o.part_rigidity) steady.emplace_back(spread, j);
+      double mean = 0;
+      const double spread = j == i ? 1e300 : distance_spread(X, i, j, n, &mean);
+      if (n >= min_frames && spread <= o.part_rigidity) steady.emplace_back(spread, j, mean);
     }
     std::sort(steady.begin(), steady.end());
-    for (size_t k = 0; k < steady.size() && static_cast<int>(k) < o.part_size; ++k) s.part[i].push_back(steady[k].second);
+    for (size_t k = 0; k < steady.size() && static_cast<int>(k) < o.part_size; ++k) {
+      s.part[i].push_back(std::get<1>(steady[k]));
+      s.part_distance[i].push_back(std::get<2>(steady[k]));
+    }
   });
 }
 
@@ -230,6 +238,52 @@ struct Piece {
   std::vector<int> refused;  // markers its merge into was undone (the neighbourhood models disagreed)
 };
 
+// The median over piece p's frames and marker i's part members seen then of how far the piece's
+// distance to the member strays from marker i's own mean distance to it (-1: no verdict, a part of
+// fewer than 2 or fewer than 3 such samples). A piece of marker i keeps its part's distances within
+// their spread (at most part_rigidity); another marker's piece, or a ghost, does not.
+double part_misfit(const Surface& s, const MarkerData& c, const Eigen::MatrixXd& X, int i, const Piece& p) {
+  std::vector<double> e;
+  if (s.part[i].size() < 2) return -1;  // one marker's distance says little about where it sits
+  for (size_t k = 0; k < s.part[i].size(); ++k) {
+    const int j = s.part[i][k];
+    for (int t : p.frames)
+      if (present(X, t, j)) e.push_back(std::abs((c.at(t, p.column) - at(X, t, j)).norm() - s.part_distance[i][k]));
+  }
+  if (e.size() < 3) return -1;
+  std::nth_element(e.begin(), e.begin() + e.size() / 2, e.end());
+  return e[e.size() / 2];
+}
+
+// Our addition, a check of every merge before it is made (all rounds): piece p is not marker i's when
+// it strays from the distances of i's rigid part by more than part_rigidity and `ambiguity` times more
+// than from those of another marker's part near i (within 2.5 spacings in the reference frame) that is
+// missing over the whole piece, refused by it or not. Near hands and hips the predictions that merge
+// a piece (rigid, filled trajectory, models, the piece's own part) are tens of millimetres off for the
+// right marker and its neighbour alike; the distances within a part are not.
+bool part_refuses(const Surface& s, const CleanOptions& o, const MarkerData& c, const Eigen::MatrixXd& X, int i, const Piece& p) {
+  if (o.part_check <= 0 || o.part_rigidity <= 0) return false;
+  const double e = part_misfit(s, c, X, i, p);
+  if (e <= o.part_rigidity) return false;  // fits, or no verdict (-1)
+  for (int j = 0; j < s.size(); ++j) {
+    if (j == i || (s.X0.row(j) - s.X0.row(i)).norm() > 2.5 * s.spacing(i)) continue;
+    bool missing = true;
+    for (int t : p.frames) missing = missing && !present(X, t, j);
+    if (!missing) continue;
+    const double ej = part_misfit(s, c, X, j, p);
+    if (ej >= 0 && o.ambiguity * ej < e) return true;
+  }
+  return false;
+}
+
+// A short merged piece (under 12 frames, as the part rounds' minimum) straying from marker i's part
+// distances by more than part_check · part_rigidity: a ghost, which no marker explains better, so
+// part_refuses lets it through. Taken out by undo_disagreeing.
+bool is_ghost(const Surface& s, const CleanOptions& o, const MarkerData& c, const Eigen::MatrixXd& X, int i, const Piece& p) {
+  if (o.part_check <= 0 || o.part_rigidity <= 0 || p.frames.size() >= 12) return false;
+  return part_misfit(s, c, X, i, p) > o.part_check * o.part_rigidity;
+}
+
 // Where marker i should be at frame t (false: no prediction).
 using Predictor = std::function<bool(int i, int t, Eigen::Vector3d& out)>;
 
@@ -282,6 +336,7 @@ int match_piece(const Surface& s, const CleanOptions& o, const MarkerData& c, co
     }
   }
   if (best >= 0 && runner_up < o.ambiguity * best_mean) return -1;  // two markers explain it: leave it
+  if (best >= 0 && part_refuses(s, o, c, X, best, p)) return -1;
   return best;
 }
 
@@ -377,17 +432,17 @@ Model fit_model(const Surface& s, const Eigen::MatrixXd& X, int i, double energy
   return md;
 }
 
-// The model's estimate of group member `target` at frame t from the other members present in
-// Y: alternately the rigid placement of the model shape and its PCA coefficients.
-bool reconstruct(const Model& md, const Eigen::MatrixXd& Y, int t, int target, Eigen::Vector3d& out) {
+// The model's shape and its rigid placement at frame t from the members present in Y other than
+// `target`: alternately the rigid placement of the model shape and its PCA coefficients.
+bool place_model(const Model& md, const Eigen::MatrixXd& Y, int t, int target, Eigen::MatrixX3d& shape, RigidMotion& m) {
   std::vector<int> q;
   for (int k = 0; k < static_cast<int>(md.group.size()); ++k)
     if (k != target && present(Y, t, md.group[k])) q.push_back(k);
   if (q.size() < 3) return false;
-  Eigen::MatrixX3d cur(q.size(), 3), shape = md.mean;
+  Eigen::MatrixX3d cur(q.size(), 3);
+  shape = md.mean;
   for (size_t k = 0; k < q.size(); ++k) cur.row(k) = at(Y, t, md.group[q[k]]).transpose();
   if (!well_spread(cur)) return false;
-  RigidMotion m;
   for (int it = 0; it < 2; ++it) {
     Eigen::MatrixX3d sq(q.size(), 3);
     for (size_t k = 0; k < q.size(); ++k) sq.row(k) = shape.row(q[k]);
@@ -411,21 +466,63 @@ bool reconstruct(const Model& md, const Eigen::MatrixXd& Y, int t, int target, E
     for (size_t k = 0; k < q.size(); ++k) sq.row(k) = shape.row(q[k]);
     m = fit_rigid_motion(sq, cur);
   }
+  return true;
+}
+
+// The model's estimate of group member `target` at frame t from the other members present in Y.
+bool reconstruct(const Model& md, const Eigen::MatrixXd& Y, int t, int target, Eigen::Vector3d& out) {
+  Eigen::MatrixX3d shape;
+  RigidMotion m;
+  if (!place_model(md, Y, t, target, shape, m)) return false;
   out = m.R * shape.row(target).transpose() + m.t;
+  return true;
+}
+
+// Every model's estimates of its members missing in Y, per model (frame, member, estimate) in frame
+// then member order. The members present are the same for all of a frame's missing members, so one
+// placement of the model serves them all (the same as reconstruct for each).
+using MissingEstimates = std::vector<std::vector<std::tuple<int, int, Eigen::Vector3d>>>;
+MissingEstimates estimate_missing(const std::vector<Model>& models, const Eigen::MatrixXd& Y) {
+  MissingEstimates est(models.size());
+  tbb::parallel_for(size_t(0), models.size(), [&](size_t j) {
+    const Model& md = models[j];
+    const int g = static_cast<int>(md.group.size());
+    Eigen::MatrixX3d shape;
+    RigidMotion m;
+    for (int t = 0; t < Y.rows(); ++t) {
+      int first = -1;
+      for (int k = 0; k < g && first < 0; ++k)
+        if (!present(Y, t, md.group[k])) first = k;
+      if (first < 0 || !place_model(md, Y, t, first, shape, m)) continue;
+      for (int k = first; k < g; ++k)
+        if (!present(Y, t, md.group[k])) est[j].emplace_back(t, k, m.R * shape.row(k).transpose() + m.t);
+    }
+  });
+  return est;
+}
+
+// Model `model`'s estimate of its member `member` at frame t from `est` (false: none).
+bool find_estimate(const MissingEstimates& est, int model, int member, int t, Eigen::Vector3d& out) {
+  const auto& e = est[model];
+  const auto it = std::lower_bound(e.begin(), e.end(), std::make_pair(t, member), [](const auto& a, const std::pair<int, int>& key) {
+    return std::make_pair(std::get<0>(a), std::get<1>(a)) < key;
+  });
+  if (it == e.end() || std::get<0>(*it) != t || std::get<1>(*it) != member) return false;
+  out = std::get<2>(*it);
   return true;
 }
 
 // The holes of marker i at the frames in `todo`, averaged over the models holding i; the frames
 // filled are cleared from `todo`.
 long fill_from_models(const Surface& s, const std::vector<Model>& models, const std::vector<std::vector<std::pair<int, int>>>& holders,
-                      const Eigen::MatrixXd& from, Eigen::MatrixXd& to, int i, std::vector<int>& todo) {
+                      const MissingEstimates* est, const Eigen::MatrixXd& from, Eigen::MatrixXd& to, int i, std::vector<int>& todo) {
   long filled = 0;
   std::vector<int> left;
   for (int t : todo) {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero(), e;
     int n = 0;
     for (const auto& [model, member] : holders[i])
-      if (reconstruct(models[model], from, t, member, e)) sum += e, ++n;
+      if (est ? find_estimate(*est, model, member, t, e) : reconstruct(models[model], from, t, member, e)) sum += e, ++n;
     // A quarter the PCA models' estimate, three quarters the rigid motion from the nearest frames
     // where the marker was seen, of its rigid part where it has one, else of its one-ring (our
     // addition: it follows short gaps more closely, and near hands and hips the models, fitted on
@@ -448,15 +545,33 @@ long fill_from_models(const Surface& s, const std::vector<Model>& models, const 
 struct Neighbourhoods {
   std::vector<Model> models;                              // one per marker
   std::vector<std::vector<std::pair<int, int>>> holders;  // (model, member) holding marker i
+  Eigen::MatrixXd data;                                   // the merged trajectories they were fitted on
 };
 
-Neighbourhoods fit_neighbourhoods(const Surface& s, const CleanOptions& o, const Eigen::MatrixXd& X) {
+bool same_columns(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, int i) {  // bitwise: NaN == NaN
+  return A.rows() == B.rows() && std::equal(A.col(3 * i).data(), A.col(3 * i).data() + 3 * A.rows(), B.col(3 * i).data(),
+                                            [](double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; });
+}
+
+// The models of X's neighbourhoods. A model depends on its group's trajectories alone: those of `nb`
+// whose group X leaves as they were are kept (the merge rounds change a few markers each), the rest
+// refitted.
+void fit_neighbourhoods(const Surface& s, const CleanOptions& o, const Eigen::MatrixXd& X, Neighbourhoods& nb) {
   const int L = s.size();
-  Neighbourhoods nb{std::vector<Model>(L), std::vector<std::vector<std::pair<int, int>>>(L)};
-  tbb::parallel_for(0, L, [&](int i) { nb.models[i] = fit_model(s, X, i, o.pca_energy); });
+  const bool reuse = static_cast<int>(nb.models.size()) == L && nb.data.rows() == X.rows();
+  std::vector<char> changed(L, 1);
+  if (reuse)
+    for (int i = 0; i < L; ++i) changed[i] = !same_columns(nb.data, X, i);
+  nb.models.resize(L);
+  tbb::parallel_for(0, L, [&](int i) {
+    bool stale = !reuse;
+    for (int j : nb.models[i].group) stale = stale || changed[j];
+    if (stale || nb.models[i].group.empty()) nb.models[i] = fit_model(s, X, i, o.pca_energy);
+  });
+  nb.holders.assign(L, {});
   for (int j = 0; j < L; ++j)
     for (size_t k = 0; k < nb.models[j].group.size(); ++k) nb.holders[nb.models[j].group[k]].emplace_back(j, static_cast<int>(k));
-  return nb;
+  nb.data = X;
 }
 
 // The mean distance of piece p's samples to marker i's neighbourhood models' estimates from the
@@ -530,9 +645,10 @@ Eigen::MatrixXd fill_holes(const Surface& s, const Neighbourhoods& nb, const Eig
       if (!present(X, t, i)) todo[i].push_back(t);
   Eigen::MatrixXd Y = X;
   std::vector<long> filled(L, 0);
-  tbb::parallel_for(0, L, [&](int i) { filled[i] += fill_from_models(s, models, holders, X, Y, i, todo[i]); });
+  const MissingEstimates est = estimate_missing(models, X);  // the first pass's model estimates, one placement per model and frame
+  tbb::parallel_for(0, L, [&](int i) { filled[i] += fill_from_models(s, models, holders, &est, X, Y, i, todo[i]); });
   const Eigen::MatrixXd Y1 = Y;
-  tbb::parallel_for(0, L, [&](int i) { filled[i] += fill_from_models(s, models, holders, Y1, Y, i, todo[i]); });
+  tbb::parallel_for(0, L, [&](int i) { filled[i] += fill_from_models(s, models, holders, nullptr, Y1, Y, i, todo[i]); });
   for (int i = 0; i < L; ++i) {
     r.filled_from_neighbours += filled[i];
     r.filled_by_interpolation += static_cast<long>(todo[i].size());
@@ -559,6 +675,7 @@ int undo_disagreeing(const MarkerData& c, const Surface& s, const CleanOptions& 
     const int i = ps.marker[k];
     const double dk = model_distance(nb, c, X, i, ps.list[k]);
     if (dk > o.model_tolerance * s.spacing(i) && better_explained(s, nb, c, X, i, ps.list[k], dk)) d[k] = dk;
+    if (is_ghost(s, o, c, X, i, ps.list[k])) d[k] = std::max(0.0, dk);
   });
   int undone = 0;
   for (size_t k = 0; k < ps.list.size(); ++k) {
@@ -582,7 +699,7 @@ int undo_disagreeing(const MarkerData& c, const Surface& s, const CleanOptions& 
 
 // Merges piece k (in `order`) into marker choice[k] where the marker is missing over all of its
 // frames; a piece whose marker an earlier one already filled there is left. Returns the merges.
-int merge_chosen(const MarkerData& c, const Surface& s, const std::vector<size_t>& order, const std::vector<int>& choice,
+int merge_chosen(const MarkerData& c, const Surface& s, const CleanOptions& o, const std::vector<size_t>& order, const std::vector<int>& choice,
                  const std::vector<double>& dist, Pieces& ps, Eigen::MatrixXd& X, CleanReport& r) {
   int merged = 0;
   for (size_t k : order) {
@@ -591,7 +708,7 @@ int merge_chosen(const MarkerData& c, const Surface& s, const std::vector<size_t
     const Piece& p = ps.list[k];
     bool missing = true;
     for (int t : p.frames) missing = missing && !present(X, t, i);
-    if (!missing) continue;
+    if (!missing || part_refuses(s, o, c, X, i, p)) continue;
     for (int t : p.frames) X.block<1, 3>(t, 3 * i) = c.xyz.block<1, 3>(t, 3 * p.column);
     ps.done[k] = 1, ps.marker[k] = i, ++merged;
     r.merges.push_back({c.labels[p.column], c.labels[s.columns[i]], p.frames.front(), p.frames.back(), dist[k]});
@@ -629,7 +746,7 @@ int model_round(const MarkerData& c, const Surface& s, const CleanOptions& o, co
   });
   std::vector<size_t> order(ps.list.size());
   for (size_t k = 0; k < order.size(); ++k) order[k] = k;
-  return merge_chosen(c, s, order, choice, dist, ps, X, r);
+  return merge_chosen(c, s, o, order, choice, dist, ps, X, r);
 }
 
 // Where piece p sits in the reference frame (false: it cannot say): its own rigid part, the markers
@@ -712,15 +829,14 @@ int part_round(const MarkerData& c, const Surface& s, const CleanOptions& o, Pie
   std::vector<size_t> order(ps.list.size());
   for (size_t k = 0; k < order.size(); ++k) order[k] = k;
   std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return dist[a] < dist[b]; });
-  return merge_chosen(c, s, order, choice, dist, ps, X, r);
+  return merge_chosen(c, s, o, order, choice, dist, ps, X, r);
 }
 
-// The neighbourhood models of the merged trajectories, after taking out the merges they disagree with.
-Neighbourhoods checked_neighbourhoods(const MarkerData& c, const Surface& s, const CleanOptions& o, Pieces& ps,
-                                      std::vector<char>& checked, Eigen::MatrixXd& X, CleanReport& r) {
-  Neighbourhoods nb = fit_neighbourhoods(s, o, X);
-  if (undo_disagreeing(c, s, o, nb, ps, checked, X, r) > 0) nb = fit_neighbourhoods(s, o, X);
-  return nb;
+// The neighbourhood models of the merged trajectories (nb, updated), after taking out the merges they disagree with.
+void checked_neighbourhoods(const MarkerData& c, const Surface& s, const CleanOptions& o, Neighbourhoods& nb, Pieces& ps,
+                            std::vector<char>& checked, Eigen::MatrixXd& X, CleanReport& r) {
+  fit_neighbourhoods(s, o, X, nb);
+  if (undo_disagreeing(c, s, o, nb, ps, checked, X, r) > 0) fit_neighbourhoods(s, o, X, nb);
 }
 
 // Section 4.4: each trajectory smoothed in its local frame (the rigid motion of its neighbours
@@ -772,7 +888,8 @@ CleanResult clean_markers(const MarkerData& capture, const CleanOptions& o, cons
     find_parts(s, o, X);  // from the merged trajectories: more frames
   }
   std::vector<char> checked;
-  Neighbourhoods nb = checked_neighbourhoods(capture, s, o, ps, checked, X, r);
+  Neighbourhoods nb;
+  checked_neighbourhoods(capture, s, o, nb, ps, checked, X, r);
   Eigen::MatrixXd Y = fill_holes(s, nb, X, r);
   // The filled trajectories predict better than a rigid fit of the neighbours where the body
   // deforms: the pieces left are matched against them, and the holes filled again.
@@ -783,18 +900,20 @@ CleanResult clean_markers(const MarkerData& capture, const CleanOptions& o, cons
   for (int round = 0; round < o.rounds; ++round) {
     if (progress) progress(0.2 + 0.6 * (round + 1) / (o.rounds + 1));
     if (merge_round(capture, s, o, filled, ps, X, r) == 0) break;
-    nb = checked_neighbourhoods(capture, s, o, ps, checked, X, r);
+    checked_neighbourhoods(capture, s, o, nb, ps, checked, X, r);
     Y = fill_holes(s, nb, X, r);
   }
+  bool part_merged = false;  // the part rounds match by X alone: one fill after the last
   for (int round = 0; round < o.part_rounds; ++round) {
     if (part_round(capture, s, o, ps, X, r) == 0) break;
+    part_merged = true;
     find_parts(s, o, X);
-    nb = checked_neighbourhoods(capture, s, o, ps, checked, X, r);
-    Y = fill_holes(s, nb, X, r);
+    checked_neighbourhoods(capture, s, o, nb, ps, checked, X, r);
   }
+  if (part_merged) Y = fill_holes(s, nb, X, r);
   for (int round = 0; round < o.model_rounds; ++round) {
     if (model_round(capture, s, o, nb, Y, ps, X, r) == 0) break;  // nb: the models of the current X
-    nb = fit_neighbourhoods(s, o, X);
+    fit_neighbourhoods(s, o, X, nb);
     Y = fill_holes(s, nb, X, r);
   }
   for (size_t k = 0; k < ps.list.size(); ++k)

@@ -13,7 +13,9 @@
 // still left are then matched by those models alone (`model_rounds`). Rigid parts found from the
 // capture itself (markers whose mutual distances stay nearly fixed) predict a missing marker beside
 // its one-ring, and place each long piece left in the reference frame by the markers moving with it,
-// which names its marker (`part_rounds`).
+// which names its marker (`part_rounds`). Every merge is checked against the distances from the
+// marker to its part's members: a piece that keeps another nearby missing marker's part distances
+// `ambiguity` times better is refused, and a short piece far from them all (a ghost) taken out (`part_check`).
 // Approximations: the marker surface's one-ring is the k nearest markers in the reference frame
 // (the paper built it by hand); frames with fewer than 3 visible neighbours, after a second pass
 // that lets filled neighbours count, are filled by linear interpolation in time (reported apart).
@@ -39,6 +41,7 @@ struct CleanOptions {
   double piece_rigidity = 15;         // mm: the same for a piece and the markers moving with it (longer: looser)
   int part_size = 10;                 // a marker's rigid part: at most this many of its nearest markers
   int part_rounds = 2;                // rounds matching the pieces left by their own rigid part (0 = none)
+  double part_check = 3;              // merges checked against the part's distances (0 = off); a short piece this · part_rigidity off is a ghost
   int min_piece = 1;                  // shorter pieces are left unmerged (too short to tell whose they are)
   int rounds = 2;                     // merges against the filled trajectories (then filled again)
   double model_tolerance = 0.35;      // a merge its neighbourhood models put farther than this · spacing is undone (0 = never)

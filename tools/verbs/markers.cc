@@ -163,6 +163,10 @@ void add_clean(CLI::App* group) {
   cmd->add_option("--part-rounds", a->o.part_rounds,
                   "Rounds matching the pieces left by where their own rigid part puts them in the reference frame (0 = none)")
       ->capture_default_str();
+  cmd->add_option("--part-check", a->o.part_check,
+                  "Check merges against the distances to the marker's rigid part: refuse a piece another nearby missing "
+                  "marker's part explains better, undo a piece under 12 frames farther than this · --part-rigidity (0 = off)")
+      ->capture_default_str();
   cmd->add_option("--model-rounds", a->o.model_rounds, "Rounds matching the pieces left by the neighbourhood models (0 = none)")
       ->capture_default_str();
   cmd->add_option("--smooth", a->o.smooth_iterations, "Smoothing passes in the local frame (0 = none)")->capture_default_str();
