@@ -20,6 +20,7 @@
 #include "core/progress.h"
 #include "encoding/relative_rotation_encoding.h"
 #include "model/model_rig.h"
+#include "model/part_pca.h"
 #include "model/pca.h"
 #include "model/semantic.h"
 
@@ -50,6 +51,10 @@ struct BodyModel {
   SubModel shape;                                // standard-pose scans, one per subject
   SubModel full;                                 // all scans
   ModelRig rig;                                  // may be empty
+  // Optional (`build --parts`): a part-wise PCA of the full model's training samples, used by
+  // `fit` and `eval-model` in place of the full model's PCA; load_model refuses such a file
+  // unless asked to read it (other verbs cannot use it).
+  PartModel parts;
   nlohmann::json metadata;                       // build information (format version, counts, ...)
 
   // Encoding of V (#V by 3, mm) relative to the model's mean; InputError if the vertex count

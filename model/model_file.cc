@@ -272,6 +272,112 @@ SubModel get_sub_model(const Npz& z, const std::string& p, bool shape, int D, co
   return m;
 }
 
+// The rows of each part's triangles (15 encoding values each, triangle order).
+std::vector<std::vector<Eigen::Index>> part_rows(const std::vector<int>& triangle_part, int parts) {
+  std::vector<std::vector<Eigen::Index>> rows(parts);
+  for (size_t f = 0; f < triangle_part.size(); ++f)
+    for (int r = 0; r < 15; ++r) rows[triangle_part[f]].push_back(static_cast<Eigen::Index>(15 * f + r));
+  return rows;
+}
+
+// The part-wise model (body_model.h, PartModel): each part's rows of the mean and of its own
+// components only, so the file holds no zeros outside the parts (model_file.h, parts_*). Bases
+// are float32 whatever the global bases' storage.
+void put_parts(Npz& z, const PartModel& m) {
+  const int P = m.part_count();
+  const auto rows = part_rows(m.triangle_part, P);
+  z.put_int("parts_count", P);
+  z.put("parts_triangle_part", Eigen::VectorXi(Eigen::Map<const Eigen::VectorXi>(m.triangle_part.data(),
+                                                                                    m.triangle_part.size())));
+  z.put("parts_component_part", Eigen::VectorXi(Eigen::Map<const Eigen::VectorXi>(m.component_part.data(),
+                                                                                     m.component_part.size())));
+  z.put("parts_coefficients", m.pca.coefficients);
+  for (int p = 0; p < P; ++p) {
+    std::vector<Eigen::Index> cols;
+    for (size_t k = 0; k < m.component_part.size(); ++k)
+      if (m.component_part[k] == p) cols.push_back(static_cast<Eigen::Index>(k));
+    const Eigen::Index R = static_cast<Eigen::Index>(rows[p].size()), C = static_cast<Eigen::Index>(cols.size());
+    Eigen::VectorXd mean(R);
+    Eigen::MatrixXd basis(R, C);
+    Eigen::VectorXd variances(C);
+    for (Eigen::Index i = 0; i < R; ++i) {
+      mean(i) = m.pca.mean(rows[p][i]);
+      for (Eigen::Index j = 0; j < C; ++j) basis(i, j) = m.pca.basis(rows[p][i], cols[j]);
+    }
+    for (Eigen::Index j = 0; j < C; ++j) variances(j) = m.pca.eigenvalues(cols[j]);
+    const std::string k = fmt::format("parts_{}_", p);
+    z.put(k + "mean", mean);
+    z.put_float32(k + "basis", basis);
+    z.put(k + "eigenvalues", variances);
+  }
+}
+
+// One index array of the part-wise model: `size` entries in [0, bound); InputError naming the key.
+std::vector<int> get_part_indices(const Npz& z, const std::string& key, const std::string& what, Eigen::Index size,
+                                  int bound, const std::string& expected) {
+  const Eigen::VectorXi v = z.int_vector(key);
+  if (v.size() != size)
+    throw InputError(fmt::format("{}: '{}' has {} entries, expected {} ({})", what, key, v.size(), size, expected));
+  for (Eigen::Index i = 0; i < v.size(); ++i)
+    if (v(i) < 0 || v(i) >= bound)
+      throw InputError(fmt::format("{}: '{}' element {} is {}, expected a part index 0..{} ('parts_count' {})", what,
+                                   key, i, v(i), bound - 1, bound));
+  return std::vector<int>(v.data(), v.data() + v.size());
+}
+
+// The part-wise model assembled into one Pca (zero outside each component's part), checked
+// against the template (#F triangles, D = 15·#F) and the full model's N training samples.
+PartModel get_parts(const Npz& z, const std::string& what, int nf, Eigen::Index N) {
+  PartModel m;
+  const double count = z.scalar("parts_count");
+  if (!(count >= 1 && count <= nf) || count != std::floor(count))
+    throw InputError(fmt::format("{}: 'parts_count' is {}, expected 1..{} (the template's triangles)", what, count, nf));
+  const int P = static_cast<int>(count);
+  m.triangle_part = get_part_indices(z, "parts_triangle_part", what, nf, P, "one per template triangle");
+  m.pca.coefficients = z.matrix("parts_coefficients");
+  const Eigen::Index K = m.pca.coefficients.cols();
+  if (m.pca.coefficients.rows() != N)
+    throw InputError(fmt::format("{}: 'parts_coefficients' has {} rows, the full model {} training samples", what,
+                                 m.pca.coefficients.rows(), N));
+  check_finite(m.pca.coefficients, "parts_coefficients", what);
+  m.component_part = get_part_indices(z, "parts_component_part", what, K, P, "one per column of 'parts_coefficients'");
+  const auto rows = part_rows(m.triangle_part, P);
+  const Eigen::Index D = 15 * static_cast<Eigen::Index>(nf);
+  m.pca.mean = Eigen::VectorXd::Zero(D);
+  m.pca.basis = Eigen::MatrixXd::Zero(D, K);
+  m.pca.eigenvalues = Eigen::VectorXd::Zero(K);
+  for (int p = 0; p < P; ++p) {
+    std::vector<Eigen::Index> cols;
+    for (Eigen::Index k = 0; k < K; ++k)
+      if (m.component_part[k] == p) cols.push_back(k);
+    const std::string k = fmt::format("parts_{}_", p);
+    const Eigen::VectorXd mean = z.vector(k + "mean"), variances = z.vector(k + "eigenvalues");
+    const Eigen::MatrixXd basis = z.matrix(k + "basis");
+    const Eigen::Index R = static_cast<Eigen::Index>(rows[p].size()), C = static_cast<Eigen::Index>(cols.size());
+    // A label array that moved triangles between parts no longer matches the parts' row counts.
+    if (mean.size() != R || basis.rows() != R || basis.cols() != C || variances.size() != C)
+      throw InputError(fmt::format("{}: part {} has {} triangles in 'parts_triangle_part' and {} components in "
+                                   "'parts_component_part', but '{}mean' has {} values, '{}basis' is {}×{} and "
+                                   "'{}eigenvalues' has {} (expected {} rows, {} columns)",
+                                   what, p, R / 15, C, k, mean.size(), k, basis.rows(), basis.cols(), k,
+                                   variances.size(), R, C));
+    check_finite(mean, k + "mean", what);
+    check_finite(basis, k + "basis", what);
+    check_finite(variances, k + "eigenvalues", what);
+    for (Eigen::Index j = 0; j < C; ++j) {
+      if (variances(j) < 0)
+        throw InputError(fmt::format("{}: '{}eigenvalues' element {} is {}, expected a variance ≥ 0", what, k, j,
+                                     variances(j)));
+      m.pca.eigenvalues(cols[j]) = variances(j);
+    }
+    for (Eigen::Index i = 0; i < R; ++i) {
+      m.pca.mean(rows[p][i]) = mean(i);
+      for (Eigen::Index j = 0; j < C; ++j) m.pca.basis(rows[p][i], cols[j]) = basis(i, j);
+    }
+  }
+  return m;
+}
+
 }  // namespace
 
 namespace {
@@ -355,6 +461,7 @@ Npz model_to_npz(const BodyModel& model, const ModelFileOptions& o) {
     put_sparse(z, "rig_tail_regressor", model.rig.tail_regressor);
     put_sparse(z, "rig_weights", model.rig.weights);
   }
+  if (!model.parts.empty()) put_parts(z, model.parts);
   return z;
 }
 
@@ -429,6 +536,8 @@ BodyModel model_from_npz(const Npz& z, const std::string& what) {
     model.rig.tail_regressor = get_sparse(z, "rig_tail_regressor", what, B, nv);
     model.rig.weights = get_sparse(z, "rig_weights", what, nv, B);
   }
+  if (z.has("parts_triangle_part"))
+    model.parts = get_parts(z, what, static_cast<int>(F.rows()), model.full.pca.coefficients.rows());
   return model;
 }
 
@@ -436,8 +545,13 @@ void save_model(const std::filesystem::path& path, const BodyModel& model, const
   model_to_npz(model, options).save(path);  // deflated (core/io/npz.h)
 }
 
-BodyModel load_model(const std::filesystem::path& path) {
+BodyModel load_model(const std::filesystem::path& path, PartModelUse parts) {
   Npz z = Npz::load(path);
+  // Checked before reading: the part-wise model is assembled densely in memory.
+  if (parts == PartModelUse::refuse && z.has("parts_triangle_part"))
+    throw InputError(fmt::format("'{}' holds a part-wise pose model (`build --parts`, key 'parts_triangle_part'): "
+                                 "only `fit` and `eval-model` use it; build the model without --parts for this",
+                                 path.string()));
   try {
     return model_from_npz(z, "'" + path.string() + "'");
   } catch (const InputError&) {

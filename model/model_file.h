@@ -53,6 +53,16 @@
 //   rig_bone_names (JSON text), rig_parents (#B int), rig_head_regressor, rig_tail_regressor,
 //   rig_weights             optional skeleton; sparse matrices as (row, col, value) triplets,
 //                            #nonzeros by 3, with rig_*_shape = [rows, cols]
+//   parts_count              optional (`build --parts P`, model/part_pca.h): scalar P; a part-wise
+//                            PCA of the full model's training samples, K_p components in all
+//   parts_triangle_part      #F int32, the part of each triangle (0..P−1)
+//   parts_component_part     K_p int32, the part of each component (components by decreasing variance)
+//   parts_coefficients       N_f by K_p, the full model's training samples' coefficients
+//   parts_<p>_mean           15·#F_p: part p's rows of full_mean (its triangles in triangle order)
+//   parts_<p>_basis          15·#F_p by K_p(p) float32: part p's components restricted to its rows
+//                            (zero elsewhere), in the order of parts_component_part; always float32
+//   parts_<p>_eigenvalues    K_p(p), their variances
+//                            load_model refuses such a file unless asked (PartModelUse::read).
 //
 // Reading it from Python:
 //   import numpy as np, json
@@ -93,6 +103,9 @@ Npz model_to_npz(const BodyModel& model, const ModelFileOptions& options = {});
 BodyModel model_from_npz(const Npz& npz, const std::string& what = "model");
 
 void save_model(const std::filesystem::path& path, const BodyModel& model, const ModelFileOptions& options = {});
-BodyModel load_model(const std::filesystem::path& path);
+// Whether load_model reads a file holding a part-wise model (`build --parts`) or refuses it with
+// one line: only the verbs that fit the full model (fit, eval-model) and quantise use it.
+enum class PartModelUse { refuse, read };
+BodyModel load_model(const std::filesystem::path& path, PartModelUse parts = PartModelUse::refuse);
 
 }  // namespace bodymodel

@@ -49,7 +49,7 @@ std::vector<int> spatial_triangle_parts(const EncodingTemplate& tmpl, int parts,
   return label;
 }
 
-Pca part_wise_pca(const Pca& pca, const std::vector<int>& triangle_part) {
+Pca part_wise_pca(const Pca& pca, const std::vector<int>& triangle_part, std::vector<int>* component_part) {
   const int D = pca.dimension(), N = static_cast<int>(pca.coefficients.rows());
   if (static_cast<int>(triangle_part.size()) * 15 != D)
     throw InputError(fmt::format("part_wise_pca: {} triangle parts for an encoding of {} values (15 per triangle)",
@@ -61,6 +61,7 @@ Pca part_wise_pca(const Pca& pca, const std::vector<int>& triangle_part) {
   const Eigen::MatrixXd X = pca.basis * pca.coefficients.transpose();  // D × N, centred samples
   std::vector<Eigen::VectorXd> columns;
   std::vector<double> variances;
+  std::vector<int> part_of;
   for (int p = 0; p < parts; ++p) {
     std::vector<int> rows;
     for (int f = 0; f < static_cast<int>(triangle_part.size()); ++f)
@@ -80,6 +81,7 @@ Pca part_wise_pca(const Pca& pca, const std::vector<int>& triangle_part) {
       for (size_t i = 0; i < rows.size(); ++i) column(rows[i]) = u(i);
       columns.push_back(std::move(column));
       variances.push_back(lambda);
+      part_of.push_back(p);
     }
   }
   // All parts' components by decreasing variance, as a Pca's: the fit's leading-components
@@ -96,7 +98,22 @@ Pca part_wise_pca(const Pca& pca, const std::vector<int>& triangle_part) {
     out.eigenvalues(k) = variances[order[k]];
   }
   out.coefficients = (out.basis.transpose() * X).transpose();
+  if (component_part) {
+    component_part->resize(order.size());
+    for (size_t k = 0; k < order.size(); ++k) (*component_part)[k] = part_of[order[k]];
+  }
   return out;
+}
+
+int PartModel::part_count() const {
+  return triangle_part.empty() ? 0 : *std::max_element(triangle_part.begin(), triangle_part.end()) + 1;
+}
+
+PartModel build_part_model(const Pca& full, const EncodingTemplate& tmpl, int parts) {
+  PartModel m;
+  m.triangle_part = spatial_triangle_parts(tmpl, parts);
+  m.pca = part_wise_pca(full, m.triangle_part, &m.component_part);
+  return m;
 }
 
 }  // namespace bodymodel

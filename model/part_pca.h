@@ -27,6 +27,23 @@ std::vector<int> spatial_triangle_parts(const EncodingTemplate& tmpl, int parts,
 // variance is below 1e-10 of the part's largest dropped), all parts' components together by
 // decreasing variance. Its mean is pca.mean and its coefficients the samples'.
 // Throws InputError when triangle_part's size is not dimension / 15 or a part index is < 0.
-Pca part_wise_pca(const Pca& pca, const std::vector<int>& triangle_part);
+// component_part (optional): the part of each output component.
+Pca part_wise_pca(const Pca& pca, const std::vector<int>& triangle_part, std::vector<int>* component_part = nullptr);
+
+// A part-wise pose model as `build --parts` stores it beside the global models (model file keys
+// parts_*, model/model_file.h): the part of every triangle and the part-wise PCA, whose
+// components are each zero outside one part (component_part), its mean the full model's and its
+// coefficients those of the full model's training samples.
+struct PartModel {
+  std::vector<int> triangle_part;   // #F, in [0, part_count())
+  std::vector<int> component_part;  // K
+  Pca pca;
+  bool empty() const { return triangle_part.empty(); }
+  int part_count() const;
+};
+
+// The part-wise model of the samples `full` was built from (part_wise_pca of `parts` spatial
+// parts, spatial_triangle_parts): what `build --parts` writes and `eval-model --parts` evaluates.
+PartModel build_part_model(const Pca& full, const EncodingTemplate& tmpl, int parts);
 
 }  // namespace bodymodel

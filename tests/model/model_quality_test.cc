@@ -11,6 +11,7 @@
 #include "core/io/mesh_io.h"
 #include "model/model_file.h"
 #include "model/model_quality.h"
+#include "model/part_pca.h"
 #include "core/statistics.h"
 #include "support/fixtures.h"
 #include "support/run_cli.h"
@@ -286,6 +287,91 @@ TEST(ModelCli, PoseModelStoresItsBasisOnce) {
   const BodyModel m = load_model(out);
   ASSERT_EQ(m.full.component_count(), 2);
   EXPECT_TRUE(m.full.pca.basis == m.shape.pca.basis);
+}
+
+// `build --parts` writes a part-wise model (model_file.h, parts_*) that reads back as the one
+// built from the file's full model (float32 bases); `fit` fits it, from the mean body, to one of
+// its training meshes and recovers it; eval-model evaluates the file's parts. Other verbs refuse
+// the file with one line, and a bad part label array is refused naming its key.
+TEST(ModelCli, PartWiseModelBuildFitAndRefusals) {
+  const fs::path dir = folder().dir.path;
+  const fs::path model = dir / "parts.npz";
+  auto r = run_cli("build " + q(folder().reg) + " --subjects " + q(folder().csv) +
+                   " --standard-pose p0 --full-variance 1 --no-measure --parts 2 --out " + q(model));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("part-wise model: 2 parts"), std::string::npos) << r.output;
+  EXPECT_THROW(load_model(model), InputError);
+  const BodyModel m = load_model(model, PartModelUse::read);
+  ASSERT_EQ(m.parts.part_count(), 2);
+  ASSERT_EQ(static_cast<int>(m.parts.triangle_part.size()), m.tmpl->triangle_count());
+  const PartModel again = build_part_model(m.full.pca, *m.tmpl, 2);
+  EXPECT_EQ(m.parts.triangle_part, again.triangle_part);
+  EXPECT_EQ(m.parts.component_part, again.component_part);
+  const int K = m.parts.pca.component_count();
+  ASSERT_EQ(K, again.pca.component_count());
+  EXPECT_GT(K, m.full.component_count());
+  // Both bases are float32 in the file ("again" is built from the stored global one): agreement
+  // to float32's precision.
+  EXPECT_LT((m.parts.pca.basis - again.pca.basis).cwiseAbs().maxCoeff(), 1e-5);
+  EXPECT_LT((m.parts.pca.eigenvalues - again.pca.eigenvalues).cwiseAbs().maxCoeff(), 1e-5 * again.pca.eigenvalues(0));
+  EXPECT_LT((m.parts.pca.mean - m.full.pca.mean).cwiseAbs().maxCoeff(), 1e-12);
+
+  // From the mean body to the training mesh c2_1 (in the model's span): recovered.
+  const fs::path out = dir / "parts_fit.ply";
+  r = run_cli("fit " + q(model) + " --in " + q(folder().reg / "c2_1.ply") + " --out " + q(out) +
+              " --pose --start mean --iterations 100");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  nlohmann::json j = nlohmann::json::parse(std::ifstream(dir / "parts_fit.json"));
+  EXPECT_EQ(j["sub_model"], "parts");
+  EXPECT_EQ(j["components"].get<int>(), K);
+  EXPECT_TRUE(j["converged"].get<bool>()) << j["stop_reason"];
+  EXPECT_GT(j["start_mean_vertex_error_mm"].get<double>(), 5.0);
+  EXPECT_LT(j["vertex_error_mm"]["max"].get<double>(), 0.05) << r.output;
+  r = run_cli("fit " + q(model) + " --in " + q(folder().reg / "c2_1.ply") + " --out " + q(dir / "global_fit.ply") +
+              " --pose --global --iterations 1");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  j = nlohmann::json::parse(std::ifstream(dir / "global_fit.json"));
+  EXPECT_EQ(j["sub_model"], "full");
+  EXPECT_EQ(j["components"].get<int>(), m.full.component_count());
+
+  const fs::path test = dir / "parts_test";
+  fs::create_directories(test);
+  write_mesh(test / "t0.ply", bent_cylinder(118, 1560, 0.18));
+  const std::string eval = "eval-model " + q(model) + " --test " + q(test) + " --samples 0 --no-baseline --components " +
+                           std::to_string(K) + " --iterations 2 ";
+  r = run_cli(eval + "--out " + q(dir / "q_file_parts"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("part-wise model (the file's): 2 parts, " + std::to_string(K) + " components"),
+            std::string::npos)
+      << r.output;
+  r = run_cli(eval + "--parts 3 --out " + q(dir / "q_other_parts"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+
+  // A verb that cannot use it: one line naming the key.
+  r = run_cli("generate " + q(model) + " --count 1 --out " + q(dir / "gen_parts"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("bodymodel: error: '" + model.string() + "' holds a part-wise pose model"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(dir / "gen_parts"));
+
+  // Bad part labels: out of range, and a triangle moved to the other part (the parts' arrays
+  // then no longer match): refused, naming 'parts_triangle_part'.
+  for (int bad = 0; bad < 2; ++bad) {
+    Npz z = Npz::load(model);
+    Eigen::VectorXi label = z.int_vector("parts_triangle_part");
+    label(7) = bad == 0 ? 2 : 1 - label(7);
+    z.put("parts_triangle_part", label);
+    const fs::path broken = dir / ("broken_parts" + std::to_string(bad) + ".npz");
+    z.save(broken);
+    r = run_cli("fit " + q(broken) + " --in " + q(folder().reg / "c2_1.ply") + " --out " + q(dir / "broken.ply") +
+                " --pose");
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find("bodymodel: error: '" + broken.string() + "'"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(bad == 0 ? "'parts_triangle_part' element 7 is 2" : "in 'parts_triangle_part'"),
+              std::string::npos)
+        << r.output;
+    EXPECT_FALSE(fs::exists(dir / "broken.ply"));
+  }
 }
 
 // Bad input ends with one line "bodymodel: error: ..." naming the file and the problem, exit 2,

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <filesystem>
+#include <fmt/ranges.h>
 
 #include "core/data_path.h"
 #include "core/error.h"
@@ -29,6 +30,7 @@ struct BuildArgs {
   bool no_measure = false;
   bool first_mesh_faces = false;
   int quantise = 32;
+  int parts = 0;
 };
 
 int axis_of(const std::string& s) {
@@ -73,6 +75,12 @@ void add_build_options(CLI::App* cmd, BuildArgs& a) {
                   "Store the PCA bases as 8- or 16-bit integers (32: float32). 20 random bodies decoded both ways "
                   "must agree within 0.5 mm, else 16 bits, then float32, are written (docs/model.md)")
       ->check(CLI::IsMember({8, 16, 32}))
+      ->capture_default_str();
+  cmd->add_option("--parts", a.parts,
+                  "Also write a part-wise pose model: the triangles in this many parts (k-means of their rest "
+                  "positions), each its own PCA of the full model's training encodings (0: none). Only `fit` and "
+                  "`eval-model` read such a file (docs/model.md §5.4)")
+      ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_flag("--no-rig", a.no_rig,
                 "Do not attach the MakeHuman skeleton (pose morphing and region masks need it; only "
@@ -143,6 +151,28 @@ void attach_rig(const BuildArgs& a, const ModelBuildInput& in, BodyModel& model)
   }
 }
 
+// With --parts: the part-wise model of the full model's training samples (model/part_pca.h).
+void attach_parts(const BuildArgs& a, const ModelBuildSummary& s, BodyModel& model) {
+  if (a.parts <= 0) return;
+  // The part-wise PCA sees the samples through the full model's coefficients: exact only when
+  // it kept every component.
+  if (s.full_pca.components < s.full_pca.samples - 1)
+    cli::warn(fmt::format("--parts: the full model keeps {} of {} components, so the parts see the training meshes "
+                          "only through them (use --full-variance 1 for the meshes themselves)",
+                          s.full_pca.components, s.full_pca.samples - 1));
+  model.parts = build_part_model(model.full.pca, *model.tmpl, a.parts);
+  std::vector<int> triangles(model.parts.part_count(), 0), components(model.parts.part_count(), 0);
+  for (int p : model.parts.triangle_part) ++triangles[p];
+  for (int p : model.parts.component_part) ++components[p];
+  model.metadata["parts"] = {{"count", model.parts.part_count()},
+                             {"components", model.parts.pca.component_count()},
+                             {"triangles", triangles},
+                             {"part_components", components},
+                             {"split", "k-means of the rest-pose triangle centroids"}};
+  cli::info(fmt::format("part-wise model: {} parts of {} triangles, {} components ({})", model.parts.part_count(),
+                        fmt::join(triangles, ", "), model.parts.pca.component_count(), fmt::join(components, ", ")));
+}
+
 void run_build(BuildArgs& a) {
   if (a.db.empty() && a.subjects.empty())
     throw InputError("build needs --subjects CSV (mesh,subject,pose) or --db DB/ to say which meshes to use");
@@ -181,6 +211,7 @@ void run_build(BuildArgs& a) {
   cli::info(fmt::format("labels: {} subject labels, {} joint-angle labels ({} never vary: dropped)",
                         in.subject_labels.size(), s.pose_labels_kept, s.pose_labels_dropped));
   attach_rig(a, in, model);
+  attach_parts(a, s, model);
   namespace fs = std::filesystem;
   auto absolute = [](const std::string& p) { return fs::absolute(p).lexically_normal().string(); };
   if (!a.subjects.empty())

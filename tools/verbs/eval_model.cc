@@ -193,7 +193,8 @@ void add_eval_model_options(CLI::App* cmd, EvalArgs& a) {
                 "Each model fit also tries every training mesh's coefficients as its start (as fit)");
   cmd->add_option("--parts", a.parts,
                   "Evaluate a part-wise model instead: the triangles in this many parts (k-means of their rest "
-                  "positions), each part its own PCA of the training encodings (0: the model's global PCA)")
+                  "positions), each part its own PCA of the training encodings (0: the model's global PCA, or the "
+                  "part-wise model the file holds, from build --parts)")
       ->capture_default_str();
   cmd->add_option("--coarse-iterations", a.coarse_iterations,
                   "At most this many of --iterations fit only the leading 16 components first (as fit)")
@@ -252,12 +253,22 @@ FoldData fold_data(const EvalArgs& a, const ModelBuildInput& all, const std::vec
   return d;
 }
 
-// With --parts P > 0: the model's full PCA replaced by the part-wise PCA of its training samples
-// (model/part_pca.h); returns whether it was.
+// The model's full PCA replaced by a part-wise PCA of its training samples (model/part_pca.h):
+// the file's own (`build --parts`), or with --parts P > 0 one built here the same way; returns
+// whether it was.
 bool use_part_model(BodyModel& model, int parts) {
-  if (parts <= 0) return false;
-  model.full.pca = part_wise_pca(model.full.pca, spatial_triangle_parts(*model.tmpl, parts));
-  cli::info(fmt::format("part-wise model: {} parts, {} components", parts, model.full.pca.component_count()));
+  if (!model.parts.empty() && parts > 0 && parts != model.parts.part_count())
+    throw InputError(fmt::format("--parts {}: the model file holds a part-wise model of {} parts (give --parts {} "
+                                 "or none)",
+                                 parts, model.parts.part_count(), model.parts.part_count()));
+  if (model.parts.empty() && parts <= 0) return false;
+  const bool from_file = !model.parts.empty();
+  if (!from_file) model.parts = build_part_model(model.full.pca, *model.tmpl, parts);
+  const int count = model.parts.part_count();
+  model.full.pca = std::move(model.parts.pca);
+  model.parts = PartModel{};
+  cli::info(fmt::format("part-wise model{}: {} parts, {} components", from_file ? " (the file's)" : "", count,
+                        model.full.pca.component_count()));
   return true;
 }
 
@@ -268,7 +279,7 @@ std::string evaluate_model_file(const EvalArgs& a, const ModelQualityOptions& qo
   if (a.model.empty()) throw InputError("eval-model needs a model (or --cross-validate subject|pose)");
   if (a.test.empty()) throw InputError("eval-model needs --test DIR with the meshes the model never saw");
   refuse_existing_output(a.out, a.force);
-  BodyModel model = model_cli::load_model_for_cli(a.model);
+  BodyModel model = model_cli::load_model_for_cli(a.model, PartModelUse::read);
   const bool parts = use_part_model(model, a.parts);
   // With a model file K is the user's choice for that model: more than it has is an error
   // (cross-validation folds clamp K to each fold's count instead).

@@ -26,6 +26,7 @@ struct FitArgs {
   int coarse_iterations = 4;
   double prior = 0;
   bool training_starts = false;
+  bool global = false;
   std::string start = "projection";
   std::string sex = "unknown";
 };
@@ -59,8 +60,28 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
   cmd->add_flag("--training-starts", a.training_starts,
                 "Also try each training mesh's coefficients as the start (one decode each) and start from the "
                 "closest: for poses far from the projection (docs/model.md §1)");
+  cmd->add_flag("--global", a.global,
+                "With a part-wise model (`build --parts`): fit the full model's global PCA instead of the parts'");
   cmd->add_option("--sex", a.sex, "female|male: for the body-fat measurement")
       ->check(CLI::IsMember({"unknown", "female", "male"}));
+}
+
+// The PCA fitted: a part-wise model's (`build --parts`, model/part_pca.h) when the file has one
+// and the full model is fitted, unless --global; else the sub-model's.
+const Pca& fitted_pca(const BodyModel& model, const SubModel& sub, bool full, const FitArgs& a) {
+  if (full && !model.parts.empty() && !a.global) {
+    cli::info(fmt::format("part-wise model: {} parts, {} components (--global: the full model's {})",
+                          model.parts.part_count(), model.parts.pca.component_count(), model.full.component_count()));
+    return model.parts.pca;
+  }
+  return sub.pca;
+}
+
+// The sub-model's coefficients of the fitted body, for its label regression: a part-wise fit's
+// encoding projected onto the global basis (both share the full model's mean).
+Eigen::VectorXd label_coefficients(const SubModel& sub, const Pca& pca, const Eigen::VectorXd& c) {
+  if (&pca == &sub.pca) return c;
+  return sub.pca.basis.transpose() * (pca.basis.leftCols(c.size()) * c);
 }
 
 void run_fit(FitArgs& a) {
@@ -70,12 +91,14 @@ void run_fit(FitArgs& a) {
   if (a.scale < 0 || !std::isfinite(a.scale)) throw InputError("--scale must be positive (or 0: the model's)");
   if (a.iterations < 0) throw InputError("--iterations must be ≥ 0");
   if (a.coarse_iterations < 0) throw InputError("--coarse-iterations must be ≥ 0");
-  auto model = std::make_shared<const BodyModel>(model_cli::load_model_for_cli(a.model));
+  auto model = std::make_shared<const BodyModel>(model_cli::load_model_for_cli(a.model, PartModelUse::read));
   const bool full = a.pose || model->metadata.value("shape_model", "") == "full";
   const SubModel& sub = full ? model->full : model->shape;
-  if (a.components > sub.component_count())
+  const Pca& pca = fitted_pca(*model, sub, full, a);
+  if (a.components > pca.component_count())
     throw InputError(fmt::format("--components {}: the {} model of '{}' has {} components", a.components,
-                                 full ? "full" : "shape", a.model, sub.component_count()));
+                                 &pca == &sub.pca ? (full ? "full" : "shape") : "part-wise", a.model,
+                                 pca.component_count()));
   double scale = a.scale;
   if (scale == 0) {
     scale = 1;
@@ -90,7 +113,7 @@ void run_fit(FitArgs& a) {
   model->check_topology(mesh.V * scale, mesh.F, "'" + a.in + "'");
   const Eigen::MatrixX3d Y = mesh.V * scale;
   check_body_size(Y, "'" + a.in + "'", "--scale", scale, a.scale == 0);
-  ModelFitter fitter(model->tmpl, model->mean, sub.pca);
+  ModelFitter fitter(model->tmpl, model->mean, pca);
   ModelFitOptions o;
   o.components = a.components;
   o.max_iterations = a.iterations;
@@ -106,7 +129,7 @@ void run_fit(FitArgs& a) {
   // Labels: predicted (regression on all components, the unfitted ones 0) and measured.
   const Sex sex = a.sex == "female" ? Sex::female : a.sex == "male" ? Sex::male : Sex::unknown;
   nlohmann::json labels = nlohmann::json::object();
-  for (const FitLabel& l : fit_labels(*model, sub, fit.coefficients, Y, fit.V, mesh.F, sex)) {
+  for (const FitLabel& l : fit_labels(*model, sub, label_coefficients(sub, pca, fit.coefficients), Y, fit.V, mesh.F, sex)) {
     nlohmann::json j = {{"unit", l.unit}};
     if (l.predicted) j["predicted"] = *l.predicted;
     if (l.measured_input) j["measured_input"] = *l.measured_input;
@@ -116,7 +139,7 @@ void run_fit(FitArgs& a) {
   nlohmann::json out = {
       {"model", a.model},
       {"input", a.in},
-      {"sub_model", full ? "full" : "shape"},
+      {"sub_model", &pca != &sub.pca ? "parts" : full ? "full" : "shape"},
       {"components", fit.summary.components},
       {"coefficients", std::vector<double>(fit.coefficients.data(), fit.coefficients.data() + fit.coefficients.size())},
       {"input_mm_per_unit", scale},

@@ -155,9 +155,10 @@ inline ModelFileOptions choose_basis_storage(BodyModel& model, int bits, int blo
   return o;
 }
 
-inline BodyModel load_model_for_cli(const std::string& path) {
+// parts: whether the verb uses a part-wise model (`build --parts`); the others refuse such a file.
+inline BodyModel load_model_for_cli(const std::string& path, PartModelUse parts = PartModelUse::refuse) {
   cli::info("loading model " + path);
-  return load_model(path);
+  return load_model(path, parts);
 }
 
 }  // namespace bodymodel::model_cli
