@@ -553,6 +553,20 @@ TEST(OutfitLods, BadLodsValueExitsTwoAndWritesNothing) {
   }
 }
 
+// crowd --lod-corrections corrects levels that must exist: without --outfits, or with --lods none,
+// it is refused before anything is read or written (exit 2, one line naming the option).
+TEST(OutfitLods, LodCorrectionsWithoutLevelsExitTwoAndWriteNothing) {
+  if (!fs::exists(BODYMODEL_EXE)) GTEST_SKIP() << "bodymodel not built";
+  fixtures::TempDir tmp;
+  for (const std::string extra : {"", " --outfits default --lods none"}) {
+    const auto r = fixtures::run_cli("crowd missing.npz --bvh missing.bvh --lod-corrections" + extra + " --out " +
+                                     (tmp / "out").string());
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find("--lod-corrections: needs --outfits and --lods default"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(tmp / "out")) << extra;
+  }
+}
+
 // The crowd viewer (tools/viewer/crowd.html) in headless Chromium with three.js: 1000 animated
 // instances of the two dressed characters, LOD by distance, at a fixed frame: every instance has
 // its three levels, THREE.LOD uses each, every character's body, garments and hair colours are
