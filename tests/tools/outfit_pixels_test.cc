@@ -115,9 +115,9 @@ void check_jacket(const MakeHuman& mh, const OutfitKit& kit, const fs::path& thr
 }
 
 // Two women: weight 0.6 over the whole clip, and a heavier one (weight 0.9) over the five keys
-// around her deepest (key 18 of the whole clip; 5 keys keep the test short). Before the garment's
-// triangles were pushed out between their corners (PushOutOptions::faces) the heavier one showed
-// 111 pixels of upper arm through the sleeve's side with the corrections.
+// around her deepest (key 18 of the whole clip; 5 keys keep the test short). With the vertex push
+// alone (PushOutOptions::faces off, the crowd's default) the heavier one shows patches of upper arm
+// through the sleeve's side and fails (docs/assets.md#body-colour-through-a-jacket).
 TEST(OutfitPixels, NoBodyColourThroughTheJacketAtAFixedFrame) {
   const std::string chromium = fixtures::chromium_path();
   if (!fs::exists(chromium)) GTEST_SKIP() << chromium << " not found (Debian package chromium)";
