@@ -270,10 +270,6 @@ std::vector<SampledCorrections> level_corrections(const OutfitKit& kit, const Sk
   return out;
 }
 
-// OutfitKit::measure_levels: half-way between keys (LOD0 with the blended corrections) and LOD1,
-// LOD2 at the keys against their proxies' closed surfaces (the proxy as fitted; LOD2's body is
-// that proxy simplified when it takes over half the budget, so there the measure approximates),
-// with their corrections when given.
 // Half-way between the keys with the corrections blended half and half (or none).
 ClipPenetration halfway_between_keys(const std::vector<DressedPart>& parts, const Eigen::MatrixX3d& V,
                                      const Eigen::MatrixX3i& F, const SkinWeights& W, const std::vector<char>& hidden,
@@ -286,6 +282,10 @@ ClipPenetration halfway_between_keys(const std::vector<DressedPart>& parts, cons
   return clip_penetration(parts, V, F, W, hidden, mid, depth_mm, blended ? &*blended : nullptr);
 }
 
+// OutfitKit::measure_levels: half-way between keys (LOD0 with the blended corrections) and LOD1,
+// LOD2 at the keys against their proxies' closed surfaces (the proxy as fitted; LOD2's body is
+// that proxy simplified when it takes over half the budget, so there the measure approximates),
+// with their corrections when given.
 void measure_levels(const OutfitKit& kit, const CharacterRigFile& ch, const SkinWeights& W, const DressedSkinBody& d,
                     bool male, const std::vector<BoneTransforms>& frames, const ClipCorrections* corr,
                     const std::vector<SampledCorrections>& lod_corr, DressedCharacterResult& r) {

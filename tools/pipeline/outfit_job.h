@@ -42,7 +42,7 @@ struct OutfitKit {
   std::map<std::string, Asset> proxies;  // by name; read by load_outfit_kit with the helpers
   // With a clip: each frame's garments pushed out of the posed skin (clip_corrections, assets/dress.h)
   // and baked into LOD0 as morph targets, one per corrected frame, selected by a `weights`
-  // channel (docs/assets.md#penetration). LOD1 and LOD2 are not corrected. false = the rest fix only.
+  // channel (docs/assets.md#penetration). LOD1 and LOD2 only with lod_corrections. false = the rest fix only.
   bool clip_corrections = true;
   // Debug: also write the skin the outfit hides, as a part "body_hidden" after the others in LOD0
   // (the body's colour), so that a render has a closed body. The browser pixel check of "no body
