@@ -318,4 +318,89 @@ ClipCorrections corrections_between_keys(const ClipCorrections& c, double s) {
   return out;
 }
 
+BoneTransforms pose_at(const Skeleton& skeleton, const std::vector<BoneTransforms>& frames, double t) {
+  if (frames.empty()) throw InputError("pose_at: a clip without frames");
+  if (frames.size() == 1 || t <= 0) return frames.front();
+  const size_t f = std::min(static_cast<size_t>(std::floor(t)), frames.size() - 2);
+  return pose_between_keys(skeleton, frames[f], frames[f + 1], std::min(1.0, t - static_cast<double>(f)));
+}
+
+namespace {
+
+// What a player blends at fraction s from sample a to sample b (the weights channel is LINEAR).
+std::vector<GarmentCorrection> blend_samples(const std::vector<GarmentCorrection>& a,
+                                             const std::vector<GarmentCorrection>& b, double s) {
+  std::vector<GarmentCorrection> out;
+  for (const auto& [list, w] : {std::pair<const std::vector<GarmentCorrection>*, double>{&a, 1 - s}, {&b, s}})
+    for (GarmentCorrection g : *list) {   // corrected_rest adds every entry of a part
+      g.delta *= w;
+      out.push_back(std::move(g));
+    }
+  return out;
+}
+
+}  // namespace
+
+SampledCorrections refine_between_keys(const std::vector<DressedPart>& parts, const Eigen::MatrixX3d& skin_rest,
+                                       const Eigen::MatrixX3i& skin_F, const SkinWeights& skin_W,
+                                       const std::vector<char>& hidden, const Skeleton& skeleton,
+                                       const std::vector<BoneTransforms>& frames, const ClipCorrections& at_keys,
+                                       const RefineOptions& options) {
+  if (at_keys.frames.size() != frames.size())
+    throw InputError(fmt::format("refine_between_keys: corrections for {} keys of a clip of {}", at_keys.frames.size(),
+                                 frames.size()));
+  std::map<double, std::vector<GarmentCorrection>> samples;    // by time; dyadic times are exact
+  for (size_t f = 0; f < frames.size(); ++f) samples[static_cast<double>(f)] = at_keys.frames[f];
+  std::map<double, std::pair<Eigen::RowVectorXd, Eigen::RowVectorXd>> mid;   // by an interval's start
+  std::vector<std::pair<double, double>> pending;
+  for (size_t f = 0; f + 1 < frames.size(); ++f) pending.emplace_back(f, f + 1.0);
+  SampledCorrections out;
+  for (int round = 0; !pending.empty(); ++round) {
+    std::vector<BoneTransforms> poses;
+    ClipCorrections blended;
+    for (const auto& [a, b] : pending) {
+      poses.push_back(pose_at(skeleton, frames, 0.5 * (a + b)));
+      blended.frames.push_back(blend_samples(samples[a], samples[b], 0.5));
+    }
+    const ClipPenetration p = clip_penetration(parts, skin_rest, skin_F, skin_W, hidden, poses,
+                                               options.correction.depth_mm, &blended);
+    out.between.garments = p.garments;
+    if (round == 0) out.between_keys = p;
+    std::vector<size_t> over;
+    for (size_t i = 0; i < pending.size(); ++i) {
+      const auto r = static_cast<Eigen::Index>(i);
+      mid[pending[i].first] = {p.fraction.row(r), p.max_depth_mm.row(r)};
+      if (round < options.max_halvings && p.fraction.cols() > 0 && p.fraction.row(r).maxCoeff() > options.limit)
+        over.push_back(i);
+    }
+    std::vector<BoneTransforms> at;
+    for (size_t i : over) at.push_back(poses[i]);
+    const ClipCorrections c = clip_corrections(parts, skin_rest, skin_F, skin_W, hidden, at, options.correction);
+    std::vector<std::pair<double, double>> next;
+    for (size_t k = 0; k < over.size(); ++k) {
+      const auto [a, b] = pending[over[k]];
+      samples[0.5 * (a + b)] = c.frames[k];
+      ++out.added;
+      next.emplace_back(a, 0.5 * (a + b));
+      next.emplace_back(0.5 * (a + b), b);
+    }
+    pending = std::move(next);
+  }
+  const auto G = static_cast<Eigen::Index>(out.between.garments.size());
+  out.between.fraction.setZero(static_cast<Eigen::Index>(mid.size()), G);
+  out.between.max_depth_mm.setZero(static_cast<Eigen::Index>(mid.size()), G);
+  out.corrections.uncorrected = at_keys.uncorrected;
+  for (auto& [t, c] : samples) {
+    if (const auto m = mid.find(t); m != mid.end()) {
+      const auto r = static_cast<Eigen::Index>(out.times.size());
+      out.between.fraction.row(r) = m->second.first;
+      out.between.max_depth_mm.row(r) = m->second.second;
+    }
+    out.times.push_back(t);
+    for (const GarmentCorrection& g : c) ++out.corrections.garment_frames, out.corrections.vertices += g.delta.rows();
+    out.corrections.frames.push_back(std::move(c));
+  }
+  return out;
+}
+
 }  // namespace bodymodel

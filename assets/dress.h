@@ -141,4 +141,32 @@ BoneTransforms pose_between_keys(const Skeleton& skeleton, const BoneTransforms&
 // (#frames − 1), for clip_penetration over the poses pose_between_keys gives.
 ClipCorrections corrections_between_keys(const ClipCorrections& c, double s);
 
+// A clip's corrections sampled finer than its keys where a player's blend of two neighbouring
+// samples leaves the body through a garment (docs/assets.md#between-keys-and-levels). Times are in
+// keys (key f at f); every key is a sample, and an interval whose half-way point (the pose
+// pose_between_keys gives, the two samples' corrections blended half and half) has a garment over
+// `limit` at depth_mm is halved: a sample is added there with the corrections clip_corrections
+// makes for that pose, and its two halves are measured in turn, at most `max_halvings` times.
+struct SampledCorrections {
+  std::vector<double> times;       // increasing; the keys 0 … #frames − 1 and the samples added
+  ClipCorrections corrections;     // corrections.frames[i] at times[i]; uncorrected: at the keys
+  ClipPenetration between;         // half-way between consecutive samples as played (#times − 1 rows)
+  ClipPenetration between_keys;    // half-way between the keys before any sample was added (#keys − 1)
+  int added = 0;                   // samples added between keys
+};
+struct RefineOptions {
+  ClipCorrectionOptions correction;   // as at the keys
+  double limit = 0.01;                // a half-way point is over with more than this fraction over depth_mm
+  int max_halvings = 3;               // per interval between keys: at most 2^3 − 1 samples added
+};
+// The pose a player shows at time t (in keys) of the clip `frames`.
+BoneTransforms pose_at(const Skeleton& skeleton, const std::vector<BoneTransforms>& frames, double t);
+// Arguments as clip_corrections', with the skeleton the frames pose and at_keys = clip_corrections
+// of the frames. max_halvings 0 measures half-way between the keys and adds nothing.
+SampledCorrections refine_between_keys(const std::vector<DressedPart>& parts, const Eigen::MatrixX3d& skin_rest,
+                                       const Eigen::MatrixX3i& skin_F, const SkinWeights& skin_W,
+                                       const std::vector<char>& hidden, const Skeleton& skeleton,
+                                       const std::vector<BoneTransforms>& frames, const ClipCorrections& at_keys,
+                                       const RefineOptions& options = {});
+
 }  // namespace bodymodel

@@ -130,6 +130,46 @@ void spread(Eigen::MatrixX3d& D, const std::vector<std::vector<int>>& nb, int ri
   }
 }
 
+// options.faces: the centroid and edge midpoints of every face with a corner over visible skin and
+// a corner nearer the body than its longest edge (faces wholly over hidden skin are skipped: their
+// samples would mostly take body_distance's costly visible-skin pass); a sample deeper than face_depth inside visible skin pushes the face's corners
+// by its own push to the clearance (each corner keeping the larger). Returns the samples pushed.
+int push_face_samples(const Eigen::MatrixX3d& X, const Eigen::MatrixX3i& GF, const BodyDistance& d,
+                      const Eigen::MatrixX3d& body_V, const Eigen::MatrixX3i& body_F, const std::vector<char>& hidden,
+                      double clearance, double face_depth, Eigen::MatrixX3d& D) {
+  static const double kAt[4][3] = {{1 / 3., 1 / 3., 1 / 3.}, {.5, .5, 0}, {0, .5, .5}, {.5, 0, .5}};
+  std::vector<Eigen::Index> faces;
+  for (Eigen::Index f = 0; f < GF.rows(); ++f) {
+    double edge = 0, near = 1e300;
+    bool visible = false;
+    for (int k = 0; k < 3; ++k) {
+      edge = std::max(edge, (X.row(GF(f, k)) - X.row(GF(f, (k + 1) % 3))).norm());
+      near = std::min(near, std::abs(d.signed_distance[GF(f, k)]));
+      visible |= d.visible[GF(f, k)] != 0;
+    }
+    if (visible && near < edge + clearance) faces.push_back(f);
+  }
+  Eigen::MatrixX3d S(static_cast<Eigen::Index>(4 * faces.size()), 3);
+  for (size_t i = 0; i < faces.size(); ++i)
+    for (int s = 0; s < 4; ++s) {
+      Eigen::RowVector3d p = Eigen::RowVector3d::Zero();
+      for (int k = 0; k < 3; ++k) p += kAt[s][k] * X.row(GF(faces[i], k));
+      S.row(static_cast<Eigen::Index>(4 * i + s)) = p;
+    }
+  const BodyDistance ds = body_distance(S, body_V, body_F, hidden);
+  int pushed = 0;
+  for (Eigen::Index j = 0; j < S.rows(); ++j) {
+    if (!ds.visible[j] || ds.signed_distance[j] >= -face_depth) continue;
+    const Eigen::RowVector3d push = (clearance - ds.signed_distance[j]) * ds.normal.row(j);
+    for (int k = 0; k < 3; ++k) {
+      const int c = GF(faces[static_cast<size_t>(j / 4)], k);
+      if (push.norm() > D.row(c).norm()) D.row(c) = push;
+    }
+    ++pushed;
+  }
+  return pushed;
+}
+
 }  // namespace
 
 PushOutResult push_garment_out(const Eigen::MatrixX3d& G, const Eigen::MatrixX3i& GF,
@@ -144,7 +184,11 @@ PushOutResult push_garment_out(const Eigen::MatrixX3d& G, const Eigen::MatrixX3i
   BodyDistance d = body_distance(out.V, body_V, body_F, hidden);
   out.before = penetration_of(d, depth_mm);
   Eigen::MatrixX3d total = Eigen::MatrixX3d::Zero(G.rows(), 3);
-  for (int it = 0; it < options.iterations; ++it) {
+  // With faces: `iterations` rounds with the face samples, then as many with the vertices alone (a
+  // face's push moves its corners along the normal at the sample, which can leave a corner inside
+  // elsewhere; the vertex rounds take it out again).
+  const int rounds = options.faces ? 2 * options.iterations : options.iterations;
+  for (int it = 0; it < rounds; ++it) {
     Eigen::MatrixX3d D = Eigen::MatrixX3d::Zero(G.rows(), 3);
     int pushed = 0;
     for (Eigen::Index i = 0; i < G.rows(); ++i)
@@ -152,6 +196,8 @@ PushOutResult push_garment_out(const Eigen::MatrixX3d& G, const Eigen::MatrixX3i
         D.row(i) = (options.clearance - d.signed_distance[i]) * d.normal.row(i);
         ++pushed;
       }
+    if (options.faces && it < options.iterations) pushed += push_face_samples(out.V, GF, d, body_V, body_F, hidden, options.clearance,
+                                                                  options.face_depth, D);
     if (pushed == 0) break;
     spread(D, nb, options.spread_rings);
     out.V += D;

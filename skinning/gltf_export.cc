@@ -350,11 +350,19 @@ void check_morph_targets(const GltfLevel& l, const GltfAnimation* animation) {
     check_finite(t.delta, "morph target '" + t.name + "'");
   }
   if (l.target_weights.size() == 0) return;
-  const Eigen::Index T = animation ? static_cast<Eigen::Index>(animation->frames.size()) : 0;
+  const Eigen::Index K = animation ? static_cast<Eigen::Index>(animation->frames.size()) : 0;
+  const Eigen::Index T = l.target_times.empty() || !animation ? K : static_cast<Eigen::Index>(l.target_times.size());
   if (l.target_weights.rows() != T || l.target_weights.cols() != static_cast<Eigen::Index>(l.targets.size()))
     throw InputError("glTF export: morph weights of '" + l.name + "' are " + std::to_string(l.target_weights.rows()) +
-                     " by " + std::to_string(l.target_weights.cols()) + ", expected #frames " + std::to_string(T) +
-                     " by #targets " + std::to_string(l.targets.size()));
+                     " by " + std::to_string(l.target_weights.cols()) + ", expected #" +
+                     (l.target_times.empty() ? "frames " : "target times ") + std::to_string(T) + " by #targets " +
+                     std::to_string(l.targets.size()));
+  for (size_t i = 0; i < l.target_times.size(); ++i) {
+    const double t = l.target_times[i], end = static_cast<double>(K - 1) * animation->frame_time;
+    if (!std::isfinite(t) || t < 0 || t > end * (1 + 1e-9) || (i && t <= l.target_times[i - 1]))
+      throw InputError("glTF export: morph weight times of '" + l.name + "' must increase strictly within [0, " +
+                       std::to_string(end) + "] s, found " + std::to_string(t) + " at " + std::to_string(i));
+  }
   check_finite(l.target_weights, "morph weights of '" + l.name + "'");
 }
 
@@ -496,12 +504,13 @@ void add_animation(tinygltf::Model& model, BufferBuilder& buf, const Skeleton& s
                                  static_cast<size_t>(T), 0, {double(times.front())}, {double(times.back())});
   tinygltf::Animation anim;
   anim.name = animation.name;
-  auto add = [&](int node, const std::vector<float>& values, int type, const char* path, size_t per_key = 1) {
+  auto add = [&](int node, const std::vector<float>& values, int type, const char* path, size_t per_key = 1,
+                 int own_input = -1, size_t keys = 0) {
     tinygltf::AnimationSampler sampler;
-    sampler.input = input;
+    sampler.input = own_input >= 0 ? own_input : input;
     sampler.interpolation = "LINEAR";
     sampler.output = buf.accessor(values.data(), values.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT, type,
-                                  static_cast<size_t>(T) * per_key, 0);
+                                  (own_input >= 0 ? keys : static_cast<size_t>(T)) * per_key, 0);
     anim.samplers.push_back(sampler);
     tinygltf::AnimationChannel ch;
     ch.sampler = static_cast<int>(anim.samplers.size()) - 1;
@@ -520,7 +529,15 @@ void add_animation(tinygltf::Model& model, BufferBuilder& buf, const Skeleton& s
     std::vector<float> values;
     for (Eigen::Index t = 0; t < w.rows(); ++t)
       for (Eigen::Index j = 0; j < w.cols(); ++j) values.push_back(static_cast<float>(w(t, j)));
-    add(B + static_cast<int>(k), values, TINYGLTF_TYPE_SCALAR, "weights", static_cast<size_t>(w.cols()));
+    const std::vector<double>& at = levels[k].target_times;
+    int own = -1;
+    if (!at.empty()) {   // the level's own sample times (e.g. corrections sampled between keys)
+      const std::vector<float> t(at.begin(), at.end());
+      own = buf.accessor(t.data(), t.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, t.size(), 0,
+                         {double(t.front())}, {double(t.back())});
+    }
+    add(B + static_cast<int>(k), values, TINYGLTF_TYPE_SCALAR, "weights", static_cast<size_t>(w.cols()), own,
+        static_cast<size_t>(w.rows()));
   }
   model.animations.push_back(anim);
 }
@@ -530,7 +547,7 @@ void add_animation(tinygltf::Model& model, BufferBuilder& buf, const Skeleton& s
 std::string skinned_gltf_bytes(const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const Eigen::MatrixX3d& N_in,
                                const Skeleton& skeleton, const SkinWeights& W, const GltfAnimation* animation,
                                const GltfExportOptions& options, GltfExportSummary* summary) {
-  GltfLevel level{options.mesh_name, V, F, N_in, W, options.parts, {}, {}};
+  GltfLevel level{options.mesh_name, V, F, N_in, W, options.parts, {}, {}, {}};
   return skinned_lods_gltf_bytes({level}, skeleton, animation, options, summary);
 }
 

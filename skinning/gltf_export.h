@@ -100,6 +100,9 @@ struct GltfLevel {
   // `weights` channel on the level's node (LINEAR between keys). Empty = no channel (weights 0).
   std::vector<GltfMorphTarget> targets;
   Eigen::MatrixXd target_weights;
+  // The times (s) of target_weights' rows when they are not the animation's keys (the channel then
+  // has its own sampler input): strictly increasing, within the clip. Empty = one row per key.
+  std::vector<double> target_times;
 };
 
 // Several skinned meshes sharing one skeleton, skin and animation (levels of detail): mesh k on

@@ -1,5 +1,5 @@
 // What a glTF player shows between two keys of a dressed character's clip (assets/dress.h
-// pose_between_keys, corrections_between_keys), and the visible-skin pass of body_distance
+// pose_between_keys, corrections_between_keys, refine_between_keys), and the visible-skin pass of body_distance
 // (assets/penetration.h): known answers on small hand-made cases.
 #include <gtest/gtest.h>
 
@@ -110,6 +110,91 @@ TEST(BetweenKeys, PointsInsideVisibleSkinAreCountedWhenTheirClosestSkinIsHidden)
   EXPECT_NEAR(d.normal(0, 1), -1.0, 0.2);
   EXPECT_FALSE(d.visible[1]);
   EXPECT_EQ(penetration_of(d, 2.0).penetrating, 1);
+}
+
+// A UV sphere (outward faces) of radius r around c.
+void sphere(const Eigen::Vector3d& c, double r, int rings, int seg, Eigen::MatrixX3d& V, Eigen::MatrixX3i& F) {
+  V.resize(2 + (rings - 1) * seg, 3);
+  V.row(0) = (c + Eigen::Vector3d(0, 0, r)).transpose();
+  V.row(1) = (c - Eigen::Vector3d(0, 0, r)).transpose();
+  for (int i = 1; i < rings; ++i)
+    for (int j = 0; j < seg; ++j) {
+      const double t = M_PI * i / rings, p = 2 * M_PI * j / seg;
+      V.row(2 + (i - 1) * seg + j) = (c + r * Eigen::Vector3d(std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t))).transpose();
+    }
+  std::vector<Eigen::Vector3i> f;
+  auto at = [&](int i, int j) { return 2 + (i - 1) * seg + (j % seg); };
+  for (int j = 0; j < seg; ++j) {
+    f.emplace_back(0, at(1, j), at(1, j + 1));
+    f.emplace_back(1, at(rings - 1, j + 1), at(rings - 1, j));
+    for (int i = 1; i + 1 < rings; ++i) {
+      f.emplace_back(at(i, j), at(i + 1, j), at(i + 1, j + 1));
+      f.emplace_back(at(i, j), at(i + 1, j + 1), at(i, j + 1));
+    }
+  }
+  F.resize(static_cast<Eigen::Index>(f.size()), 3);
+  for (size_t k = 0; k < f.size(); ++k) F.row(static_cast<Eigen::Index>(k)) = f[k].transpose();
+}
+
+SkinWeights all_on(Eigen::Index rows, int bone, int bones) {
+  SkinWeights W(rows, bones);
+  for (Eigen::Index i = 0; i < rows; ++i) W.insert(i, bone) = 1;
+  W.makeCompressed();
+  return W;
+}
+
+// A "garment" (a small shell, radius 25) carried by a joint that turns 90° about z between two
+// keys sweeps past a "body" (a sphere, radius 30) that sits where the joint's turn is half done:
+// at the keys the two are 150 mm apart (nothing to correct), half-way the shell lies wholly
+// inside the body. The keys' corrections (none) blended leave it there, so a sample is added
+// half-way with the shell pushed out; at the quarter points (the new half-ways) nothing is over.
+// With no halving allowed the half-way point stays over and nothing is added.
+TEST(BetweenKeys, ASampleIsAddedWhereTheBlendOfTheKeysLeavesTheGarmentInside) {
+  Skeleton s;
+  s.names = {"root", "arm"};
+  s.parents = {-1, 0};
+  s.heads = Eigen::MatrixX3d::Zero(2, 3);
+  const Eigen::Vector3d mid = 200 * Eigen::Vector3d(std::cos(M_PI / 4), std::sin(M_PI / 4), 0);
+  DressedPart shell;
+  shell.name = "shell";
+  shell.garment = true;
+  sphere({200, 0, 0}, 25, 12, 24, shell.V, shell.F);
+  shell.weights = all_on(shell.V.rows(), 1, 2);
+  Eigen::MatrixX3d body;
+  Eigen::MatrixX3i body_F;
+  sphere(mid, 30, 16, 32, body, body_F);
+  const SkinWeights body_W = all_on(body.rows(), 0, 2);
+  Pose a = Pose::rest(2), b = Pose::rest(2);
+  b.rotations[1] = about({0, 0, 1}, 90);
+  const std::vector<BoneTransforms> frames = {forward_kinematics(s, a), forward_kinematics(s, b)};
+  const std::vector<DressedPart> parts = {shell};
+  const ClipCorrections keys = clip_corrections(parts, body, body_F, body_W, {}, frames);
+  ASSERT_TRUE(keys.frames.at(0).empty() && keys.frames.at(1).empty());
+  EXPECT_LT((pose_at(s, frames, 0.5)[1].linear() - about({0, 0, 1}, 45)).cwiseAbs().maxCoeff(), 1e-9);
+  RefineOptions o;
+  o.max_halvings = 0;
+  const SampledCorrections none = refine_between_keys(parts, body, body_F, body_W, {}, s, frames, keys, o);
+  EXPECT_EQ(none.added, 0);
+  EXPECT_EQ(none.times, (std::vector<double>{0, 1}));
+  ASSERT_EQ(none.between.fraction.rows(), 1);
+  EXPECT_EQ(none.between.frames_over(0.01), 1);
+  EXPECT_GT(none.between.fraction(0, 0), 0.99);   // the whole shell inside
+  o.max_halvings = 3;
+  const SampledCorrections r = refine_between_keys(parts, body, body_F, body_W, {}, s, frames, keys, o);
+  EXPECT_EQ(r.added, 1);
+  EXPECT_EQ(r.times, (std::vector<double>{0, 0.5, 1}));
+  ASSERT_EQ(r.corrections.frames.size(), 3u);
+  EXPECT_TRUE(r.corrections.frames[0].empty() && r.corrections.frames[2].empty());
+  ASSERT_EQ(r.corrections.frames[1].size(), 1u);
+  EXPECT_EQ(r.corrections.frames[1][0].vertex.size(), static_cast<size_t>(shell.V.rows()));
+  EXPECT_EQ(r.between_keys.frames_over(0.01), 1);   // before the sample: as the keys alone
+  ASSERT_EQ(r.between.fraction.rows(), 2);
+  EXPECT_EQ(r.between.frames_over(0.01), 0);
+  // The sample plays at its own time: the shell as corrected there is out of the body.
+  ClipCorrections at_half;
+  at_half.frames.push_back(r.corrections.frames[1]);
+  const ClipPenetration p = clip_penetration(parts, body, body_F, body_W, {}, {pose_at(s, frames, 0.5)}, 2.0, &at_half);
+  EXPECT_EQ(p.fraction(0, 0), 0.0);
 }
 
 }  // namespace

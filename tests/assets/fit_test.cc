@@ -192,5 +192,30 @@ TEST(AssetPenetration, PushOutClearsADentedShell) {
   EXPECT_LT(r.max_move, 15.0);
 }
 
+// A coarse garment: one triangle whose corners sit 3 mm outside a sphere of radius 100 but 43°
+// apart, so its middle lies some 7 mm inside. The vertices alone are all out (nothing moves);
+// with the faces sampled the triangle is pushed out until its centroid clears the body.
+TEST(AssetPenetration, PushOutClearsATriangleWhoseCornersAreOutside) {
+  const Mesh body = sphere(100, 60, 120);
+  Eigen::MatrixX3d G(3, 3);
+  for (int k = 0; k < 3; ++k) {
+    const double a = 2 * M_PI * k / 3, tilt = 25.0 * M_PI / 180;   // corners about 43° apart
+    G.row(k) = 103 * Eigen::RowVector3d(std::sin(tilt) * std::cos(a), std::sin(tilt) * std::sin(a), std::cos(tilt));
+  }
+  Eigen::MatrixX3i GF(1, 3);
+  GF << 0, 1, 2;
+  const Eigen::MatrixX3d centroid = G.colwise().mean();
+  ASSERT_LT(body_distance(centroid, body.V, body.F).signed_distance[0], -5.0);
+  PushOutOptions o;
+  o.faces = false;
+  const PushOutResult vertices_only = push_garment_out(G, GF, body.V, body.F, {}, o);
+  EXPECT_EQ(vertices_only.moved, 0);
+  o.faces = true;
+  const PushOutResult r = push_garment_out(G, GF, body.V, body.F, {}, o);
+  EXPECT_EQ(r.moved, 3);
+  EXPECT_GT(body_distance(r.V.colwise().mean(), body.V, body.F).signed_distance[0], 0.0);
+  EXPECT_EQ(r.after.penetrating, 0);
+}
+
 }  // namespace
 }  // namespace bodymodel

@@ -412,6 +412,54 @@ TEST(GltfExport, MorphTargetsAreSparseAndPlayedByAWeightsChannel) {
   EXPECT_THROW(skinned_lods_gltf_bytes({bad}, c.skeleton, &anim), InputError);
 }
 
+// Morph weights sampled at their own times (corrections added between keys): the weights channel
+// gets its own input accessor with those times (min, max set) and one row of weights per time,
+// the joints keep the keys' input; times that do not increase strictly, or leave the clip, are
+// refused, and so are weights with a row per key instead of per time.
+TEST(GltfExport, MorphWeightsAtTheirOwnTimesGetTheirOwnSamplerInput) {
+  const Character c = make_character();
+  GltfLevel full{"lod0", c.V, c.F, {}, c.W, {}, {}, {}, {}};
+  full.targets = {{"frame_1", {3}, Eigen::MatrixX3d::Constant(1, 3, 1.0)}, {"frame_1.5", {4}, Eigen::MatrixX3d::Constant(1, 3, 2.0)}};
+  full.target_weights = Eigen::MatrixXd::Zero(4, 2);
+  full.target_weights(1, 0) = full.target_weights(2, 1) = 1;
+  full.target_times = {0.0, 0.1, 0.15, 0.2};   // keys at 0, 0.1, 0.2 s and one sample half-way
+  std::mt19937 rng(5);
+  GltfAnimation anim;
+  anim.frame_time = 0.1;
+  for (int t = 0; t < 3; ++t) anim.frames.push_back(forward_kinematics(c.skeleton, random_pose(rng)));
+  const tinygltf::Model m = load(skinned_lods_gltf_bytes({full}, c.skeleton, &anim));
+  const auto floats = [&](int index) {
+    const tinygltf::Accessor& a = m.accessors.at(static_cast<size_t>(index));
+    const tinygltf::BufferView& bv = m.bufferViews.at(static_cast<size_t>(a.bufferView));
+    const auto* f = reinterpret_cast<const float*>(m.buffers[0].data.data() + bv.byteOffset + a.byteOffset);
+    return std::vector<float>(f, f + a.count * static_cast<size_t>(tinygltf::GetNumComponentsInType(static_cast<uint32_t>(a.type))));
+  };
+  int weights = 0, joint_input = -1;
+  for (const tinygltf::AnimationChannel& ch : m.animations.at(0).channels) {
+    const tinygltf::AnimationSampler& s = m.animations[0].samplers.at(static_cast<size_t>(ch.sampler));
+    if (ch.target_path != "weights") {
+      joint_input = s.input;
+      EXPECT_EQ(floats(s.input), std::vector<float>({0.0f, 0.1f, 0.2f}));
+      continue;
+    }
+    ++weights;
+    EXPECT_NE(s.input, joint_input);
+    EXPECT_EQ(floats(s.input), std::vector<float>({0.0f, 0.1f, 0.15f, 0.2f}));
+    const tinygltf::Accessor& in = m.accessors.at(static_cast<size_t>(s.input));
+    EXPECT_EQ(in.minValues, std::vector<double>({0.0}));
+    EXPECT_NEAR(in.maxValues.at(0), 0.2, 1e-7);
+    EXPECT_EQ(floats(s.output), std::vector<float>({0, 0, 1, 0, 0, 1, 0, 0}));
+  }
+  EXPECT_EQ(weights, 1);
+  GltfLevel bad = full;
+  bad.target_times = {0.0, 0.15, 0.1, 0.2};
+  EXPECT_THROW(skinned_lods_gltf_bytes({bad}, c.skeleton, &anim), InputError);
+  bad.target_times = {0.0, 0.1, 0.15, 0.25};   // past the last key
+  EXPECT_THROW(skinned_lods_gltf_bytes({bad}, c.skeleton, &anim), InputError);
+  bad.target_times = {0.0, 0.1, 0.2};           // 3 times for 4 rows of weights
+  EXPECT_THROW(skinned_lods_gltf_bytes({bad}, c.skeleton, &anim), InputError);
+}
+
 TEST(GltfExport, KhronosValidatorReportsNoErrors) {
   const char* modules = std::getenv("BODYMODEL_GLTF_VALIDATOR");
   const char* node_path = std::getenv("NODE_PATH");
@@ -437,10 +485,13 @@ TEST(GltfExport, KhronosValidatorReportsNoErrors) {
   {
     GltfLevel full{"lod0", c.V, c.F, {}, c.W, two.parts, {}, {}}, coarse{"lod1", c.V, c.F.topRows(150), {}, c.W, two.parts, {}, {}};
     coarse.parts[1].triangle_count = 50;
-    // The full level with two sparse morph targets played by a weights channel.
+    // The full level with two sparse morph targets played by a weights channel with its own times
+    // (one sample half-way between keys 1 and 2).
     full.targets = {{"a", {3, 10, 50}, Eigen::MatrixX3d::Constant(3, 3, 2.0)}, {"b", {7}, Eigen::MatrixX3d::Constant(1, 3, -1.0)}};
-    full.target_weights = Eigen::MatrixXd::Zero(4, 2);
+    full.target_weights = Eigen::MatrixXd::Zero(5, 2);
     full.target_weights(1, 0) = full.target_weights(2, 1) = 1;
+    const double ft = anim.frame_time;
+    full.target_times = {0, ft, 1.5 * ft, 2 * ft, 3 * ft};
     const std::string bytes = skinned_lods_gltf_bytes({full, coarse}, c.skeleton, &anim);
     write_text_file(levels, bytes);
   }

@@ -94,18 +94,29 @@ std::vector<float> accessor_floats(const tinygltf::Model& m, int index) {
   return out;
 }
 
-// The `weights` channel of node `node`: #keys by #targets (empty when there is none).
-Eigen::MatrixXf morph_weights(const tinygltf::Model& m, int node, size_t targets) {
+// The `weights` channel of node `node` at the joints' keys: #keys by #targets (empty when there is
+// none). The channel may have its own times (corrections sampled between keys): its rows at the
+// keys' times are kept; `between` (optional) receives how many rows lie between keys.
+Eigen::MatrixXf morph_weights(const tinygltf::Model& m, int node, size_t targets, int* between = nullptr) {
   if (targets == 0) return {};
-  for (const tinygltf::Animation& an : m.animations)
+  for (const tinygltf::Animation& an : m.animations) {
+    std::vector<float> keys;
+    for (const tinygltf::AnimationChannel& ch : an.channels)
+      if (ch.target_path != "weights") keys = accessor_floats(m, an.samplers.at(static_cast<size_t>(ch.sampler)).input);
     for (const tinygltf::AnimationChannel& ch : an.channels)
       if (ch.target_node == node && ch.target_path == "weights") {
-        const std::vector<float> w = accessor_floats(m, an.samplers.at(static_cast<size_t>(ch.sampler)).output);
-        Eigen::MatrixXf out(static_cast<Eigen::Index>(w.size() / targets), static_cast<Eigen::Index>(targets));
+        const tinygltf::AnimationSampler& s = an.samplers.at(static_cast<size_t>(ch.sampler));
+        const std::vector<float> w = accessor_floats(m, s.output), times = accessor_floats(m, s.input);
+        std::vector<size_t> rows;
+        for (size_t t = 0; t < times.size(); ++t)
+          if (std::find(keys.begin(), keys.end(), times[t]) != keys.end()) rows.push_back(t);
+        if (between) *between = static_cast<int>(times.size() - rows.size());
+        Eigen::MatrixXf out(static_cast<Eigen::Index>(rows.size()), static_cast<Eigen::Index>(targets));
         for (Eigen::Index t = 0; t < out.rows(); ++t)
-          for (Eigen::Index k = 0; k < out.cols(); ++k) out(t, k) = w[static_cast<size_t>(t) * targets + k];
+          for (Eigen::Index k = 0; k < out.cols(); ++k) out(t, k) = w[rows[static_cast<size_t>(t)] * targets + k];
         return out;
       }
+  }
   return {};
 }
 
@@ -346,8 +357,10 @@ TEST(OutfitLods, ClipCorrectionsPlayAsMorphTargetsAtEveryKey) {
       stored += static_cast<size_t>(a.sparse.count);
       targets.push_back(accessor_floats(m, p0.targets[k].at("POSITION")));
     }
-    const Eigen::MatrixXf w = morph_weights(m, B, K);
+    int between = 0;
+    const Eigen::MatrixXf w = morph_weights(m, B, K, &between);
     ASSERT_EQ(w.rows(), static_cast<Eigen::Index>(d.frames.size()));
+    EXPECT_EQ(between, r.samples_added);   // corrections sampled between keys, at their own times
     double worst = 0, worst_garment_move = 0;
     for (size_t t = 0; t < d.frames.size(); ++t) {
       const BoneTransforms& M = d.frames[t];
@@ -537,6 +550,20 @@ TEST(OutfitLods, BadLodsValueExitsTwoAndWritesNothing) {
     EXPECT_EQ(r.exit_code, 2) << r.output;
     EXPECT_NE(r.output.find("--lods: expected 'default' or 'none', found '2'"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(tmp / "out")) << verb;
+  }
+}
+
+// crowd --lod-corrections corrects levels that must exist: without --outfits, or with --lods none,
+// it is refused before anything is read or written (exit 2, one line naming the option).
+TEST(OutfitLods, LodCorrectionsWithoutLevelsExitTwoAndWriteNothing) {
+  if (!fs::exists(BODYMODEL_EXE)) GTEST_SKIP() << "bodymodel not built";
+  fixtures::TempDir tmp;
+  for (const std::string extra : {"", " --outfits default --lods none"}) {
+    const auto r = fixtures::run_cli("crowd missing.npz --bvh missing.bvh --lod-corrections" + extra + " --out " +
+                                     (tmp / "out").string());
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find("--lod-corrections: needs --outfits and --lods default"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(tmp / "out")) << extra;
   }
 }
 

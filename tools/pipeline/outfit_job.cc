@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <nlohmann/json.hpp>
 
 #include "assets/lod.h"
@@ -108,16 +109,37 @@ GltfLevel dressed_level(const std::string& name, const std::vector<DressedPart>&
   return l;
 }
 
-// The clip corrections as morph targets of the full level (its parts concatenated in order): one
-// target per frame with a correction, weight 1 at that frame's key and 0 at the others.
-void add_clip_targets(GltfLevel& l, const std::vector<DressedPart>& parts, const ClipCorrections& c) {
+// A level's corrections at the keys only (no samples between them).
+SampledCorrections keys_only(const ClipCorrections& c) {
+  SampledCorrections s;
+  for (size_t f = 0; f < c.frames.size(); ++f) s.times.push_back(static_cast<double>(f));
+  s.corrections = c;
+  return s;
+}
+
+// The samples of `s` at the keys: what clip_penetration measures at the keys.
+ClipCorrections at_keys(const SampledCorrections& s) {
+  ClipCorrections c;
+  c.uncorrected = s.corrections.uncorrected;
+  for (size_t i = 0; i < s.times.size(); ++i)
+    if (s.times[i] == std::floor(s.times[i])) c.frames.push_back(s.corrections.frames[i]);
+  return c;
+}
+
+// A level's clip corrections as its morph targets (its parts concatenated in order): one target
+// per sample with a correction, weight 1 at that sample's time and 0 at the others' (the keys'
+// times, or the samples' own when some lie between keys).
+void add_clip_targets(GltfLevel& l, const std::vector<DressedPart>& parts, const SampledCorrections& s,
+                      size_t keys, double frame_time) {
+  const ClipCorrections& c = s.corrections;
   std::vector<int> first(parts.size() + 1, 0);
   for (size_t k = 0; k < parts.size(); ++k) first[k + 1] = first[k] + static_cast<int>(parts[k].V.rows());
   std::vector<size_t> keyed;
   for (size_t f = 0; f < c.frames.size(); ++f) {
     if (c.frames[f].empty()) continue;
     GltfMorphTarget t;
-    t.name = fmt::format("frame_{}", f);
+    t.name = s.times[f] == std::floor(s.times[f]) ? fmt::format("frame_{}", static_cast<long>(s.times[f]))
+                                                  : fmt::format("frame_{:g}", s.times[f]);
     Eigen::Index n = 0;
     for (const GarmentCorrection& g : c.frames[f]) n += g.delta.rows();
     t.delta.resize(n, 3);
@@ -133,19 +155,22 @@ void add_clip_targets(GltfLevel& l, const std::vector<DressedPart>& parts, const
   if (l.targets.empty()) return;
   l.target_weights.setZero(static_cast<Eigen::Index>(c.frames.size()), static_cast<Eigen::Index>(keyed.size()));
   for (size_t k = 0; k < keyed.size(); ++k) l.target_weights(static_cast<Eigen::Index>(keyed[k]), k) = 1;
+  if (s.times.size() != keys)
+    for (double t : s.times) l.target_times.push_back(t * frame_time);
 }
 
 // The levels (the full one first) as one glb sharing the skeleton and the clip; each level's clip
 // corrections (when given: corrections[k] for level k) as its morph targets.
 size_t write_dressed_glb(const fs::path& path, const std::vector<const std::vector<DressedPart>*>& levels,
                          const Skeleton& skeleton, const std::vector<BoneTransforms>& frames, double frame_time,
-                         const std::vector<const ClipCorrections*>& corrections) {
+                         const std::vector<const SampledCorrections*>& corrections) {
   std::vector<GltfLevel> meshes;
   for (size_t k = 0; k < levels.size(); ++k)
     meshes.push_back(dressed_level(levels.size() == 1 ? "dressed" : fmt::format("dressed_LOD{}", k), *levels[k],
                                    skeleton.bone_count()));
   for (size_t k = 0; k < corrections.size() && k < levels.size(); ++k)
-    if (corrections[k] && !frames.empty()) add_clip_targets(meshes[k], *levels[k], *corrections[k]);
+    if (corrections[k] && !frames.empty())
+      add_clip_targets(meshes[k], *levels[k], *corrections[k], frames.size(), frame_time);
   GltfAnimation clip;
   clip.frame_time = frame_time;
   clip.frames = frames;
@@ -211,18 +236,50 @@ ProxySurface level_body(const OutfitKit& kit, const DressedSkinBody& d, bool mal
   return s;
 }
 
+// A level's corrections at the keys, sampled finer between them as the kit asks (with the measure
+// half-way between samples into `between`, when refined).
+SampledCorrections sampled_corrections(const OutfitKit& kit, const std::vector<DressedPart>& parts,
+                                       const Eigen::MatrixX3d& V, const Eigen::MatrixX3i& F, const SkinWeights& W,
+                                       const std::vector<char>& hidden, const Skeleton& skeleton,
+                                       const std::vector<BoneTransforms>& frames, const ClipCorrectionOptions& co,
+                                       double limit) {
+  const ClipCorrections keys = clip_corrections(parts, V, F, W, hidden, frames, co);
+  if (kit.between_key_halvings <= 0 || frames.size() < 2) return keys_only(keys);
+  RefineOptions ro;
+  ro.correction = co;
+  ro.limit = limit;
+  ro.max_halvings = kit.between_key_halvings;
+  return refine_between_keys(parts, V, F, W, hidden, skeleton, frames, keys, ro);
+}
+
 // OutfitKit::lod_corrections: LOD1's and LOD2's garments pushed out of their proxy bodies frame by
-// frame, as LOD0's are out of the skin.
-std::vector<ClipCorrections> level_corrections(const OutfitKit& kit, const DressedSkinBody& d, bool male,
-                                               const std::vector<BoneTransforms>& frames, const ClipCorrectionOptions& co,
-                                               DressedCharacterResult& r) {
-  std::vector<ClipCorrections> out;
+// frame, as LOD0's are out of the skin (and sampled between keys as LOD0's).
+std::vector<SampledCorrections> level_corrections(const OutfitKit& kit, const Skeleton& skeleton,
+                                                  const DressedSkinBody& d, bool male,
+                                                  const std::vector<BoneTransforms>& frames,
+                                                  const ClipCorrectionOptions& co, DressedCharacterResult& r) {
+  std::vector<SampledCorrections> out;
   for (size_t k = 0; k < r.lods.size(); ++k) {
     const ProxySurface s = level_body(kit, d, male, k + 1);
-    out.push_back(clip_corrections(r.lods[k], s.V, s.F, s.weights, s.hidden, frames, co));
-    for (const auto& f : out.back().frames) r.lod_morph_targets += !f.empty();
+    out.push_back(sampled_corrections(kit, r.lods[k], s.V, s.F, s.weights, s.hidden, skeleton, frames, co, r.limit));
+    for (const auto& f : out.back().corrections.frames) r.lod_morph_targets += !f.empty();
+    r.lod_samples_added += out.back().added;
+    if (out.back().between.fraction.rows() > 0) r.lod_between.push_back(out.back().between);
+    if (out.back().between.fraction.rows() > 0) r.between_keys_unrefined.push_back(out.back().between_keys);
   }
   return out;
+}
+
+// Half-way between the keys with the corrections blended half and half (or none).
+ClipPenetration halfway_between_keys(const std::vector<DressedPart>& parts, const Eigen::MatrixX3d& V,
+                                     const Eigen::MatrixX3i& F, const SkinWeights& W, const std::vector<char>& hidden,
+                                     const Skeleton& skeleton, const std::vector<BoneTransforms>& frames,
+                                     const ClipCorrections* corr, double depth_mm) {
+  std::vector<BoneTransforms> mid;
+  for (size_t f = 0; f + 1 < frames.size(); ++f) mid.push_back(pose_between_keys(skeleton, frames[f], frames[f + 1], 0.5));
+  std::optional<ClipCorrections> blended;
+  if (corr) blended = corrections_between_keys(*corr, 0.5);
+  return clip_penetration(parts, V, F, W, hidden, mid, depth_mm, blended ? &*blended : nullptr);
 }
 
 // OutfitKit::measure_levels: half-way between keys (LOD0 with the blended corrections) and LOD1,
@@ -231,17 +288,19 @@ std::vector<ClipCorrections> level_corrections(const OutfitKit& kit, const Dress
 // with their corrections when given.
 void measure_levels(const OutfitKit& kit, const CharacterRigFile& ch, const SkinWeights& W, const DressedSkinBody& d,
                     bool male, const std::vector<BoneTransforms>& frames, const ClipCorrections* corr,
-                    const std::vector<ClipCorrections>& lod_corr, DressedCharacterResult& r) {
-  std::vector<BoneTransforms> mid;
-  for (size_t f = 0; f + 1 < frames.size(); ++f) mid.push_back(pose_between_keys(ch.skeleton, frames[f], frames[f + 1], 0.5));
-  std::optional<ClipCorrections> blended;
-  if (corr) blended = corrections_between_keys(*corr, 0.5);
-  r.between_keys = clip_penetration(r.parts, ch.lbs.rest, ch.F, W, d.hidden, mid, r.depth_mm, blended ? &*blended : nullptr);
+                    const std::vector<SampledCorrections>& lod_corr, DressedCharacterResult& r) {
+  if (r.between_keys.fraction.rows() == 0)   // not refined: half-way between the keys
+    r.between_keys = halfway_between_keys(r.parts, ch.lbs.rest, ch.F, W, d.hidden, ch.skeleton, frames, corr, r.depth_mm);
+  const bool lod_between = r.lod_between.empty();
   for (size_t k = 0; k < r.lods.size(); ++k) {
     const ProxySurface s = level_body(kit, d, male, k + 1);
-    const ClipCorrections* c = k < lod_corr.size() ? &lod_corr[k] : nullptr;
-    r.lod_penetration.push_back(clip_penetration(r.lods[k], s.V, s.F, s.weights, s.hidden, frames, r.depth_mm, c));
+    std::optional<ClipCorrections> c;
+    if (k < lod_corr.size()) c = at_keys(lod_corr[k]);
+    r.lod_penetration.push_back(clip_penetration(r.lods[k], s.V, s.F, s.weights, s.hidden, frames, r.depth_mm, c ? &*c : nullptr));
     r.lod_uncorrected.push_back(c ? c->uncorrected : r.lod_penetration.back());
+    if (lod_between)
+      r.lod_between.push_back(halfway_between_keys(r.lods[k], s.V, s.F, s.weights, s.hidden, ch.skeleton, frames,
+                                                   c ? &*c : nullptr, r.depth_mm));
   }
 }
 
@@ -274,13 +333,18 @@ nlohmann::json outfit_json(const DressedCharacterResult& r) {
                                 {"vertices", r.corrected_vertices}}},
           {"lod_triangles", lod_triangles},
           {"glb_bytes", r.glb_bytes}};
-  if (r.between_keys.fraction.rows() > 0) j["between_keys"] = penetration_json(r.between_keys, r.limit);
+  if (r.between_keys.fraction.rows() > 0) {
+    j["between_keys"] = penetration_json(r.between_keys, r.limit);
+    j["between_keys"]["samples_added"] = r.samples_added;
+  }
   for (size_t k = 0; k < r.lod_penetration.size(); ++k) {
     nlohmann::json l = penetration_json(r.lod_penetration[k], r.limit);
     l["uncorrected_frames_over_limit"] = r.lod_uncorrected[k].frames_over(r.limit);
+    if (k < r.lod_between.size()) l["between_keys"] = penetration_json(r.lod_between[k], r.limit);
     j["lods"].push_back(l);
   }
   if (r.lod_morph_targets > 0) j["clip_corrections"]["lod_morph_targets"] = r.lod_morph_targets;
+  if (r.lod_samples_added > 0) j["clip_corrections"]["lod_samples_added"] = r.lod_samples_added;
   return j;
 }
 
@@ -306,18 +370,25 @@ DressedCharacterResult write_dressed_character(const OutfitKit& kit, const Chara
   const std::vector<BoneTransforms> measured =
       frames.empty() ? std::vector<BoneTransforms>{BoneTransforms(ch.skeleton.bone_count(), Eigen::Affine3d::Identity())}
                      : frames;
-  std::optional<ClipCorrections> corr;
-  std::vector<ClipCorrections> lod_corr;
+  std::optional<ClipCorrections> corr;   // at the keys
+  std::optional<SampledCorrections> sampled;
+  std::vector<SampledCorrections> lod_corr;
   ClipCorrectionOptions co;
   co.push = kit.dress.push;
   co.depth_mm = r.depth_mm;
-  if (kit.clip_corrections && kit.lod_corrections && !frames.empty()) lod_corr = level_corrections(kit, d, male, measured, co, r);
+  if (kit.clip_corrections && kit.lod_corrections && !frames.empty())
+    lod_corr = level_corrections(kit, ch.skeleton, d, male, measured, co, r);
   if (kit.clip_corrections && !frames.empty()) {
-    corr = clip_corrections(r.parts, ch.lbs.rest, ch.F, W, d.hidden, measured, co);
+    sampled = sampled_corrections(kit, r.parts, ch.lbs.rest, ch.F, W, d.hidden, ch.skeleton, measured, co, r.limit);
+    corr = at_keys(*sampled);
     r.uncorrected = corr->uncorrected;
-    r.corrected_garment_frames = corr->garment_frames;
-    r.corrected_vertices = corr->vertices;
-    for (const auto& f : corr->frames) r.morph_targets += !f.empty();
+    r.corrected_garment_frames = sampled->corrections.garment_frames;
+    r.corrected_vertices = sampled->corrections.vertices;
+    for (const auto& f : sampled->corrections.frames) r.morph_targets += !f.empty();
+    r.samples_added = sampled->added;
+    r.between_keys = sampled->between;
+    if (r.between_keys.fraction.rows() > 0)   // LOD0 first
+      r.between_keys_unrefined.insert(r.between_keys_unrefined.begin(), sampled->between_keys);
   }
   r.penetration = clip_penetration(r.parts, ch.lbs.rest, ch.F, W, d.hidden, measured, r.depth_mm, corr ? &*corr : nullptr);
   if (!corr) r.uncorrected = r.penetration;
@@ -326,8 +397,8 @@ DressedCharacterResult write_dressed_character(const OutfitKit& kit, const Chara
   if (kit.keep_hidden_skin) r.parts.push_back(hidden_skin_part(ch.lbs.rest, ch.F, W, d.hidden, r.parts[0].colour));
   std::vector<const std::vector<DressedPart>*> levels = {&r.parts};
   for (const auto& l : r.lods) levels.push_back(&l);
-  std::vector<const ClipCorrections*> level_corr = {corr ? &*corr : nullptr};
-  for (const ClipCorrections& c : lod_corr) level_corr.push_back(&c);
+  std::vector<const SampledCorrections*> level_corr = {sampled ? &*sampled : nullptr};
+  for (const SampledCorrections& c : lod_corr) level_corr.push_back(&c);
   r.glb_bytes = write_dressed_glb(dir / "dressed.glb", levels, ch.skeleton, frames, frame_time, level_corr);
   std::string csv = "frame";
   for (const std::string& g : r.penetration.garments) csv += fmt::format(",{0}_inside_fraction,{0}_max_depth_mm", g);

@@ -42,7 +42,7 @@ struct OutfitKit {
   std::map<std::string, Asset> proxies;  // by name; read by load_outfit_kit with the helpers
   // With a clip: each frame's garments pushed out of the posed skin (clip_corrections, assets/dress.h)
   // and baked into LOD0 as morph targets, one per corrected frame, selected by a `weights`
-  // channel (docs/assets.md#penetration). LOD1 and LOD2 are not corrected. false = the rest fix only.
+  // channel (docs/assets.md#penetration). LOD1 and LOD2 only with lod_corrections. false = the rest fix only.
   bool clip_corrections = true;
   // Debug: also write the skin the outfit hides, as a part "body_hidden" after the others in LOD0
   // (the body's colour), so that a render has a closed body. The browser pixel check of "no body
@@ -56,8 +56,14 @@ struct OutfitKit {
   bool measure_levels = false;
   // With a clip and levels: LOD1 and LOD2 get per-frame corrections too (clip_corrections against
   // their proxy bodies' closed surfaces), baked as their own morph targets and weights channels.
-  // Off by default (measured in docs/assets.md#between-keys-and-levels).
+  // Off by default; `crowd --lod-corrections` (measured in docs/assets.md#between-keys-and-levels).
   bool lod_corrections = false;
+  // With clip corrections: each corrected level's corrections sampled finer between keys where the
+  // blend of two neighbouring samples leaves the body through a garment half-way between them
+  // (refine_between_keys, assets/dress.h; the weights channel then has its own times). The measure
+  // half-way between samples comes with it (DressedCharacterResult::between_keys). 0 = keys only
+  // (the between-keys measure then needs measure_levels).
+  int between_key_halvings = 3;
 };
 
 // `outfits` = a JSON file or "default". Reads every asset the file names (InputError "'FILE':
@@ -77,12 +83,19 @@ struct DressedCharacterResult {
   std::vector<std::vector<DressedPart>> lods;  // levels 1, 2 (empty when kit.lods is false)
   ClipPenetration penetration;           // per frame (the rest pose when there is no clip), as the glb plays it
   ClipPenetration uncorrected;           // the same without the clip corrections (= penetration without them)
-  ClipPenetration between_keys;          // OutfitKit::measure_levels: half-way between keys (#frames − 1)
+  // Half-way between consecutive samples of the corrections as played (the keys and the samples
+  // added between them; #samples − 1 rows): with the corrections refined between keys, or with
+  // OutfitKit::measure_levels (then half-way between keys); else empty.
+  ClipPenetration between_keys;
+  std::vector<ClipPenetration> lod_between;       // the same for LOD1, LOD2 (when measured)
+  // Half-way between the keys before samples were added (refined corrections only; LOD0, LOD1, LOD2).
+  std::vector<ClipPenetration> between_keys_unrefined;
   std::vector<ClipPenetration> lod_penetration;   // OutfitKit::measure_levels: LOD1, LOD2 at the keys (as played)
   std::vector<ClipPenetration> lod_uncorrected;   // the same without LOD corrections
   int lod_morph_targets = 0;             // OutfitKit::lod_corrections: LOD1's and LOD2's targets
+  int samples_added = 0, lod_samples_added = 0;   // corrections sampled between keys (LOD0; LOD1 + LOD2)
   std::vector<char> hidden;              // the skin vertices the outfit hides (#skin), as measured
-  int morph_targets = 0;                 // LOD0's targets (frames with a correction)
+  int morph_targets = 0;                 // LOD0's targets (samples with a correction)
   int corrected_garment_frames = 0;
   long long corrected_vertices = 0;      // displacements stored over all targets
   double depth_mm = 2.0, limit = 0.01;   // the bound reported: frames over `limit` at depth_mm

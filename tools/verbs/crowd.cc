@@ -39,7 +39,7 @@ struct CrowdArgs {
   std::vector<std::string> where;
   int count = 20;
   uint64_t seed = 1;
-  bool force = false, quick = false, no_repair = false;
+  bool force = false, quick = false, no_repair = false, lod_corrections = false;
   double fps = 30;
   int max_frames = 0;
 };
@@ -81,6 +81,9 @@ void add_crowd_options(CLI::App* cmd, CrowdArgs& a) {
                   "with simplified assets, the low-poly proxy within 2000 triangles; docs/assets.md#levels-of-detail) "
                   "or 'none' (the full body only)")
       ->capture_default_str();
+  cmd->add_flag("--lod-corrections", a.lod_corrections,
+                "With --outfits and --lods default: LOD1 and LOD2 get their own per-frame garment corrections "
+                "against their proxy bodies, as LOD0 has (larger glb files; docs/assets.md#between-keys-and-levels)");
   cmd->add_flag("--force", a.force, "Replace an existing output folder made with other settings");
 }
 
@@ -196,7 +199,10 @@ void write_crowd_summary(const CrowdArgs& a, const fs::path& out, int skipped) {
 void run_crowd(CrowdArgs& a) {
   const fs::path out = a.out;
   // The outfit file and its assets are checked before anything is read or written.
-  const std::optional<OutfitKit> kit = outfit_kit_if_asked(a.outfits, data_file("makehuman"), a.lods);
+  if (a.lod_corrections && (a.outfits.empty() || a.lods != "default"))
+    throw InputError("--lod-corrections: needs --outfits and --lods default (the levels it corrects)");
+  std::optional<OutfitKit> kit = outfit_kit_if_asked(a.outfits, data_file("makehuman"), a.lods);
+  if (kit) kit->lod_corrections = a.lod_corrections;
   // Every setting that changes a character, the model and clip by content (no paths): a rerun with
   // other settings is refused instead of resumed (tools/pipeline/folder_settings.h). --count may
   // grow: the characters already finished are kept.
@@ -213,6 +219,7 @@ void run_crowd(CrowdArgs& a) {
                                    {"outfits", a.outfits.empty() || a.outfits == "default" ? a.outfits
                                                                                            : file_fingerprint(a.outfits)}};
   if (!a.outfits.empty()) settings["lods"] = a.lods;
+  if (a.lod_corrections) settings["lod_corrections"] = true;   // absent when off: older folders still resume
   ResumableFolder folder(out, "crowd.json", settings, a.force, [](const std::string& n) {
     return n == "crowd.csv" || n == "crowd.png" || n == "outfits.csv" || n == "crowd.html" || n == "three" ||
            n.rfind("char_", 0) == 0;
