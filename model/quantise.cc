@@ -450,7 +450,8 @@ BitAllocation allocate_basis_bits(const BodyModel& model, const BitAllocationOpt
     // another, so the allocation aims well below the bound (docs/model.md §6).
     if (attempt > 0) greedy_bits(subs, o, kAimFraction * o.max_error_mm, fixed_bytes, D);
     apply();
-    a.check = decoded_body_difference(model, with_quantised_bases(model, a.storage), o.samples, o.seed);
+    const BodyModel quantised = with_quantised_bases(model, a.storage);
+    a.check = decoded_body_difference(model, quantised, o.samples, o.seed);
     a.file_bytes = estimated_file_bytes(model, a.storage);
     a.checks = attempt + 1;
     const double measured[2] = {shared ? a.check.max_mm : a.check.shape_max_mm, a.check.full_max_mm};
@@ -462,8 +463,7 @@ BitAllocation allocate_basis_bits(const BodyModel& model, const BitAllocationOpt
     // recalibrates the prediction and the allocation goes on.
     a.held_out = {};
     if (attempt > 0 && a.passed && o.max_bytes <= 0) {
-      a.held_out = decoded_body_difference(model, with_quantised_bases(model, a.storage), o.samples,
-                                           o.seed + 100 + static_cast<uint64_t>(attempt));
+      a.held_out = decoded_body_difference(model, quantised, o.samples, o.seed + 100 + static_cast<uint64_t>(attempt));
       const double confirmed[2] = {shared ? a.held_out.max_mm : a.held_out.shape_max_mm, a.held_out.full_max_mm};
       for (size_t i = 0; i < subs.size(); ++i)
         if (const double p = subs[i].predicted(); p > 0)
@@ -482,7 +482,7 @@ BitAllocation allocate_basis_bits(const BodyModel& model, const BitAllocationOpt
         (!best.passed || (o.max_bytes > 0 ? a.check.max_mm < best.check.max_mm : a.file_bytes < best.file_bytes)))
       best = a;
     best.checks = a.checks;
-    // Error mode stops at the first pass unless it is far below the bound (the calibrated ratio
+    // Error mode stops at the first pass unless it is far below the aim (the calibrated ratio
     // then allows a smaller file); budget mode refines the split once.
     const bool done = o.max_bytes > 0 ? attempt >= 2 : a.passed && a.check.max_mm > 0.65 * kAimFraction * o.max_error_mm;
     if (attempt > 0 && done) break;
