@@ -10,6 +10,7 @@
 #include "core/io/bvh.h"
 #include "core/makehuman.h"
 #include "core/retarget.h"
+#include "tools/pipeline/animate_job.h"
 
 namespace bodymodel {
 namespace {
@@ -89,6 +90,38 @@ TEST(AnimateRetarget, CmuFingersKeepTheirRestPoseWhenAnimating) {
   EXPECT_EQ(moved_off, 0.0);
   EXPECT_GT(moved_on, 20 * M_PI / 180);  // 12_03's thumb swings ~54 degrees
   EXPECT_GT(on.driven_bone_count(), off.driven_bone_count());
+}
+
+
+// cgspeed's CMU conversions start with the rest T-pose one frame before the motion (12_03: the
+// upper arms turn about 80° from frame 0 to frame 1, about 1° a frame after it). retarget_clip
+// drops that frame; the Poser-style clips (02_02, 03_03) start with motion and keep every frame.
+TEST(AnimateRetarget, ALeadInRestFrameIsDroppedAndMotionKept) {
+  const MakeHuman mh = MakeHuman::load();
+  const Skeleton sk = mh.body(MacroSettings{}).skeleton;
+  for (const fs::path& f : cmu_clips(mh.directory())) {
+    const BvhMotion clip = read_bvh(f);
+    const ClipPoses p = retarget_clip(clip, sk, mh.directory(), true, f.string());
+    const bool cgspeed = f.stem() == "12_03";
+    EXPECT_EQ(p.lead_in, cgspeed ? 1 : 0) << f;
+    EXPECT_EQ(static_cast<int>(p.poses.size()), clip.frame_count() - p.lead_in) << f;
+    if (cgspeed) {
+      EXPECT_GT(p.lead_in_jump_deg, 60) << f;
+    }
+  }
+  // Known answers on made-up clips: a bone at rest, then turning 1° a frame from 40°: a lead-in;
+  // the same bone turning 40° every frame: motion.
+  auto clip_of = [](double first, double step) {
+    std::vector<Pose> poses(8, Pose::rest(2));
+    for (size_t k = 1; k < poses.size(); ++k)
+      poses[k].rotations[1] = Eigen::AngleAxisd((first + step * (k - 1)) * M_PI / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    return poses;
+  };
+  double jump = 0;
+  EXPECT_EQ(lead_in_frames(clip_of(40, 1), &jump), 1);
+  EXPECT_NEAR(jump, 40, 1e-9);
+  EXPECT_EQ(lead_in_frames(clip_of(40, 40)), 0);
+  EXPECT_EQ(lead_in_frames(clip_of(20, 0.1)), 0);   // under 30°: a small settle, kept
 }
 
 }  // namespace

@@ -22,8 +22,28 @@ namespace bodymodel {
 
 namespace fs = std::filesystem;
 
-ClipPoses retarget_clip(const BvhMotion& clip, const Skeleton& skeleton, const fs::path& makehuman_dir,
-                        bool with_translation, const std::string& what, RetargetOptions ro) {
+int lead_in_frames(const std::vector<Pose>& poses, double* jump_deg) {
+  auto turn = [&](size_t a) {   // the largest turn of a bone from frame a to a + 1, degrees
+    double m = 0;
+    const auto& A = poses[a].rotations;
+    const auto& B = poses[a + 1].rotations;
+    for (size_t b = 0; b < std::min(A.size(), B.size()); ++b)
+      m = std::max(m, Eigen::AngleAxisd(A[b].transpose() * B[b]).angle() * 180 / M_PI);
+    return m;
+  };
+  if (jump_deg) *jump_deg = poses.size() >= 2 ? turn(0) : 0;
+  if (poses.size() < 4) return 0;
+  std::vector<double> later;
+  for (size_t a = 1; a + 1 < poses.size() && later.size() < 60; ++a) later.push_back(turn(a));
+  std::nth_element(later.begin(), later.begin() + static_cast<std::ptrdiff_t>(later.size() / 2), later.end());
+  const double jump = turn(0), median = later[later.size() / 2];
+  return jump > 30 && jump > 10 * median ? 1 : 0;
+}
+
+namespace {
+
+ClipPoses retarget_all(const BvhMotion& clip, const Skeleton& skeleton, const fs::path& makehuman_dir,
+                       bool with_translation, const std::string& what, RetargetOptions ro) {
   ClipPoses out;
   out.frame_time = clip.frame_time > 0 ? clip.frame_time : 1.0 / 30;
   int named = 0;
@@ -63,6 +83,16 @@ ClipPoses retarget_clip(const BvhMotion& clip, const Skeleton& skeleton, const f
   out.mapping = map.entries.size() == poser.entries.size() ? "Poser/DAZ CMU map" : "rig/cmu_mb.mhskel map";
   ro.apply_root_translation = with_translation;
   out.poses = Retargeter(clip, skeleton, map, ro).all_poses();
+  return out;
+}
+
+}  // namespace
+
+ClipPoses retarget_clip(const BvhMotion& clip, const Skeleton& skeleton, const fs::path& makehuman_dir,
+                        bool with_translation, const std::string& what, RetargetOptions ro) {
+  ClipPoses out = retarget_all(clip, skeleton, makehuman_dir, with_translation, what, ro);
+  out.lead_in = lead_in_frames(out.poses, &out.lead_in_jump_deg);
+  out.poses.erase(out.poses.begin(), out.poses.begin() + out.lead_in);
   return out;
 }
 

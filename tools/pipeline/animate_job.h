@@ -23,10 +23,19 @@ struct ClipPoses {
   double frame_time = 1.0 / 30;   // seconds
   std::string mapping;            // "MakeHuman names", "Poser/DAZ CMU map", "rig/cmu_mb.mhskel map"
   std::vector<std::string> ignored_joints;  // clip joints no bone takes its rotation from
+  // Leading frames dropped (lead_in_frames): 1 when the file starts with its rest pose one frame
+  // before the motion, as cgspeed's CMU conversions (12_03) do. lead_in_jump_deg: that jump.
+  int lead_in = 0;
+  double lead_in_jump_deg = 0;
 };
 
+// 1 when the clip's first frame is a lead-in, not motion: some bone turns more than 30° from it
+// to the second frame, and more than 10 times the median largest turn between the frames after
+// it (a player would show it as a snap); else 0. `jump_deg` gets frame 0's largest turn.
+int lead_in_frames(const std::vector<Pose>& poses, double* jump_deg = nullptr);
+
 // Throws InputError naming `what` and listing the clip joints that no map knows when the clip
-// cannot be mapped onto the MakeHuman skeleton. `options` for clips that need a retarget map
+// cannot be mapped onto the MakeHuman skeleton. A lead-in first frame (lead_in_frames) is dropped. `options` for clips that need a retarget map
 // (its apply_root_translation is set from with_translation).
 ClipPoses retarget_clip(const BvhMotion& clip, const Skeleton& skeleton, const std::filesystem::path& makehuman_dir,
                         bool with_translation, const std::string& what,

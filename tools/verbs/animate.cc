@@ -75,6 +75,9 @@ BODYMODEL_VERB(add_animate_verb) {
     ClipPoses poses = retarget_clip(clip, ch.skeleton, data_file("makehuman"), !a->no_translation, a->bvh, ro);
     cli::info(fmt::format("{}: {} frames at {:.0f} fps, mapped by {}", a->bvh, poses.poses.size(),
                           1 / poses.frame_time, poses.mapping));
+    if (poses.lead_in)
+      cli::info(fmt::format("its first frame is a lead-in (a {:.0f}° turn to the next, the motion starts after it): skipped",
+                            poses.lead_in_jump_deg));
     if (!poses.ignored_joints.empty()) {
       std::string list;
       for (size_t i = 0; i < poses.ignored_joints.size(); ++i) list += (i ? ", " : "") + poses.ignored_joints[i];

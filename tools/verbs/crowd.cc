@@ -244,6 +244,7 @@ void run_crowd(CrowdArgs& a) {
   go.morph.sex = sex_of(cond);
   cli::ProgressBar bar("crowd");
   int skipped = 0;
+  double lead_in_jump = 0;   // the clip's lead-in frame, if retarget_clip dropped one
   auto t0 = std::chrono::steady_clock::now();
   for (int i = 0; i < a.count; ++i) {
     const fs::path final_dir = out / fmt::format("char_{:03d}", i);
@@ -264,6 +265,7 @@ void run_crowd(CrowdArgs& a) {
     write_character(*model, g.V, dir.path(), desc, co, sub(0, 0.9));
     CharacterRigFile ch = load_character_rig(dir / "rig.npz");
     ClipPoses poses = retarget_clip(clip, ch.skeleton, data_file("makehuman"), true, a.bvh);
+    lead_in_jump = poses.lead_in ? poses.lead_in_jump_deg : lead_in_jump;
     ensure_directory(dir / "anim");
     const AnimateResult ar = animate_character(ch, poses, dir / "anim", ao, sub(0.9, 1.0));
     if (kit) {
@@ -276,6 +278,8 @@ void run_crowd(CrowdArgs& a) {
   }
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   bar.finish(fmt::format("{} characters ({} already done) in {:.0f} s", a.count, skipped, secs));
+  if (lead_in_jump > 0)
+    cli::info(fmt::format("{}: its first frame is a lead-in (a {:.0f}° turn to the next): skipped", a.bvh, lead_in_jump));
   write_crowd_summary(a, out, skipped);
   if (kit) write_outfit_summary(a, out);
   cli::info("wrote " + out.string() + "/crowd.csv, crowd.png" + (kit ? ", outfits.csv" : ""));
