@@ -132,11 +132,17 @@ void spread(Eigen::MatrixX3d& D, const std::vector<std::vector<int>>& nb, int ri
 
 // options.faces: the centroid and edge midpoints of every face with a corner over visible skin and
 // a corner nearer the body than its longest edge (faces wholly over hidden skin are skipped: their
-// samples would mostly take body_distance's costly visible-skin pass); a sample deeper than face_depth inside visible skin pushes the face's corners
-// by its own push to the clearance (each corner keeping the larger). Returns the samples pushed.
+// samples would mostly take body_distance's costly visible-skin pass). A sample deeper than
+// face_depth inside visible skin pushes the corners it lies between (barycentric weight > 0) along
+// each corner's OWN body normal, as the vertex push does, far enough that the sample reaches the
+// clearance along its normal (capped at 3× that depth where a corner's normal turns away). Along
+// the corners' own normals the pushes of neighbouring frames point the same way, so a player's
+// blend of two frames' corrections stays out (a push along the sample's normal moved corners
+// sideways and the blend sagged back in: docs/assets.md#penetration). Writes F (not spread).
+// Returns the samples pushed.
 int push_face_samples(const Eigen::MatrixX3d& X, const Eigen::MatrixX3i& GF, const BodyDistance& d,
                       const Eigen::MatrixX3d& body_V, const Eigen::MatrixX3i& body_F, const std::vector<char>& hidden,
-                      double clearance, double face_depth, Eigen::MatrixX3d& D) {
+                      double clearance, double face_depth, Eigen::MatrixX3d& F) {
   static const double kAt[4][3] = {{1 / 3., 1 / 3., 1 / 3.}, {.5, .5, 0}, {0, .5, .5}, {.5, 0, .5}};
   std::vector<Eigen::Index> faces;
   for (Eigen::Index f = 0; f < GF.rows(); ++f) {
@@ -160,10 +166,15 @@ int push_face_samples(const Eigen::MatrixX3d& X, const Eigen::MatrixX3i& GF, con
   int pushed = 0;
   for (Eigen::Index j = 0; j < S.rows(); ++j) {
     if (!ds.visible[j] || ds.signed_distance[j] >= -face_depth) continue;
-    const Eigen::RowVector3d push = (clearance - ds.signed_distance[j]) * ds.normal.row(j);
+    const double need = clearance - ds.signed_distance[j];
+    const double* b = kAt[j % 4];
+    double along = 0;  // how far the sample moves along its normal per mm of every corner's push
+    for (int k = 0; k < 3; ++k)
+      if (b[k] > 0) along += b[k] * std::max(0.0, d.normal.row(GF(faces[static_cast<size_t>(j / 4)], k)).dot(ds.normal.row(j)));
+    const double m = std::min(need / std::max(along, 1e-9), 3.0 * need);
     for (int k = 0; k < 3; ++k) {
       const int c = GF(faces[static_cast<size_t>(j / 4)], k);
-      if (push.norm() > D.row(c).norm()) D.row(c) = push;
+      if (b[k] > 0 && m > F.row(c).norm()) F.row(c) = m * d.normal.row(c);
     }
     ++pushed;
   }
@@ -196,10 +207,13 @@ PushOutResult push_garment_out(const Eigen::MatrixX3d& G, const Eigen::MatrixX3i
         D.row(i) = (options.clearance - d.signed_distance[i]) * d.normal.row(i);
         ++pushed;
       }
-    if (options.faces && it < options.iterations) pushed += push_face_samples(out.V, GF, d, body_V, body_F, hidden, options.clearance,
-                                                                  options.face_depth, D);
+    Eigen::MatrixX3d F = Eigen::MatrixX3d::Zero(G.rows(), 3);
+    if (options.faces && it < options.iterations)
+      pushed += push_face_samples(out.V, GF, d, body_V, body_F, hidden, options.clearance, options.face_depth, F);
     if (pushed == 0) break;
     spread(D, nb, options.spread_rings);
+    for (Eigen::Index i = 0; i < G.rows(); ++i)  // the faces' pushes are not spread: they are local
+      if (F.row(i).squaredNorm() > D.row(i).squaredNorm()) D.row(i) = F.row(i);
     out.V += D;
     total += D;
     d = body_distance(out.V, body_V, body_F, hidden);

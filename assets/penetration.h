@@ -10,7 +10,8 @@
 // interpolated at the closest point (an approximation of the angle-weighted pseudo-normal; it
 // can mis-sign a point whose closest feature is a sharp concave crease, which the smooth hm08
 // skin does not have). Only vertices are tested: a body vertex poking through the middle of a
-// large garment triangle whose corners are all outside is not counted.
+// large garment triangle whose corners are all outside is not counted (push_garment_out's
+// PushOutOptions::faces clears those too).
 #pragma once
 
 #include <Eigen/Core>
@@ -59,13 +60,12 @@ struct PushOutOptions {
   int spread_rings = 2;    // each push is spread to this many rings of garment neighbours
                            // (keeping the larger displacement), so the cloth moves as a sheet
   // Also push the triangles' interiors out: each face near the body is sampled at its centroid and
-  // edge midpoints, and a sample more than `face_depth` inside visible skin moves the face's three
-  // corners along the body normal to the clearance (keeping each corner's larger push). On a
+  // edge midpoints, and a sample more than `face_depth` inside visible skin moves the corners it
+  // lies between along their own body normals until it reaches the clearance (not spread). On a
   // coarse garment the skin pokes through between corners that are all outside
   // (docs/assets.md#penetration); the depth leaves alone the shallow sag of a tight garment's
-  // triangles over a convex limb. Off by default: in a clip it made the blend between keys worse
-  // and the glb larger (measured in the docs); the pixel check turns it on.
-  bool faces = false;
+  // triangles over a convex limb.
+  bool faces = true;
   double face_depth = 1.0;  // mm
 };
 

@@ -6,14 +6,15 @@
 // test: about 2 min a character on 2 shared cores.
 //
 //   outfit_levels_bench CROWD [--seed S] [--bvh FILE] [--first N] [--count N] [--lod-corrections]
-//                             [--halvings H] [--keep DIR] [--plain]
+//                             [--halvings H] [--keep DIR] [--plain] [--vertex-push]
 //
 // --seed and --bvh must be the crowd's (defaults 5 and CMU 12_03, the demo's); --lod-corrections
 // turns on OutfitKit::lod_corrections (as `crowd --lod-corrections`); --halvings sets
 // OutfitKit::between_key_halvings (default the kit's; 0 = corrections at the keys only); --keep DIR
 // keeps each character's glb as DIR/char_NNN.glb (e.g. for the Khronos validator); --plain leaves
 // measure_levels off, so the seconds printed are what `crowd` spends dressing a character (the
-// LOD columns are then empty unless refined).
+// LOD columns are then empty unless refined); --vertex-push turns PushOutOptions::faces off (the
+// garment's vertices pushed out, not its triangles' interiors).
 #include <fmt/format.h>
 #include <unistd.h>
 
@@ -42,7 +43,7 @@ struct Args {
   fs::path crowd, bvh, keep;
   uint64_t seed = 5;
   int first = 0, count = 1000, halvings = -1;
-  bool lod_corrections = false, plain = false;
+  bool lod_corrections = false, plain = false, vertex_push = false;
 };
 
 bool parse(int argc, char** argv, Args& a) {
@@ -57,6 +58,7 @@ bool parse(int argc, char** argv, Args& a) {
     else if (s == "--keep") a.keep = value();
     else if (s == "--lod-corrections") a.lod_corrections = true;
     else if (s == "--plain") a.plain = true;
+    else if (s == "--vertex-push") a.vertex_push = true;
     else if (!s.empty() && s[0] != '-' && a.crowd.empty()) a.crowd = s;
     else return false;
   }
@@ -98,7 +100,7 @@ int main(int argc, char** argv) {
   Args a;
   if (!parse(argc, argv, a)) {
     fmt::print(stderr, "usage: outfit_levels_bench CROWD [--seed S] [--bvh FILE] [--first N] [--count N] "
-                       "[--lod-corrections] [--halvings H] [--keep DIR]\n");
+                       "[--lod-corrections] [--halvings H] [--keep DIR] [--plain] [--vertex-push]\n");
     return 2;
   }
   if (a.bvh.empty()) a.bvh = data_file("makehuman/motion/cmu/12_03.bvh");
@@ -115,6 +117,7 @@ int run(const Args& a) {
   kit.measure_levels = !a.plain;
   kit.lod_corrections = a.lod_corrections;
   if (a.halvings >= 0) kit.between_key_halvings = a.halvings;
+  if (a.vertex_push) kit.dress.push.faces = false;
   const BvhMotion clip = read_bvh(a.bvh);
   const fs::path tmp = fs::temp_directory_path() / fmt::format("outfit_levels_bench_{}", getpid());
   Column col[] = {{"LOD0 at the keys, as played"}, {"LOD0 at the keys without the corrections"},

@@ -194,7 +194,9 @@ TEST(AssetPenetration, PushOutClearsADentedShell) {
 
 // A coarse garment: one triangle whose corners sit 3 mm outside a sphere of radius 100 but 43°
 // apart, so its middle lies some 7 mm inside. The vertices alone are all out (nothing moves);
-// with the faces sampled the triangle is pushed out until its centroid clears the body.
+// with the faces sampled the triangle is pushed out until its centroid clears the body, each
+// corner along its own normal (radial here, 25° from the centroid's), so that neighbouring frames'
+// pushes point the same way and their blend stays out.
 TEST(AssetPenetration, PushOutClearsATriangleWhoseCornersAreOutside) {
   const Mesh body = sphere(100, 60, 120);
   Eigen::MatrixX3d G(3, 3);
@@ -213,6 +215,10 @@ TEST(AssetPenetration, PushOutClearsATriangleWhoseCornersAreOutside) {
   o.faces = true;
   const PushOutResult r = push_garment_out(G, GF, body.V, body.F, {}, o);
   EXPECT_EQ(r.moved, 3);
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::RowVector3d move = r.V.row(k) - G.row(k);
+    EXPECT_GT(move.normalized().dot(G.row(k).normalized()), std::cos(1.0 * M_PI / 180)) << "corner " << k;
+  }
   EXPECT_GT(body_distance(r.V.colwise().mean(), body.V, body.F).signed_distance[0], 0.0);
   EXPECT_EQ(r.after.penetrating, 0);
 }
