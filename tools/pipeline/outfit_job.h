@@ -56,7 +56,8 @@ struct OutfitKit {
   bool measure_levels = false;
   // With a clip and levels: LOD1 and LOD2 get per-frame corrections too (clip_corrections against
   // their proxy bodies' closed surfaces), baked as their own morph targets and weights channels.
-  // Off by default; `crowd --lod-corrections` (measured in docs/assets.md#between-keys-and-levels).
+  // Off in the kit by default; `crowd` turns it on unless --no-lod-corrections (measured in
+  // docs/assets.md#between-keys-and-levels).
   bool lod_corrections = false;
   // With clip corrections: each corrected level's corrections sampled finer between keys where the
   // blend of two neighbouring samples leaves the body through a garment half-way between them

@@ -39,7 +39,7 @@ struct CrowdArgs {
   std::vector<std::string> where;
   int count = 20;
   uint64_t seed = 1;
-  bool force = false, quick = false, no_repair = false, lod_corrections = false;
+  bool force = false, quick = false, no_repair = false, lod_corrections = false, no_lod_corrections = false;
   double fps = 30;
   int max_frames = 0;
 };
@@ -82,8 +82,12 @@ void add_crowd_options(CLI::App* cmd, CrowdArgs& a) {
                   "or 'none' (the full body only)")
       ->capture_default_str();
   cmd->add_flag("--lod-corrections", a.lod_corrections,
-                "With --outfits and --lods default: LOD1 and LOD2 get their own per-frame garment corrections "
-                "against their proxy bodies, as LOD0 has (larger glb files; docs/assets.md#between-keys-and-levels)");
+                "The default with --outfits and --lods default (given without them it is refused): LOD1 and LOD2 "
+                "get their own per-frame garment corrections against their proxy bodies, as LOD0 has "
+                "(docs/assets.md#between-keys-and-levels)");
+  cmd->add_flag("--no-lod-corrections", a.no_lod_corrections,
+                "Only the full level (LOD0) gets garment corrections: smaller glb files, LOD1 and LOD2 over the "
+                "penetration bound in about half their frames");
   cmd->add_flag("--force", a.force, "Replace an existing output folder made with other settings");
 }
 
@@ -202,7 +206,8 @@ void run_crowd(CrowdArgs& a) {
   if (a.lod_corrections && (a.outfits.empty() || a.lods != "default"))
     throw InputError("--lod-corrections: needs --outfits and --lods default (the levels it corrects)");
   std::optional<OutfitKit> kit = outfit_kit_if_asked(a.outfits, data_file("makehuman"), a.lods);
-  if (kit) kit->lod_corrections = a.lod_corrections;
+  if (a.lod_corrections && a.no_lod_corrections) throw InputError("--lod-corrections and --no-lod-corrections: give one");
+  if (kit) kit->lod_corrections = kit->lods && !a.no_lod_corrections;
   // Every setting that changes a character, the model and clip by content (no paths): a rerun with
   // other settings is refused instead of resumed (tools/pipeline/folder_settings.h). --count may
   // grow: the characters already finished are kept.
@@ -219,7 +224,7 @@ void run_crowd(CrowdArgs& a) {
                                    {"outfits", a.outfits.empty() || a.outfits == "default" ? a.outfits
                                                                                            : file_fingerprint(a.outfits)}};
   if (!a.outfits.empty()) settings["lods"] = a.lods;
-  if (a.lod_corrections) settings["lod_corrections"] = true;   // absent when off: older folders still resume
+  if (kit && kit->lod_corrections) settings["lod_corrections"] = true;
   ResumableFolder folder(out, "crowd.json", settings, a.force, [](const std::string& n) {
     return n == "crowd.csv" || n == "crowd.png" || n == "outfits.csv" || n == "crowd.html" || n == "three" ||
            n.rfind("char_", 0) == 0;
