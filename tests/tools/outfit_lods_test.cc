@@ -554,7 +554,8 @@ TEST(OutfitLods, BadLodsValueExitsTwoAndWritesNothing) {
 }
 
 // crowd --lod-corrections corrects levels that must exist: without --outfits, or with --lods none,
-// it is refused before anything is read or written (exit 2, one line naming the option).
+// it is refused before anything is read or written (exit 2, one line naming the option); so is
+// --lod-corrections with --no-lod-corrections.
 TEST(OutfitLods, LodCorrectionsWithoutLevelsExitTwoAndWriteNothing) {
   if (!fs::exists(BODYMODEL_EXE)) GTEST_SKIP() << "bodymodel not built";
   fixtures::TempDir tmp;
@@ -565,6 +566,11 @@ TEST(OutfitLods, LodCorrectionsWithoutLevelsExitTwoAndWriteNothing) {
     EXPECT_NE(r.output.find("--lod-corrections: needs --outfits and --lods default"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(tmp / "out")) << extra;
   }
+  const auto both = fixtures::run_cli("crowd missing.npz --bvh missing.bvh --outfits default --lod-corrections "
+                                      "--no-lod-corrections --out " + (tmp / "out").string());
+  EXPECT_EQ(both.exit_code, 2) << both.output;
+  EXPECT_NE(both.output.find("--lod-corrections and --no-lod-corrections: give one"), std::string::npos) << both.output;
+  EXPECT_FALSE(fs::exists(tmp / "out"));
 }
 
 // The crowd viewer (tools/viewer/crowd.html) in headless Chromium with three.js: 1000 animated
