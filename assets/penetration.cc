@@ -168,12 +168,13 @@ int push_face_samples(const Eigen::MatrixX3d& X, const Eigen::MatrixX3i& GF, con
     if (!ds.visible[j] || ds.signed_distance[j] >= -face_depth) continue;
     const double need = clearance - ds.signed_distance[j];
     const double* b = kAt[j % 4];
+    const Eigen::Index f = faces[static_cast<size_t>(j / 4)];
     double along = 0;  // how far the sample moves along its normal per mm of every corner's push
     for (int k = 0; k < 3; ++k)
-      if (b[k] > 0) along += b[k] * std::max(0.0, d.normal.row(GF(faces[static_cast<size_t>(j / 4)], k)).dot(ds.normal.row(j)));
+      if (b[k] > 0) along += b[k] * std::max(0.0, d.normal.row(GF(f, k)).dot(ds.normal.row(j)));
     const double m = std::min(need / std::max(along, 1e-9), 3.0 * need);
     for (int k = 0; k < 3; ++k) {
-      const int c = GF(faces[static_cast<size_t>(j / 4)], k);
+      const int c = GF(f, k);
       if (b[k] > 0 && m > F.row(c).norm()) F.row(c) = m * d.normal.row(c);
     }
     ++pushed;

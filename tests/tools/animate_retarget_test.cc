@@ -92,7 +92,6 @@ TEST(AnimateRetarget, CmuFingersKeepTheirRestPoseWhenAnimating) {
   EXPECT_GT(on.driven_bone_count(), off.driven_bone_count());
 }
 
-
 // cgspeed's CMU conversions start with the rest T-pose one frame before the motion (12_03: the
 // upper arms turn about 80° from frame 0 to frame 1, about 1° a frame after it). retarget_clip
 // drops that frame; the Poser-style clips (02_02, 03_03) start with motion and keep every frame.

@@ -35,8 +35,9 @@ struct ClipPoses {
 int lead_in_frames(const std::vector<Pose>& poses, double* jump_deg = nullptr);
 
 // Throws InputError naming `what` and listing the clip joints that no map knows when the clip
-// cannot be mapped onto the MakeHuman skeleton. A lead-in first frame (lead_in_frames) is dropped. `options` for clips that need a retarget map
-// (its apply_root_translation is set from with_translation).
+// cannot be mapped onto the MakeHuman skeleton. A lead-in first frame (lead_in_frames) is dropped.
+// `options` for clips that need a retarget map (its apply_root_translation is set from
+// with_translation).
 ClipPoses retarget_clip(const BvhMotion& clip, const Skeleton& skeleton, const std::filesystem::path& makehuman_dir,
                         bool with_translation, const std::string& what,
                         RetargetOptions options = RetargetOptions::for_animation());
